@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Times the Rust grasp analysis (criterion) and the Python/Qhull reference on identical cases,
+# in the same run on the same machine. Usage: bench/compare.sh [criterion filter]
+# Results: target/criterion (Rust) and the JSON lines printed at the end (Python).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$root"
+export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
+scripts/setup.sh
+py="$(scripts/setup-python.sh | tail -n 1)"
+cases="$CARGO_TARGET_DIR/bench-cases.json"
+echo "== Rust (criterion, single thread)" >&2
+ICRFLOW_BENCH_CASES="$cases" cargo bench -p icrflow-grasp --bench quality -- "$@" 2>&1 \
+    | grep -E '^grasp/|time:|OWS points' >&2
+echo "== Python reference (numpy + scipy Qhull), same cases" >&2
+"$py" bench/reference_qhull.py bench "$cases" --repeat 50

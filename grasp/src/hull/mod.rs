@@ -1,0 +1,312 @@
+//! Convex hulls in 3 and 6 dimensions, as an H-representation with facet-vertex incidence.
+//!
+//! # Why Qhull
+//! The hulls here are small (the `n x s` primitive wrenches of a grasp, in R^3 or R^6) but
+//! their input is degenerate by construction: the `s` edges of one linearised friction cone
+//! lie on a 2-flat, so many facets of a 6D grasp hull are not simplices, and duplicate or
+//! coplanar points are the rule. Qhull (Barber, Dobkin & Huhdanpaa 1996) is the field's
+//! standard for exactly this: it merges coplanar facets with a bounded error and reports
+//! degenerate input as an error value instead of returning a wrong hull. We call it through
+//! the `qhull` crate (bundled Qhull sources, safe Rust API). Its default options are used,
+//! which in 5D and up include exact pre-merges (`Qx`), so each facet of [`Hull`] is a merged
+//! facet whose vertex list is the full set of input points on it.
+//!
+//! # Conventions
+//! Facet `f` is the half-space `a_f . x <= b_f` with `a_f` a unit outward normal. Vertex and
+//! facet-vertex indices refer to the input points.
+
+mod qhull;
+
+use crate::math::Real;
+
+/// Why no hull could be built. A lower-dimensional input is an expected outcome that callers
+/// branch on (a grasp whose wrenches span a subspace is not force closure).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HullError {
+    /// The dimension is not supported.
+    #[error("convex hulls are computed in 2 to 8 dimensions, not {dim}")]
+    Dimension {
+        /// The dimension asked for.
+        dim: usize,
+    },
+    /// The coordinate buffer is not a whole number of points.
+    #[error("{len} coordinates are not a whole number of {dim}-dimensional points")]
+    Ragged {
+        /// Number of coordinates.
+        len: usize,
+        /// Dimension.
+        dim: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("point {index} has a non-finite coordinate")]
+    NonFinite {
+        /// Index of the point.
+        index: usize,
+    },
+    /// The points span an affine subspace of lower dimension (this includes too few points).
+    #[error("the {count} points span an affine subspace of dimension {rank} < {dim}")]
+    Degenerate {
+        /// Number of points.
+        count: usize,
+        /// Dimension of their affine hull.
+        rank: usize,
+        /// Dimension of the space.
+        dim: usize,
+    },
+    /// Qhull failed for another reason (its message is kept).
+    #[error("qhull failed: {message}")]
+    Backend {
+        /// Qhull's error text.
+        message: String,
+    },
+}
+
+/// A full-dimensional convex polytope: facets `a_f . x <= b_f` and their vertices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hull {
+    dim: usize,
+    normals: Vec<Real>,
+    offsets: Vec<Real>,
+    facet_offsets: Vec<u32>,
+    facet_indices: Vec<u32>,
+    vertices: Vec<u32>,
+}
+
+impl Hull {
+    /// Builds the convex hull of `points` (row-major, `dim` coordinates per point).
+    pub fn new(points: &[Real], dim: usize) -> Result<Self, HullError> {
+        if !(2..=8).contains(&dim) {
+            return Err(HullError::Dimension { dim });
+        }
+        if !points.len().is_multiple_of(dim) {
+            return Err(HullError::Ragged {
+                len: points.len(),
+                dim,
+            });
+        }
+        if let Some(i) = points.iter().position(|x| !x.is_finite()) {
+            return Err(HullError::NonFinite { index: i / dim });
+        }
+        let count = points.len() / dim;
+        let rank = affine_rank(points, dim);
+        if rank < dim {
+            return Err(HullError::Degenerate { count, rank, dim });
+        }
+        qhull::hull(points, dim)
+    }
+
+    /// Dimension of the space.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// Number of facets.
+    pub fn facet_count(&self) -> usize {
+        self.offsets.len()
+    }
+
+    /// Outward unit normals, row-major (`facet_count x dim`).
+    pub fn normals(&self) -> &[Real] {
+        &self.normals
+    }
+
+    /// Outward unit normal of facet `f`.
+    pub fn normal(&self, f: usize) -> &[Real] {
+        &self.normals[f * self.dim..(f + 1) * self.dim]
+    }
+
+    /// Offsets `b_f` (signed distance of each facet hyperplane from the origin).
+    pub fn offsets(&self) -> &[Real] {
+        &self.offsets
+    }
+
+    /// Input indices of the vertices of facet `f`.
+    pub fn facet_vertices(&self, f: usize) -> &[u32] {
+        &self.facet_indices[self.facet_offsets[f] as usize..self.facet_offsets[f + 1] as usize]
+    }
+
+    /// Input indices of the hull's vertices, ascending.
+    pub fn vertices(&self) -> &[u32] {
+        &self.vertices
+    }
+
+    /// Largest violation `max_f (a_f . x - b_f)`: negative inside, positive outside.
+    pub fn violation(&self, x: &[Real]) -> Real {
+        self.normals
+            .chunks_exact(self.dim)
+            .zip(&self.offsets)
+            .map(|(a, b)| dot(a, x) - b)
+            .fold(Real::NEG_INFINITY, Real::max)
+    }
+
+    /// For each vertex (by input index), the facets it lies on, as a map from input index to
+    /// facet list (`None` for input points that are not vertices).
+    pub fn vertex_facets(&self, input_count: usize) -> Vec<Vec<u32>> {
+        let mut out = vec![Vec::new(); input_count];
+        for f in 0..self.facet_count() {
+            for &v in self.facet_vertices(f) {
+                out[v as usize].push(f as u32);
+            }
+        }
+        out
+    }
+
+    fn from_parts(
+        dim: usize,
+        normals: Vec<Real>,
+        offsets: Vec<Real>,
+        facets: Vec<Vec<u32>>,
+    ) -> Self {
+        let mut facet_offsets = Vec::with_capacity(facets.len() + 1);
+        let mut facet_indices = Vec::new();
+        facet_offsets.push(0);
+        for mut f in facets {
+            f.sort_unstable();
+            facet_indices.extend_from_slice(&f);
+            facet_offsets.push(facet_indices.len() as u32);
+        }
+        let mut vertices = facet_indices.clone();
+        vertices.sort_unstable();
+        vertices.dedup();
+        Self {
+            dim,
+            normals,
+            offsets,
+            facet_offsets,
+            facet_indices,
+            vertices,
+        }
+    }
+}
+
+/// Dot product of two equal-length slices.
+pub(crate) fn dot(a: &[Real], b: &[Real]) -> Real {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Dimension of the affine hull of the points, by Gram-Schmidt with a relative tolerance.
+pub fn affine_rank(points: &[Real], dim: usize) -> usize {
+    let count = points.len() / dim;
+    if count == 0 {
+        return 0;
+    }
+    let origin = &points[..dim];
+    let scale = points
+        .chunks_exact(dim)
+        .map(|p| {
+            p.iter()
+                .zip(origin)
+                .map(|(x, o)| (x - o).abs())
+                .fold(0.0, Real::max)
+        })
+        .fold(0.0, Real::max);
+    if scale == 0.0 {
+        return 0;
+    }
+    let tol = 1e-10 * scale;
+    let mut basis: Vec<Vec<Real>> = Vec::with_capacity(dim);
+    // Greedy: repeatedly add the point whose residual after projection is largest.
+    let mut residuals: Vec<Vec<Real>> = points
+        .chunks_exact(dim)
+        .map(|p| p.iter().zip(origin).map(|(x, o)| x - o).collect())
+        .collect();
+    while basis.len() < dim {
+        let (best, norm) = residuals
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (i, dot(r, r).sqrt()))
+            .fold((0, 0.0), |acc, x| if x.1 > acc.1 { x } else { acc });
+        if norm <= tol {
+            break;
+        }
+        let e: Vec<Real> = residuals[best].iter().map(|x| x / norm).collect();
+        for r in &mut residuals {
+            let c = dot(r, &e);
+            for (ri, ei) in r.iter_mut().zip(&e) {
+                *ri -= c * ei;
+            }
+        }
+        basis.push(e);
+    }
+    basis.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(dim: usize) -> Vec<Real> {
+        let mut pts = Vec::new();
+        for mask in 0..(1u32 << dim) {
+            for k in 0..dim {
+                pts.push(if mask >> k & 1 == 1 { 1.0 } else { -1.0 });
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn cube_hulls_have_2d_facets_at_distance_one() {
+        for dim in [3, 6] {
+            let pts = cube(dim);
+            let hull = Hull::new(&pts, dim).unwrap();
+            assert_eq!(hull.facet_count(), 2 * dim, "dim {dim}");
+            for f in 0..hull.facet_count() {
+                assert!((hull.offsets()[f] - 1.0).abs() < 1e-12);
+                // A merged cube facet has 2^(dim-1) vertices.
+                assert_eq!(hull.facet_vertices(f).len(), 1 << (dim - 1));
+            }
+            assert_eq!(hull.vertices().len(), 1 << dim);
+            for p in pts.chunks_exact(dim) {
+                assert!(hull.violation(p) <= 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn interior_and_duplicate_points_are_not_vertices() {
+        let mut pts = cube(3);
+        pts.extend_from_slice(&[0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0]);
+        let hull = Hull::new(&pts, 3).unwrap();
+        assert!(!hull.vertices().contains(&8));
+        assert!(!hull.vertices().contains(&9));
+        assert_eq!(hull.facet_count(), 6);
+    }
+
+    #[test]
+    fn flat_input_is_a_status_not_a_panic() {
+        // Six points in a 3-flat of R^6.
+        let mut pts = cube(3);
+        pts = pts
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 0.0, 0.0, 0.0])
+            .collect();
+        match Hull::new(&pts, 6) {
+            Err(HullError::Degenerate { rank, dim, .. }) => assert_eq!((rank, dim), (3, 6)),
+            other => panic!("expected a degenerate status, got {other:?}"),
+        }
+        assert!(matches!(
+            Hull::new(&[0.0, 0.0, f64::NAN, 1.0, 0.0, 0.0], 3),
+            Err(HullError::NonFinite { index: 0 })
+        ));
+        assert!(matches!(
+            Hull::new(&[0.0; 5], 3),
+            Err(HullError::Ragged { .. })
+        ));
+        assert!(matches!(
+            Hull::new(&[], 3),
+            Err(HullError::Degenerate { rank: 0, .. })
+        ));
+    }
+
+    #[test]
+    fn affine_rank_counts_dimensions() {
+        assert_eq!(affine_rank(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0], 3), 0);
+        assert_eq!(
+            affine_rank(&[0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 2.0, 4.0, 6.0], 3),
+            1
+        );
+        assert_eq!(affine_rank(&cube(3), 3), 3);
+    }
+}

@@ -1,0 +1,269 @@
+//! Independent contact regions with a quality margin alpha (paper II-B, III-B; DESIGN.md).
+//!
+//! For a force-closure grasp with hull `H(GWS) = {w : a_f . w <= b_f}` and OWS support
+//! `h_f`, the search hyperplane of facet `f` is `a_f . w = alpha h_f`, with positive side
+//! `H_f+ = {w : a_f . w >= alpha h_f}`. Every hull vertex `omega` that is a primitive wrench
+//! of contact `i` has a search zone `Z_omega`, the intersection of `H_f+` over the facets `f`
+//! that have `omega` as a vertex. A candidate point `q` satisfies contact `i`'s zone rule when
+//! every zone of contact `i` holds at least one of `q`'s primitive wrenches (up to the
+//! absolute tolerance of the evaluation). `ICR_i` is the connected set of such candidates
+//! containing the contact, grown breadth-first over the neighbourhood graph, so only points
+//! near the contact are ever tested.
+//!
+//! Why the rule keeps the margin: every direction `u` lies in the normal cone of some vertex
+//! `omega`, `u = sum lambda_f a_f` over the facets at `omega` with `lambda_f >= 0`. A new
+//! contact with a wrench `w'` in `Z_omega` gives `u . w' >= alpha sum lambda_f h_f >=
+//! alpha h(u)` (the support function is sublinear), so the new grasp's support is at least
+//! alpha times the OWS support in every direction, i.e. `alpha OWS` lies inside the new
+//! `H(GWS)`: any pick of one point per region has quality >= alpha.
+
+use std::collections::VecDeque;
+
+use crate::hull::dot;
+use crate::math::Real;
+use crate::quality::{Evaluation, GraspProblem};
+
+/// Why no regions were computed. These are grasp outcomes the caller branches on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum IcrError {
+    /// The grasp is not force closure, so there is no margin to keep.
+    #[error("the grasp is not force closure")]
+    NotForceClosure,
+    /// The margin asked for exceeds the grasp's own quality.
+    #[error("the margin alpha = {alpha} exceeds the grasp's quality alpha* = {quality}")]
+    MarginAboveQuality {
+        /// The margin asked for.
+        alpha: Real,
+        /// The grasp's quality.
+        quality: Real,
+    },
+    /// The margin is negative or not finite.
+    #[error("the margin alpha must be finite and >= 0, got {alpha}")]
+    BadMargin {
+        /// The value given.
+        alpha: Real,
+    },
+    /// The evaluation does not belong to these contacts.
+    #[error(
+        "the evaluation has {wrenches} wrenches, but {contacts} contacts of {edges} edges were given"
+    )]
+    Mismatch {
+        /// Wrenches in the evaluation.
+        wrenches: usize,
+        /// Contacts given.
+        contacts: usize,
+        /// Cone edges.
+        edges: usize,
+    },
+}
+
+/// The independent contact region of one contact.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// The contact's candidate index.
+    pub contact: usize,
+    /// Candidate indices in the region, ascending (the contact included).
+    pub members: Vec<u32>,
+    /// Number of search zones of the contact (its primitive wrenches that are hull vertices).
+    pub zones: usize,
+}
+
+/// The search zones of one contact: for each zone, the facets whose half-spaces intersect.
+struct Zones {
+    /// Facets used by any zone of the contact (indices into the hull).
+    facets: Vec<u32>,
+    /// Rows of `facets` per zone (CSR over positions in `facets`).
+    offsets: Vec<usize>,
+    members: Vec<usize>,
+}
+
+impl GraspProblem {
+    /// The ICRs of `contacts` (candidate indices, one per finger) with margin `alpha`, given
+    /// the evaluation of that grasp from [`GraspProblem::evaluate`].
+    pub fn icrs(
+        &self,
+        contacts: &[usize],
+        eval: &Evaluation,
+        alpha: Real,
+    ) -> Result<Vec<Region>, IcrError> {
+        if !alpha.is_finite() || alpha < 0.0 {
+            return Err(IcrError::BadMargin { alpha });
+        }
+        let s = self.model().edges();
+        let d = self.dim();
+        if eval.wrenches.len() != contacts.len() * s * d {
+            return Err(IcrError::Mismatch {
+                wrenches: eval.wrenches.len() / d,
+                contacts: contacts.len(),
+                edges: s,
+            });
+        }
+        let Some(hull) = eval.hull.as_ref().filter(|_| eval.force_closure()) else {
+            return Err(IcrError::NotForceClosure);
+        };
+        if alpha > eval.quality {
+            return Err(IcrError::MarginAboveQuality {
+                alpha,
+                quality: eval.quality,
+            });
+        }
+        let thresholds: Vec<Real> = eval.support.iter().map(|h| alpha * h).collect();
+        let vertex_facets = hull.vertex_facets(contacts.len() * s);
+        let mut visited = vec![u32::MAX; self.candidates().points.len()];
+        let mut regions = Vec::with_capacity(contacts.len());
+        let mut products = Vec::new();
+        for (i, &contact) in contacts.iter().enumerate() {
+            let zones = Self::zones_of(&vertex_facets[i * s..(i + 1) * s]);
+            let normals: Vec<Real> = zones
+                .facets
+                .iter()
+                .flat_map(|&f| hull.normal(f as usize).iter().copied())
+                .collect();
+            let limits: Vec<Real> = zones
+                .facets
+                .iter()
+                .map(|&f| thresholds[f as usize] - eval.tolerance)
+                .collect();
+            let mut members = Vec::new();
+            let mut queue = VecDeque::from([contact]);
+            visited[contact] = i as u32;
+            while let Some(q) = queue.pop_front() {
+                if !self.satisfies(q, &zones, &normals, &limits, &mut products) {
+                    continue;
+                }
+                members.push(q as u32);
+                for &nb in self.candidates().adjacency.neighbours(q) {
+                    if visited[nb as usize] != i as u32 {
+                        visited[nb as usize] = i as u32;
+                        queue.push_back(nb as usize);
+                    }
+                }
+            }
+            members.sort_unstable();
+            regions.push(Region {
+                contact,
+                members,
+                zones: zones.offsets.len() - 1,
+            });
+        }
+        Ok(regions)
+    }
+
+    /// Groups the facets at each of a contact's vertices into zones.
+    fn zones_of(vertex_facets: &[Vec<u32>]) -> Zones {
+        let mut facets: Vec<u32> = vertex_facets.iter().flatten().copied().collect();
+        facets.sort_unstable();
+        facets.dedup();
+        let mut offsets = vec![0];
+        let mut members = Vec::new();
+        for vf in vertex_facets.iter().filter(|vf| !vf.is_empty()) {
+            for f in vf {
+                // `facets` is sorted and holds every f.
+                if let Ok(pos) = facets.binary_search(f) {
+                    members.push(pos);
+                }
+            }
+            offsets.push(members.len());
+        }
+        Zones {
+            facets,
+            offsets,
+            members,
+        }
+    }
+
+    /// Whether candidate `q` has a primitive wrench in every zone.
+    fn satisfies(
+        &self,
+        q: usize,
+        zones: &Zones,
+        normals: &[Real],
+        limits: &[Real],
+        products: &mut Vec<Real>,
+    ) -> bool {
+        let d = self.dim();
+        let wrenches = self.candidate_wrenches(q);
+        let s = wrenches.len() / d;
+        // products[j * F + f] = a_f . w_j - limit_f
+        let nf = zones.facets.len();
+        products.clear();
+        for w in wrenches.chunks_exact(d) {
+            for (a, lim) in normals.chunks_exact(d).zip(limits) {
+                products.push(dot(a, w) - lim);
+            }
+        }
+        zones.offsets.windows(2).all(|z| {
+            let rows = &zones.members[z[0]..z[1]];
+            (0..s).any(|j| rows.iter().all(|&f| products[j * nf + f] >= 0.0))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quality::tests::planar_sphere_problem;
+
+    #[test]
+    fn paper_grasp_regions_contain_their_contacts_and_keep_the_margin() {
+        let p = planar_sphere_problem(0.3);
+        let contacts = [6, 66, 28];
+        let e = p.evaluate(&contacts).unwrap();
+        let alpha = 0.1;
+        let regions = p.icrs(&contacts, &e, alpha).unwrap();
+        assert_eq!(regions.len(), 3);
+        for (r, &c) in regions.iter().zip(&contacts) {
+            assert!(r.members.contains(&(c as u32)));
+            assert!(r.members.len() > 1, "region of {c} is only the contact");
+            assert!(r.members.len() < 72);
+        }
+        // Every combination keeps the margin (exhaustive on the 72-point ring).
+        let mut worst = Real::INFINITY;
+        for &a in &regions[0].members {
+            for &b in &regions[1].members {
+                for &c in &regions[2].members {
+                    let q = p
+                        .evaluate(&[a as usize, b as usize, c as usize])
+                        .unwrap()
+                        .quality;
+                    worst = worst.min(q);
+                }
+            }
+        }
+        assert!(worst >= alpha - 1e-9, "worst pick has quality {worst}");
+    }
+
+    #[test]
+    fn margin_above_quality_and_non_closure_are_statuses() {
+        let p = planar_sphere_problem(0.3);
+        let e = p.evaluate(&[6, 66, 28]).unwrap();
+        assert!(matches!(
+            p.icrs(&[6, 66, 28], &e, e.quality * 1.01),
+            Err(IcrError::MarginAboveQuality { .. })
+        ));
+        let low = planar_sphere_problem(0.03);
+        let e = low.evaluate(&[6, 66, 28]).unwrap();
+        assert_eq!(
+            low.icrs(&[6, 66, 28], &e, 0.01),
+            Err(IcrError::NotForceClosure)
+        );
+        assert!(matches!(
+            p.icrs(&[6, 66], &e, 0.1),
+            Err(IcrError::Mismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn zero_margin_regions_are_at_least_as_large() {
+        let p = planar_sphere_problem(0.3);
+        let contacts = [6, 66, 28];
+        let e = p.evaluate(&contacts).unwrap();
+        let tight = p.icrs(&contacts, &e, 0.9 * e.quality).unwrap();
+        let loose = p.icrs(&contacts, &e, 0.0).unwrap();
+        for (t, l) in tight.iter().zip(&loose) {
+            assert!(t.members.iter().all(|m| l.members.contains(m)));
+            assert!(l.members.len() >= t.members.len());
+        }
+    }
+}

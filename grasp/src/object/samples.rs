@@ -1,0 +1,283 @@
+//! Compressed index lists and candidate contact points.
+
+use std::f64::consts::{PI, TAU};
+
+use crate::math::{Real, Vec3};
+
+/// Compressed lists of `u32` (CSR layout), shared by [`Adjacency`] and [`Polygons`].
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+struct Csr {
+    /// `offsets[i]..offsets[i + 1]` is the range of list `i` in `indices`; `offsets[0] == 0`.
+    offsets: Vec<usize>,
+    indices: Vec<u32>,
+}
+
+impl Csr {
+    fn from_lists(lists: &[Vec<u32>]) -> Self {
+        let mut offsets = Vec::with_capacity(lists.len() + 1);
+        offsets.push(0);
+        let mut indices = Vec::with_capacity(lists.iter().map(Vec::len).sum());
+        for list in lists {
+            indices.extend_from_slice(list);
+            offsets.push(indices.len());
+        }
+        Self { offsets, indices }
+    }
+
+    fn get(&self, i: usize) -> &[u32] {
+        match (self.offsets.get(i), self.offsets.get(i + 1)) {
+            (Some(&a), Some(&b)) => &self.indices[a..b],
+            _ => &[],
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+}
+
+/// Compressed adjacency lists (CSR): for each node, the indices of its neighbours.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Adjacency(Csr);
+
+impl Adjacency {
+    /// Builds the compressed form of `lists` (`lists[i]` = neighbours of node `i`).
+    pub fn from_lists(lists: &[Vec<u32>]) -> Self {
+        Self(Csr::from_lists(lists))
+    }
+
+    /// The neighbours of node `i` (an empty slice if `i >= self.len()`).
+    pub fn neighbours(&self, i: usize) -> &[u32] {
+        self.0.get(i)
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A list of polygons (CSR of vertex indices), each counter-clockwise seen from outside.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Polygons(Csr);
+
+impl Polygons {
+    /// Builds the compressed form of `faces` (`faces[i]` = vertex indices of polygon `i`).
+    pub fn from_lists(faces: &[Vec<u32>]) -> Self {
+        Self(Csr::from_lists(faces))
+    }
+
+    /// The vertex indices of face `i` (an empty slice if `i >= self.len()`).
+    pub fn face(&self, i: usize) -> &[u32] {
+        self.0.get(i)
+    }
+
+    /// Iterates over the faces in order.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = &[u32]> + '_ {
+        (0..self.len()).map(|i| self.face(i))
+    }
+
+    /// Number of faces.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there are no faces.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Candidate contact points on a surface, with a neighbourhood graph for region growing.
+///
+/// All four fields have one entry per sample.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceSamples {
+    /// Positions, in the body frame.
+    pub points: Vec<Vec3>,
+    /// Outward unit normals.
+    pub normals: Vec<Vec3>,
+    /// Face areas; for a planar section, the arc length each sample stands for.
+    pub areas: Vec<Real>,
+    /// Neighbourhood graph: faces sharing an edge; for a section, previous/next along a loop.
+    pub adjacency: Adjacency,
+}
+
+impl SurfaceSamples {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The sample nearest to `p` and its distance; `None` if there are no samples or `p` is
+    /// not finite.
+    pub fn nearest(&self, p: &Vec3) -> Option<(usize, Real)> {
+        if !p.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        self.points
+            .iter()
+            .map(|q| (q - p).norm_squared())
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, d2)| (i, d2.sqrt()))
+    }
+}
+
+/// The object's candidates in the hand's plane: the horizontal plane `z = height` through the
+/// centre of mass.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Section {
+    /// The samples; `areas` are arc lengths, `adjacency` links previous and next along each
+    /// closed loop.
+    pub samples: SurfaceSamples,
+    /// `atan2(y - com.y, x - com.x)` of each point, in radians in `[0, 2 pi)`.
+    pub angles: Vec<Real>,
+    /// Height of the plane (the z coordinate of the centre of mass).
+    pub height: Real,
+}
+
+impl Section {
+    /// The sample whose angle is nearest to `angle_rad` (any real; taken modulo 2 pi) and the
+    /// angular distance to it, in `[0, pi]`; `None` if the section is empty or the angle is not
+    /// finite.
+    pub fn nearest_angle(&self, angle_rad: Real) -> Option<(usize, Real)> {
+        if !angle_rad.is_finite() {
+            return None;
+        }
+        self.angles
+            .iter()
+            .map(|&a| angular_distance(a, angle_rad))
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+}
+
+/// Distance between two angles on the circle, in `[0, pi]`.
+pub(crate) fn angular_distance(a: Real, b: Real) -> Real {
+    let d = (a - b).rem_euclid(TAU);
+    d.min(TAU - d).clamp(0.0, PI)
+}
+
+/// `angle` reduced to `[0, 2 pi)`.
+pub(crate) fn wrap_angle(angle: Real) -> Real {
+    let a = angle.rem_euclid(TAU);
+    // rem_euclid of a tiny negative number rounds up to exactly 2 pi.
+    if a >= TAU { 0.0 } else { a }
+}
+
+/// The polar angle of `p` about `centre` in the xy plane, in `[0, 2 pi)`.
+pub(crate) fn polar_angle(p: &Vec3, centre: &Vec3) -> Real {
+    wrap_angle((p.y - centre.y).atan2(p.x - centre.x))
+}
+
+/// Previous/next adjacency of consecutive samples forming closed loops; `loops` are the
+/// lengths of the loops, whose samples are stored one loop after the other.
+pub(crate) fn loop_adjacency(loops: &[usize]) -> Adjacency {
+    let mut lists = Vec::with_capacity(loops.iter().sum());
+    let mut start = 0;
+    for &n in loops {
+        for k in 0..n {
+            let prev = start + (k + n - 1) % n;
+            let next = start + (k + 1) % n;
+            let mut list: Vec<u32> = Vec::with_capacity(2);
+            for j in [prev, next] {
+                let j = j as u32;
+                if j as usize != start + k && !list.contains(&j) {
+                    list.push(j);
+                }
+            }
+            lists.push(list);
+        }
+        start += n;
+    }
+    Adjacency::from_lists(&lists)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adjacency_round_trips_lists_and_tolerates_bad_index() {
+        let adj = Adjacency::from_lists(&[vec![1, 2], vec![], vec![0]]);
+        assert_eq!(adj.len(), 3);
+        assert!(!adj.is_empty());
+        assert_eq!(adj.neighbours(0), &[1, 2]);
+        assert_eq!(adj.neighbours(1), &[] as &[u32]);
+        assert_eq!(adj.neighbours(2), &[0]);
+        assert_eq!(adj.neighbours(3), &[] as &[u32]);
+        assert!(Adjacency::from_lists(&[]).is_empty());
+        assert!(Adjacency::default().is_empty());
+    }
+
+    #[test]
+    fn polygons_give_faces_in_order() {
+        let p = Polygons::from_lists(&[vec![0, 1, 2], vec![2, 1, 3, 4]]);
+        assert_eq!(p.len(), 2);
+        assert_eq!(p.face(1), &[2, 1, 3, 4]);
+        assert_eq!(p.iter().map(<[u32]>::len).collect::<Vec<_>>(), vec![3, 4]);
+        assert_eq!(p.face(2), &[] as &[u32]);
+    }
+
+    #[test]
+    fn loop_adjacency_links_previous_and_next() {
+        let adj = loop_adjacency(&[3, 2, 1]);
+        assert_eq!(adj.len(), 6);
+        assert_eq!(adj.neighbours(0), &[2, 1]);
+        assert_eq!(adj.neighbours(2), &[1, 0]);
+        assert_eq!(adj.neighbours(3), &[4]);
+        assert_eq!(adj.neighbours(4), &[3]);
+        assert_eq!(adj.neighbours(5), &[] as &[u32]);
+    }
+
+    #[test]
+    fn nearest_and_nearest_angle() {
+        let samples = SurfaceSamples {
+            points: vec![Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)],
+            normals: vec![Vec3::x(), Vec3::y()],
+            areas: vec![1.0, 1.0],
+            adjacency: loop_adjacency(&[2]),
+        };
+        let (i, d) = samples.nearest(&Vec3::new(0.0, 2.0, 0.0)).unwrap();
+        assert_eq!(i, 1);
+        assert!((d - 1.0).abs() < 1e-15);
+        assert_eq!(samples.nearest(&Vec3::new(Real::NAN, 0.0, 0.0)), None);
+        assert_eq!(SurfaceSamples::default().nearest(&Vec3::zeros()), None);
+
+        let section = Section {
+            samples,
+            angles: vec![0.0, PI / 2.0],
+            height: 0.0,
+        };
+        // -0.1 rad is 0.1 away from angle 0 across the wrap.
+        let (i, d) = section.nearest_angle(-0.1).unwrap();
+        assert_eq!(i, 0);
+        assert!((d - 0.1).abs() < 1e-12);
+        let (i, d) = section.nearest_angle(PI / 2.0 + TAU).unwrap();
+        assert_eq!(i, 1);
+        assert!(d < 1e-12);
+        assert_eq!(section.nearest_angle(Real::INFINITY), None);
+        assert_eq!(Section::default().nearest_angle(0.0), None);
+    }
+
+    #[test]
+    fn angles_wrap_into_range() {
+        assert_eq!(wrap_angle(-1e-20), 0.0);
+        assert!((wrap_angle(-PI / 2.0) - 1.5 * PI).abs() < 1e-15);
+        assert_eq!(wrap_angle(TAU), 0.0);
+        let c = Vec3::new(1.0, 1.0, 5.0);
+        assert!((polar_angle(&Vec3::new(1.0, 0.0, 0.0), &c) - 1.5 * PI).abs() < 1e-15);
+        assert!((angular_distance(0.1, TAU - 0.1) - 0.2).abs() < 1e-12);
+    }
+}

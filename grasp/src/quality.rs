@@ -1,0 +1,496 @@
+//! Force closure, the quality margin alpha* (paper eq. 6) and the Ferrari-Canny epsilon.
+//!
+//! A [`GraspProblem`] holds everything that depends only on the object and the contact model,
+//! computed once: the object wrenches `o_k` of every facet (the OWS generators) and the `s`
+//! primitive wrenches of every candidate contact point, all in the object's body frame. A
+//! rigid motion of the object moves its grasp wrench space and its object wrench space
+//! together, so alpha* is evaluated in the body frame.
+//!
+//! [`GraspProblem::evaluate`] builds `H(GWS)` (the hull of the contacts' primitive wrenches)
+//! and reports:
+//! - force closure: the hull is full-dimensional and the origin is strictly inside it, i.e.
+//!   every facet offset `b_f > tol` with `tol = 1e-9 * max |w|`;
+//! - epsilon (Ferrari-Canny, the L1 / "sum of forces <= 1" variant): `min_f b_f`, the radius
+//!   of the largest ball about the origin inside the hull; reported as 0 when the origin is on
+//!   the boundary within `tol`, negative when it is outside, and 0 for a degenerate hull, so
+//!   that `epsilon > 0` exactly when the grasp is force closure;
+//! - alpha*: `min_f b_f / h_f` over the facets with `h_f > 0`, where `h_f = max_k a_f . o_k` is
+//!   the support function of the OWS (never its hull). By convention alpha* = 0 for a grasp
+//!   that is not force closure: the literal eq. 6 can be positive for such a grasp when the
+//!   OWS is degenerate (a sphere's OWS has no torque), but a grasp that cannot resist some
+//!   wrench has no margin.
+//!
+//! The support function is one dense product `A O^T` (facets x OWS points) through faer,
+//! blocked over the OWS so the scratch stays in cache.
+
+use faer::{Accum, MatMut, MatRef, Par};
+
+use crate::hull::{Hull, HullError};
+use crate::math::{Real, Vec3};
+use crate::object::SurfaceSamples;
+use crate::wrench::{ContactModel, Space, WrenchFrame};
+
+/// Relative tolerance of the force-closure and ICR membership tests.
+pub const RELATIVE_TOLERANCE: Real = 1e-9;
+
+/// OWS points per block of the support-function product.
+const BLOCK: usize = 256;
+
+/// Errors building or querying a grasp problem (bad input; not grasp outcomes).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum GraspError {
+    /// A contact index does not name a candidate.
+    #[error("contact {contact} is candidate {index}, but there are only {count} candidates")]
+    ContactIndex {
+        /// Position of the contact in the list.
+        contact: usize,
+        /// The index given.
+        index: usize,
+        /// Number of candidates.
+        count: usize,
+    },
+    /// No contacts were given.
+    #[error("a grasp needs at least one contact")]
+    NoContacts,
+    /// The object has no facets to build the OWS from, or no candidates.
+    #[error("the object has no {what}")]
+    Empty {
+        /// What is missing.
+        what: &'static str,
+    },
+    /// Candidate data of different lengths.
+    #[error(
+        "candidate data disagree: {points} points, {normals} normals, {adjacency} adjacency lists"
+    )]
+    CandidateLengths {
+        /// Points.
+        points: usize,
+        /// Normals.
+        normals: usize,
+        /// Adjacency lists.
+        adjacency: usize,
+    },
+}
+
+/// Where the origin lies with respect to the hull of the contacts' primitive wrenches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Closure {
+    /// Strictly inside: force closure.
+    ForceClosure,
+    /// On the boundary within the tolerance: not force closure.
+    OriginOnBoundary,
+    /// Outside: not force closure.
+    OriginOutside,
+    /// The wrenches span only a subspace of dimension `rank`: not force closure.
+    Degenerate {
+        /// Dimension of the wrenches' affine hull.
+        rank: usize,
+    },
+}
+
+/// The result of evaluating one grasp.
+#[derive(Debug, Clone)]
+pub struct Evaluation {
+    /// Force-closure status.
+    pub closure: Closure,
+    /// alpha* (paper eq. 6); 0 unless force closure.
+    pub quality: Real,
+    /// Ferrari-Canny epsilon (L1); positive exactly when force closure.
+    pub epsilon: Real,
+    /// The grasp wrench space hull, when full-dimensional.
+    pub hull: Option<Hull>,
+    /// OWS support `h_f = max_k a_f . o_k` of each hull facet (empty without a hull).
+    pub support: Vec<Real>,
+    /// The contacts' primitive wrenches, contact-major (`contacts x s x dim`).
+    pub wrenches: Vec<Real>,
+    /// The facet attaining alpha*, if force closure.
+    pub limiting_facet: Option<usize>,
+    /// Absolute tolerance used for the closure test.
+    pub tolerance: Real,
+}
+
+impl Evaluation {
+    /// Whether the grasp is force closure.
+    pub fn force_closure(&self) -> bool {
+        self.closure == Closure::ForceClosure
+    }
+}
+
+/// Per-object, per-contact-model data for grasp evaluation, computed once.
+pub struct GraspProblem {
+    frame: WrenchFrame,
+    model: ContactModel,
+    /// Object wrenches, `dim x m`, column-major (one column per facet).
+    ows: Vec<Real>,
+    ows_count: usize,
+    candidates: SurfaceSamples,
+    /// Primitive wrenches of every candidate, `candidates x s x dim`.
+    candidate_wrenches: Vec<Real>,
+}
+
+impl GraspProblem {
+    /// Builds the problem from the OWS generators (every facet centre `l_k` with its outward
+    /// normal `n_k`) and the candidate contact points.
+    pub fn new(
+        ows_points: &[Vec3],
+        ows_normals: &[Vec3],
+        candidates: SurfaceSamples,
+        frame: WrenchFrame,
+        model: ContactModel,
+    ) -> Result<Self, GraspError> {
+        if ows_points.is_empty() || ows_points.len() != ows_normals.len() {
+            return Err(GraspError::Empty { what: "facets" });
+        }
+        let n = candidates.points.len();
+        if n == 0 {
+            return Err(GraspError::Empty {
+                what: "candidate contact points",
+            });
+        }
+        if candidates.normals.len() != n || candidates.adjacency.len() != n {
+            return Err(GraspError::CandidateLengths {
+                points: n,
+                normals: candidates.normals.len(),
+                adjacency: candidates.adjacency.len(),
+            });
+        }
+        let d = frame.dim();
+        let mut ows = vec![0.0; d * ows_points.len()];
+        for ((l, nk), col) in ows_points
+            .iter()
+            .zip(ows_normals)
+            .zip(ows.chunks_exact_mut(d))
+        {
+            frame.object_wrench(l, nk, col);
+        }
+        let s = model.edges();
+        let mut candidate_wrenches = vec![0.0; n * s * d];
+        for ((p, nq), out) in candidates
+            .points
+            .iter()
+            .zip(&candidates.normals)
+            .zip(candidate_wrenches.chunks_exact_mut(s * d))
+        {
+            frame.primitive_wrenches(p, nq, &model, out);
+        }
+        Ok(Self {
+            frame,
+            model,
+            ows,
+            ows_count: ows_points.len(),
+            candidates,
+            candidate_wrenches,
+        })
+    }
+
+    /// The wrench frame (centre, rho, space).
+    pub fn frame(&self) -> &WrenchFrame {
+        &self.frame
+    }
+
+    /// The contact model.
+    pub fn model(&self) -> &ContactModel {
+        &self.model
+    }
+
+    /// The wrench space.
+    pub fn space(&self) -> Space {
+        self.frame.space()
+    }
+
+    /// Dimension of the wrench space.
+    pub fn dim(&self) -> usize {
+        self.frame.dim()
+    }
+
+    /// The candidate contact points.
+    pub fn candidates(&self) -> &SurfaceSamples {
+        &self.candidates
+    }
+
+    /// Number of OWS generators.
+    pub fn ows_count(&self) -> usize {
+        self.ows_count
+    }
+
+    /// OWS generator `k` (object wrench of facet `k`).
+    pub fn ows_wrench(&self, k: usize) -> &[Real] {
+        let d = self.dim();
+        &self.ows[k * d..(k + 1) * d]
+    }
+
+    /// The `s` primitive wrenches of candidate `i` (`s x dim`, row-major).
+    pub fn candidate_wrenches(&self, i: usize) -> &[Real] {
+        let w = self.model.edges() * self.dim();
+        &self.candidate_wrenches[i * w..(i + 1) * w]
+    }
+
+    fn check_contacts(&self, contacts: &[usize]) -> Result<(), GraspError> {
+        if contacts.is_empty() {
+            return Err(GraspError::NoContacts);
+        }
+        let count = self.candidates.points.len();
+        match contacts.iter().enumerate().find(|(_, i)| **i >= count) {
+            Some((contact, &index)) => Err(GraspError::ContactIndex {
+                contact,
+                index,
+                count,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Evaluates the grasp with one contact at each of the given candidates.
+    pub fn evaluate(&self, contacts: &[usize]) -> Result<Evaluation, GraspError> {
+        self.check_contacts(contacts)?;
+        let mut wrenches = Vec::with_capacity(contacts.len() * self.candidate_wrenches(0).len());
+        for &c in contacts {
+            wrenches.extend_from_slice(self.candidate_wrenches(c));
+        }
+        Ok(self.evaluate_wrenches(wrenches))
+    }
+
+    /// Evaluates the grasp whose primitive wrenches are given (row-major, `dim` per wrench).
+    pub fn evaluate_wrenches(&self, wrenches: Vec<Real>) -> Evaluation {
+        let d = self.dim();
+        let scale = wrenches.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
+        let tolerance = RELATIVE_TOLERANCE * scale.max(Real::MIN_POSITIVE);
+        let hull = match Hull::new(&wrenches, d) {
+            Ok(h) => h,
+            Err(HullError::Degenerate { rank, .. }) => {
+                return Evaluation::without_hull(Closure::Degenerate { rank }, wrenches, tolerance);
+            }
+            Err(_) => {
+                // Non-finite wrenches cannot come from validated candidates; a backend failure
+                // on full-rank input is reported as a degenerate grasp rather than a quality.
+                return Evaluation::without_hull(
+                    Closure::Degenerate { rank: 0 },
+                    wrenches,
+                    tolerance,
+                );
+            }
+        };
+        let b_min = hull
+            .offsets()
+            .iter()
+            .copied()
+            .fold(Real::INFINITY, Real::min);
+        let (closure, epsilon) = if b_min > tolerance {
+            (Closure::ForceClosure, b_min)
+        } else if b_min >= -tolerance {
+            (Closure::OriginOnBoundary, 0.0)
+        } else {
+            (Closure::OriginOutside, b_min)
+        };
+        let mut support = vec![0.0; hull.facet_count()];
+        self.support_function(hull.normals(), &mut support);
+        let mut quality = 0.0;
+        let mut limiting_facet = None;
+        if closure == Closure::ForceClosure {
+            quality = Real::INFINITY;
+            for (f, (&b, &h)) in hull.offsets().iter().zip(&support).enumerate() {
+                if h > 0.0 && b / h < quality {
+                    quality = b / h;
+                    limiting_facet = Some(f);
+                }
+            }
+        }
+        Evaluation {
+            closure,
+            quality,
+            epsilon,
+            hull: Some(hull),
+            support,
+            wrenches,
+            limiting_facet,
+            tolerance,
+        }
+    }
+
+    /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`
+    /// (`out.len()` rows of `dim`), as a blocked dense product.
+    pub fn support_function(&self, normals: &[Real], out: &mut [Real]) {
+        let d = self.dim();
+        let rows = out.len();
+        out.fill(Real::NEG_INFINITY);
+        if rows == 0 {
+            return;
+        }
+        let a = MatRef::from_row_major_slice(normals, rows, d);
+        let mut scratch = vec![0.0; rows * BLOCK];
+        let mut start = 0;
+        while start < self.ows_count {
+            let len = BLOCK.min(self.ows_count - start);
+            let o =
+                MatRef::from_column_major_slice(&self.ows[start * d..(start + len) * d], d, len);
+            let dst = MatMut::from_column_major_slice_mut(&mut scratch[..rows * len], rows, len);
+            faer::linalg::matmul::matmul(dst, Accum::Replace, a, o, 1.0, Par::Seq);
+            for col in scratch[..rows * len].chunks_exact(rows) {
+                for (m, &x) in out.iter_mut().zip(col) {
+                    if x > *m {
+                        *m = x;
+                    }
+                }
+            }
+            start += len;
+        }
+    }
+}
+
+impl Evaluation {
+    fn without_hull(closure: Closure, wrenches: Vec<Real>, tolerance: Real) -> Self {
+        Self {
+            closure,
+            quality: 0.0,
+            epsilon: 0.0,
+            hull: None,
+            support: Vec::new(),
+            wrenches,
+            limiting_facet: None,
+            tolerance,
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::object::Adjacency;
+
+    /// Quasi-uniform points on a sphere (Fibonacci lattice), with their radial normals.
+    pub(crate) fn fibonacci_sphere(count: usize, radius: Real) -> (Vec<Vec3>, Vec<Vec3>) {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let normals: Vec<Vec3> = (0..count)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as Real + 0.5) / count as Real;
+                let r = (1.0 - z * z).sqrt();
+                let phi = golden * i as Real;
+                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+            })
+            .collect();
+        (normals.iter().map(|n| n * radius).collect(), normals)
+    }
+
+    /// An equator ring of `count` points on a sphere, ring adjacency.
+    pub(crate) fn ring(count: usize, radius: Real) -> SurfaceSamples {
+        let normals: Vec<Vec3> = (0..count)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as Real / count as Real;
+                Vec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let lists: Vec<Vec<u32>> = (0..count)
+            .map(|k| vec![((k + count - 1) % count) as u32, ((k + 1) % count) as u32])
+            .collect();
+        SurfaceSamples {
+            points: normals.iter().map(|n| n * radius).collect(),
+            normals,
+            areas: vec![std::f64::consts::TAU * radius / count as Real; count],
+            adjacency: Adjacency::from_lists(&lists),
+        }
+    }
+
+    pub(crate) fn planar_sphere_problem(mu: Real) -> GraspProblem {
+        let r = 0.0475;
+        let (pts, nrm) = fibonacci_sphere(2000, r);
+        let frame = WrenchFrame::new(Vec3::zeros(), r, Space::Planar).unwrap();
+        GraspProblem::new(
+            &pts,
+            &nrm,
+            ring(72, r),
+            frame,
+            ContactModel::new(mu, 8).unwrap(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn paper_grasp_is_not_force_closure_with_mu_003_but_is_with_mu_03() {
+        // Contacts at 30, -30 and 140 degrees on the 72-point equator ring.
+        let contacts = [6, 66, 28];
+        let low = planar_sphere_problem(0.03).evaluate(&contacts).unwrap();
+        assert!(!low.force_closure(), "{:?}", low.closure);
+        assert_eq!(low.quality, 0.0);
+        assert!(low.epsilon <= 0.0);
+        let high = planar_sphere_problem(0.3).evaluate(&contacts).unwrap();
+        assert!(high.force_closure());
+        assert!(high.epsilon > 0.0);
+        assert!(
+            high.quality > 0.1 && high.quality < 1.0,
+            "alpha* = {}",
+            high.quality
+        );
+    }
+
+    #[test]
+    fn alpha_star_of_a_symmetric_planar_grasp_matches_the_closed_form() {
+        // Three contacts 120 degrees apart on a circle, frictionless limit mu -> small:
+        // the planar force hull is a triangle with inradius 1/2 ... checked against the
+        // facet formula: alpha* = min_f b_f / h_f, with h_f = |a_f,xy| for a circular OWS.
+        let p = planar_sphere_problem(0.3);
+        let e = p.evaluate(&[0, 24, 48]).unwrap();
+        assert!(e.force_closure());
+        let hull = e.hull.as_ref().unwrap();
+        let expected = (0..hull.facet_count())
+            .map(|f| {
+                let a = hull.normal(f);
+                hull.offsets()[f] / a[0].hypot(a[1])
+            })
+            .fold(Real::INFINITY, Real::min);
+        // The Fibonacci OWS approximates the circle to within its sampling.
+        assert!(
+            (e.quality - expected).abs() / expected < 2e-3,
+            "{} vs {}",
+            e.quality,
+            expected
+        );
+    }
+
+    #[test]
+    fn support_function_equals_brute_force() {
+        let p = planar_sphere_problem(0.3);
+        let dirs = [1.0, 0.0, 0.0, 0.0, -2.0, 0.5, 0.3, 0.3, 0.3];
+        let mut out = [0.0; 3];
+        p.support_function(&dirs, &mut out);
+        for (f, a) in dirs.chunks_exact(3).enumerate() {
+            let brute = (0..p.ows_count())
+                .map(|k| crate::hull::dot(a, p.ows_wrench(k)))
+                .fold(Real::NEG_INFINITY, Real::max);
+            assert!((out[f] - brute).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn bad_contact_indices_are_errors() {
+        let p = planar_sphere_problem(0.3);
+        assert!(matches!(
+            p.evaluate(&[0, 99]),
+            Err(GraspError::ContactIndex {
+                contact: 1,
+                index: 99,
+                count: 72
+            })
+        ));
+        assert!(matches!(p.evaluate(&[]), Err(GraspError::NoContacts)));
+    }
+
+    #[test]
+    fn two_contacts_in_6d_are_not_force_closure() {
+        let r = 0.05;
+        let (pts, nrm) = fibonacci_sphere(500, r);
+        let cand = SurfaceSamples {
+            points: pts.clone(),
+            normals: nrm.clone(),
+            areas: vec![1.0; pts.len()],
+            adjacency: Adjacency::from_lists(&vec![Vec::new(); pts.len()]),
+        };
+        let frame = WrenchFrame::new(Vec3::zeros(), r, Space::Spatial).unwrap();
+        let p =
+            GraspProblem::new(&pts, &nrm, cand, frame, ContactModel::new(0.5, 8).unwrap()).unwrap();
+        let e = p.evaluate(&[0, 499]).unwrap();
+        assert!(!e.force_closure());
+        assert_eq!(e.quality, 0.0);
+        assert!(e.epsilon <= 0.0);
+    }
+}

@@ -1,0 +1,130 @@
+//! Invariants of the grasp analysis on random grasps of spheres and meshes (proptest):
+//! - every input wrench is inside its hull;
+//! - alpha* by hull facets and support function equals alpha* by ray-shooting LPs;
+//! - alpha* is unchanged by a rigid motion of the object with its contacts;
+//! - epsilon > 0 exactly when the grasp is force closure.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use icrflow_grasp::lp::quality_by_lp;
+use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion, Vec3};
+use icrflow_grasp::object::Object;
+use icrflow_grasp::wrench::Space;
+use proptest::prelude::*;
+
+/// Small objects, so that one LP per OWS generator stays affordable.
+fn objects() -> &'static [Object] {
+    static OBJECTS: OnceLock<Vec<Object>> = OnceLock::new();
+    OBJECTS.get_or_init(|| {
+        vec![
+            Object::sphere(0.0475, 24, 12).unwrap(),
+            common::ellipsoid_mesh(20),
+            Object::cuboid(Vec3::new(0.04, 0.03, 0.025), 3).unwrap(),
+        ]
+    })
+}
+
+#[derive(Debug, Clone)]
+struct Grasp {
+    object: usize,
+    space: Space,
+    mu: Real,
+    edges: usize,
+    picks: Vec<prop::sample::Index>,
+}
+
+fn grasp() -> impl Strategy<Value = Grasp> {
+    (
+        0..3usize,
+        prop_oneof![Just(Space::Planar), Just(Space::Spatial)],
+        0.1..1.0f64,
+        prop_oneof![Just(4usize), Just(6), Just(8)],
+        prop::collection::vec(any::<prop::sample::Index>(), 2..=4),
+    )
+        .prop_map(|(object, space, mu, edges, picks)| Grasp {
+            object,
+            space,
+            mu,
+            edges,
+            picks,
+        })
+}
+
+fn contacts(g: &Grasp) -> (&'static Object, Vec<usize>) {
+    let object = &objects()[g.object];
+    let n = common::candidates(object, g.space).len();
+    (object, g.picks.iter().map(|i| i.index(n)).collect())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn every_wrench_is_inside_its_hull(g in grasp()) {
+        let (object, c) = contacts(&g);
+        let p = common::problem(object, g.space, g.mu, g.edges);
+        let e = p.evaluate(&c).unwrap();
+        if let Some(hull) = &e.hull {
+            for w in e.wrenches.chunks_exact(p.dim()) {
+                prop_assert!(hull.violation(w) <= e.tolerance, "violation {}", hull.violation(w));
+            }
+            for f in 0..hull.facet_count() {
+                let a = hull.normal(f);
+                prop_assert!((a.iter().map(|x| x * x).sum::<Real>().sqrt() - 1.0).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn alpha_star_by_hull_equals_alpha_star_by_lp(g in grasp()) {
+        let (object, c) = contacts(&g);
+        let p = common::problem(object, g.space, g.mu, g.edges);
+        let e = p.evaluate(&c).unwrap();
+        prop_assume!(e.force_closure());
+        let ows: Vec<Real> = (0..p.ows_count()).flat_map(|k| p.ows_wrench(k).to_vec()).collect();
+        let lp = quality_by_lp(&e.wrenches, &ows, p.dim()).unwrap();
+        prop_assert!(
+            (lp - e.quality).abs() <= 1e-6 * e.quality,
+            "hull {} lp {} ({:?})", e.quality, lp, g
+        );
+    }
+
+    #[test]
+    fn alpha_star_is_invariant_under_rigid_motion(
+        g in grasp(),
+        axis in (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64),
+        angle in -3.1..3.1f64,
+        shift in (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64),
+    ) {
+        let (object, c) = contacts(&g);
+        // Planar problems live in the horizontal plane: move them about z only.
+        let axis = match g.space {
+            Space::Planar => Vec3::z(),
+            Space::Spatial => Vec3::new(axis.0, axis.1, axis.2),
+        };
+        prop_assume!(axis.norm() > 0.1);
+        let rotation = UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle);
+        let motion = Isometry3::from_parts(Vec3::new(shift.0, shift.1, shift.2).into(), rotation);
+        let moved = object.transformed(&motion);
+        let before = common::problem(object, g.space, g.mu, g.edges).evaluate(&c).unwrap();
+        let after = common::posed_problem(&moved, rotation, g.space, g.mu, g.edges)
+            .evaluate(&c)
+            .unwrap();
+        prop_assert_eq!(before.force_closure(), after.force_closure());
+        prop_assert!(
+            (before.quality - after.quality).abs() <= 1e-8 * before.quality.max(1e-12),
+            "before {} after {}", before.quality, after.quality
+        );
+    }
+
+    #[test]
+    fn epsilon_is_positive_exactly_when_force_closure(g in grasp()) {
+        let (object, c) = contacts(&g);
+        let p = common::problem(object, g.space, g.mu, g.edges);
+        let e = p.evaluate(&c).unwrap();
+        prop_assert_eq!(e.epsilon > 0.0, e.force_closure(), "{:?} epsilon {}", e.closure, e.epsilon);
+        prop_assert_eq!(e.quality > 0.0, e.force_closure());
+    }
+}

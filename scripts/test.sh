@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Every test: sets up what the tests need (idempotent), then runs the whole suite in release
+# (one profile for tests and binaries).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$root"
+export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
+scripts/setup.sh
+export ICRFLOW_PYTHON="${ICRFLOW_PYTHON:-$(scripts/setup-python.sh | tail -n 1)}"
+cargo test --release --workspace "$@"

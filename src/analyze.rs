@@ -1,0 +1,322 @@
+//! `icrflow analyze CONFIG [--json]`.
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use icrflow_grasp::icr::IcrError;
+use icrflow_grasp::math::Real;
+use icrflow_grasp::object::Object;
+use icrflow_grasp::quality::{Closure, GraspProblem};
+use icrflow_grasp::wrench::{Space, WrenchFrame};
+use serde::Serialize;
+
+use crate::config::{Config, ContactSpec};
+
+/// The JSON report (and the data behind the text one).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub config: String,
+    pub object: String,
+    pub facets: usize,
+    pub candidates: usize,
+    pub space: &'static str,
+    pub friction: Real,
+    pub cone_edges: usize,
+    pub rho: Real,
+    pub alpha: Real,
+    pub force_closure: bool,
+    /// "force_closure", "origin_on_boundary", "origin_outside" or "degenerate".
+    pub closure: &'static str,
+    pub quality: Real,
+    pub epsilon: Real,
+    pub hull_facets: usize,
+    /// Why the regions were not computed, if they were not.
+    pub icr_status: Option<String>,
+    pub contacts: Vec<ContactReport>,
+    pub warnings: Vec<String>,
+}
+
+/// One finger's contact and region.
+#[derive(Debug, Serialize)]
+pub struct ContactReport {
+    pub finger: u32,
+    pub candidate: usize,
+    pub point: [Real; 3],
+    pub normal: [Real; 3],
+    /// Planar problems: the contact's angle on the section (degrees, [0, 360)).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_deg: Option<Real>,
+    /// Distance from the configured contact to the candidate it was snapped to (m, or
+    /// degrees for angles).
+    pub snap: Real,
+    pub icr: Option<IcrReport>,
+}
+
+/// One region.
+#[derive(Debug, Serialize)]
+pub struct IcrReport {
+    pub indices: Vec<u32>,
+    pub points: Vec<[Real; 3]>,
+    /// Planar problems: the region as angle intervals `[start, end]` in degrees, start in
+    /// [0, 360), end >= start (an interval across 0 degrees ends above 360).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_intervals_deg: Option<Vec<[Real; 2]>>,
+}
+
+/// Runs the verb.
+pub fn run(path: &Path, json: bool) -> Result<()> {
+    let config = Config::load(path)?;
+    let report = analyze(&config)?;
+    let mut out = std::io::stdout().lock();
+    if json {
+        serde_json::to_writer_pretty(&mut out, &report).context("writing JSON")?;
+        writeln!(out)?;
+    } else {
+        print_text(&mut out, &report)?;
+    }
+    Ok(())
+}
+
+/// Analyses the configured grasp.
+pub fn analyze(config: &Config) -> Result<Report> {
+    let object = config.object.build()?;
+    let g = &config.grasp;
+    let rho = g.rho.unwrap_or_else(|| object.max_radius());
+    let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
+    let (candidates, angles) = match g.space {
+        Space::Planar => {
+            if object.section.samples.is_empty() {
+                bail!("the hand's plane does not cut the object: no planar candidates");
+            }
+            (
+                object.section.samples.clone(),
+                Some(object.section.angles.clone()),
+            )
+        }
+        Space::Spatial => (object.facets.clone(), None),
+    };
+    let problem = GraspProblem::new(
+        &object.facets.points,
+        &object.facets.normals,
+        candidates,
+        frame,
+        g.model,
+    )?;
+    let mut indices = Vec::with_capacity(g.contacts.len());
+    let mut snaps = Vec::with_capacity(g.contacts.len());
+    for (i, c) in g.contacts.iter().enumerate() {
+        let (index, snap) = resolve(&object, &problem, c.at)
+            .with_context(|| format!("grasp.contacts[{i}] (finger {})", c.finger))?;
+        indices.push(index);
+        snaps.push(snap);
+    }
+    let eval = problem.evaluate(&indices)?;
+    let regions = match problem.icrs(&indices, &eval, g.alpha) {
+        Ok(r) => Ok(r),
+        Err(e @ (IcrError::NotForceClosure | IcrError::MarginAboveQuality { .. })) => Err(e),
+        Err(e) => return Err(e.into()),
+    };
+    let cands = problem.candidates();
+    let to3 = |v: &icrflow_grasp::math::Vec3| [v.x, v.y, v.z];
+    let contacts = g
+        .contacts
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let q = indices[i];
+            ContactReport {
+                finger: c.finger,
+                candidate: q,
+                point: to3(&cands.points[q]),
+                normal: to3(&cands.normals[q]),
+                angle_deg: angles.as_ref().map(|a| a[q].to_degrees()),
+                snap: snaps[i],
+                icr: regions.as_ref().ok().map(|r| {
+                    let members = &r[i].members;
+                    IcrReport {
+                        indices: members.clone(),
+                        points: members
+                            .iter()
+                            .map(|&m| to3(&cands.points[m as usize]))
+                            .collect(),
+                        angle_intervals_deg: angles.as_ref().map(|a| angle_intervals(members, a)),
+                    }
+                }),
+            }
+        })
+        .collect();
+    Ok(Report {
+        config: config.path.display().to_string(),
+        object: config.object.describe(),
+        facets: object.facets.len(),
+        candidates: cands.len(),
+        space: g.space.name(),
+        friction: g.model.mu(),
+        cone_edges: g.model.edges(),
+        rho,
+        alpha: g.alpha,
+        force_closure: eval.force_closure(),
+        closure: match eval.closure {
+            Closure::ForceClosure => "force_closure",
+            Closure::OriginOnBoundary => "origin_on_boundary",
+            Closure::OriginOutside => "origin_outside",
+            Closure::Degenerate { .. } => "degenerate",
+        },
+        quality: eval.quality,
+        epsilon: eval.epsilon,
+        hull_facets: eval.hull.as_ref().map_or(0, |h| h.facet_count()),
+        icr_status: regions.as_ref().err().map(|e| e.to_string()),
+        contacts,
+        warnings: object.warnings.iter().map(|w| w.to_string()).collect(),
+    })
+}
+
+/// Snaps a configured contact to the nearest candidate: (index, distance).
+fn resolve(object: &Object, problem: &GraspProblem, at: ContactSpec) -> Result<(usize, Real)> {
+    match at {
+        ContactSpec::Angle(a) => {
+            let (i, d) = object
+                .section
+                .nearest_angle(a)
+                .context("the object's section has no samples")?;
+            Ok((i, d.to_degrees()))
+        }
+        ContactSpec::Point(p) => problem
+            .candidates()
+            .nearest(&p)
+            .context("the object has no candidate points"),
+    }
+}
+
+/// Groups region members (section samples) into angle intervals, in degrees. Samples are
+/// split where the angular gap exceeds 1.5 times the section's largest sample spacing.
+pub fn angle_intervals(members: &[u32], angles: &[Real]) -> Vec<[Real; 2]> {
+    if members.is_empty() {
+        return Vec::new();
+    }
+    let mut all: Vec<Real> = angles.iter().map(|a| a.to_degrees()).collect();
+    all.sort_by(Real::total_cmp);
+    let spacing = all
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .chain(std::iter::once(all[0] + 360.0 - all[all.len() - 1]))
+        .fold(0.0, Real::max);
+    let mut a: Vec<Real> = members
+        .iter()
+        .map(|&m| angles[m as usize].to_degrees())
+        .collect();
+    a.sort_by(Real::total_cmp);
+    let limit = 1.5 * spacing;
+    let mut runs: Vec<[Real; 2]> = vec![[a[0], a[0]]];
+    for &x in &a[1..] {
+        let last = runs.len() - 1;
+        if x - runs[last][1] <= limit {
+            runs[last][1] = x;
+        } else {
+            runs.push([x, x]);
+        }
+    }
+    // Join the last run with the first across 0 degrees.
+    if runs.len() > 1 && runs[0][0] + 360.0 - runs[runs.len() - 1][1] <= limit {
+        let first = runs.remove(0);
+        let last = runs.len() - 1;
+        runs[last][1] = first[1] + 360.0;
+    } else if runs.len() == 1 && runs[0][0] + 360.0 - runs[0][1] <= limit {
+        // The whole section.
+        runs[0] = [0.0, 360.0];
+    }
+    runs
+}
+
+fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
+    writeln!(out, "config    {}", r.config)?;
+    writeln!(out, "object    {} ({} facets)", r.object, r.facets)?;
+    writeln!(
+        out,
+        "grasp     {} space, {} candidates, mu = {}, s = {} cone edges, rho = {:.4} m, margin alpha = {}",
+        r.space, r.candidates, r.friction, r.cone_edges, r.rho, r.alpha
+    )?;
+    for w in &r.warnings {
+        writeln!(out, "warning   {w}")?;
+    }
+    for c in &r.contacts {
+        let (at, snap) = match c.angle_deg {
+            Some(a) => (format!("{a:7.2} deg"), format!("{:.2} deg", c.snap)),
+            None => (
+                format!(
+                    "[{:.4}, {:.4}, {:.4}] m",
+                    c.point[0], c.point[1], c.point[2]
+                ),
+                format!("{:.2} mm", 1e3 * c.snap),
+            ),
+        };
+        writeln!(
+            out,
+            "contact   finger {} at {at} (candidate {}, snapped by {snap})",
+            c.finger, c.candidate
+        )?;
+    }
+    if r.force_closure {
+        writeln!(out, "closure   force closure (epsilon = {:.6})", r.epsilon)?;
+        let verdict = if r.quality >= r.alpha { ">=" } else { "<" };
+        writeln!(
+            out,
+            "quality   alpha* = {:.6} {verdict} alpha = {} ({} hull facets)",
+            r.quality, r.alpha, r.hull_facets
+        )?;
+    } else {
+        writeln!(
+            out,
+            "closure   NOT force closure ({}, epsilon = {:.6}): the contacts cannot resist every wrench, alpha* = 0",
+            r.closure.replace('_', " "),
+            r.epsilon
+        )?;
+    }
+    match &r.icr_status {
+        Some(why) => writeln!(out, "ICRs      not computed: {why}")?,
+        None => {
+            for c in &r.contacts {
+                let Some(icr) = &c.icr else { continue };
+                let span = match &icr.angle_intervals_deg {
+                    Some(iv) => iv
+                        .iter()
+                        .map(|[a, b]| format!("{a:.1} .. {:.1} deg", b % 360.0))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    None => String::new(),
+                };
+                writeln!(
+                    out,
+                    "ICR       finger {}: {} points {span}",
+                    c.finger,
+                    icr.indices.len()
+                )?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intervals_split_and_wrap() {
+        let angles: Vec<Real> = (0..72).map(|k| (5.0 * k as Real).to_radians()).collect();
+        let iv = angle_intervals(&[1, 2, 3, 10, 11], &angles);
+        let close = |a: &[[Real; 2]], b: &[[Real; 2]]| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| (x[0] - y[0]).abs() < 1e-9 && (x[1] - y[1]).abs() < 1e-9)
+        };
+        assert!(close(&iv, &[[5.0, 15.0], [50.0, 55.0]]), "{iv:?}");
+        let iv = angle_intervals(&[70, 71, 0, 1], &angles);
+        assert_eq!(iv.len(), 1);
+        assert!((iv[0][0] - 350.0).abs() < 1e-9 && (iv[0][1] - 365.0).abs() < 1e-9);
+        let all: Vec<u32> = (0..72).collect();
+        assert_eq!(angle_intervals(&all, &angles), vec![[0.0, 360.0]]);
+    }
+}

@@ -1,0 +1,28 @@
+//! Command-line interface: one subcommand per verb.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// In-hand rolling manipulation with independent contact regions and a quality margin.
+#[derive(Debug, Parser)]
+#[command(name = "icrflow", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The verbs.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Analyse the grasp in CONFIG: force closure, quality alpha*, epsilon, and each contact's
+    /// independent contact region for the margin alpha.
+    Analyze {
+        /// Config file (TOML; see config/README.md).
+        config: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
