@@ -108,7 +108,11 @@ impl GraspProblem {
                 quality: eval.quality,
             });
         }
-        let thresholds: Vec<Real> = eval.support.iter().map(|h| alpha * h).collect();
+        let mut thresholds = vec![0.0; hull.facet_count()];
+        self.support_function(hull.normals(), &mut thresholds);
+        for t in &mut thresholds {
+            *t *= alpha;
+        }
         let vertex_facets = hull.vertex_facets(contacts.len() * s);
         let mut visited = vec![u32::MAX; self.candidates().points.len()];
         let mut regions = Vec::with_capacity(contacts.len());

@@ -20,14 +20,19 @@
 //!   OWS is degenerate (a sphere's OWS has no torque), but a grasp that cannot resist some
 //!   wrench has no margin.
 //!
-//! The support function is one dense product `A O^T` (facets x OWS points) through faer,
-//! blocked over the OWS so the scratch stays in cache.
+//! alpha* never needs the whole support function: with `g_f = a_f / b_f`, alpha* is
+//! `1 / max_{f,k} g_f . o_k`, a search over a ball tree of the OWS points built once per object
+//! ([`crate::support::SupportTree::max_over`]) that skips clusters of points and whole facets
+//! by bounds. The full support function (every facet, needed by the ICRs) uses the same tree
+//! per facet; the plain dense product `A O^T` through faer, blocked over the OWS, is kept as
+//! the reference ([`GraspProblem::support_function_dense`]).
 
 use faer::{Accum, MatMut, MatRef, Par};
 
 use crate::hull::{Hull, HullError};
 use crate::math::{Real, Vec3};
 use crate::object::SurfaceSamples;
+use crate::support::SupportTree;
 use crate::wrench::{ContactModel, Space, WrenchFrame};
 
 /// Relative tolerance of the force-closure and ICR membership tests.
@@ -58,6 +63,14 @@ pub enum GraspError {
     Empty {
         /// What is missing.
         what: &'static str,
+    },
+    /// A facet or candidate gives a non-finite wrench (a non-finite point or normal).
+    #[error("{what} {index} gives a non-finite wrench (check its point and normal)")]
+    NonFinite {
+        /// "facet" or "candidate".
+        what: &'static str,
+        /// Its index.
+        index: usize,
     },
     /// Candidate data of different lengths.
     #[error(
@@ -100,8 +113,6 @@ pub struct Evaluation {
     pub epsilon: Real,
     /// The grasp wrench space hull, when full-dimensional.
     pub hull: Option<Hull>,
-    /// OWS support `h_f = max_k a_f . o_k` of each hull facet (empty without a hull).
-    pub support: Vec<Real>,
     /// The contacts' primitive wrenches, contact-major (`contacts x s x dim`).
     pub wrenches: Vec<Real>,
     /// The facet attaining alpha*, if force closure.
@@ -124,6 +135,7 @@ pub struct GraspProblem {
     /// Object wrenches, `dim x m`, column-major (one column per facet).
     ows: Vec<Real>,
     ows_count: usize,
+    tree: SupportTree,
     candidates: SurfaceSamples,
     /// Primitive wrenches of every candidate, `candidates x s x dim`.
     candidate_wrenches: Vec<Real>,
@@ -174,11 +186,25 @@ impl GraspProblem {
         {
             frame.primitive_wrenches(p, nq, &model, out);
         }
+        if let Some(k) = ows.iter().position(|x| !x.is_finite()) {
+            return Err(GraspError::NonFinite {
+                what: "facet",
+                index: k / d,
+            });
+        }
+        if let Some(k) = candidate_wrenches.iter().position(|x| !x.is_finite()) {
+            return Err(GraspError::NonFinite {
+                what: "candidate",
+                index: k / (s * d),
+            });
+        }
+        let tree = SupportTree::new(&ows, d);
         Ok(Self {
             frame,
             model,
             ows,
             ows_count: ows_points.len(),
+            tree,
             candidates,
             candidate_wrenches,
         })
@@ -283,17 +309,24 @@ impl GraspProblem {
         } else {
             (Closure::OriginOutside, b_min)
         };
-        let mut support = vec![0.0; hull.facet_count()];
-        self.support_function(hull.normals(), &mut support);
         let mut quality = 0.0;
         let mut limiting_facet = None;
         if closure == Closure::ForceClosure {
-            quality = Real::INFINITY;
-            for (f, (&b, &h)) in hull.offsets().iter().zip(&support).enumerate() {
-                if h > 0.0 && b / h < quality {
-                    quality = b / h;
+            // alpha* = min_f b_f / h_f = 1 / max_{f,k} (a_f / b_f) . o_k.
+            let g: Vec<Real> = hull
+                .normals()
+                .chunks_exact(d)
+                .zip(hull.offsets())
+                .flat_map(|(a, &b)| a.iter().map(move |x| x / b))
+                .collect();
+            let (mut order, mut stack) = (Vec::new(), Vec::new());
+            match self.tree.max_over(&g, 0.0, &mut order, &mut stack) {
+                Some((f, best)) => {
+                    quality = 1.0 / best;
                     limiting_facet = Some(f);
                 }
+                // No facet direction reaches any object wrench: nothing limits the scale.
+                None => quality = Real::INFINITY,
             }
         }
         Evaluation {
@@ -301,7 +334,6 @@ impl GraspProblem {
             quality,
             epsilon,
             hull: Some(hull),
-            support,
             wrenches,
             limiting_facet,
             tolerance,
@@ -309,8 +341,18 @@ impl GraspProblem {
     }
 
     /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`
-    /// (`out.len()` rows of `dim`), as a blocked dense product.
+    /// (`out.len()` rows of `dim`), exact, by branch and bound over the OWS tree.
     pub fn support_function(&self, normals: &[Real], out: &mut [Real]) {
+        let d = self.dim();
+        let mut stack = Vec::new();
+        for (o, a) in out.iter_mut().zip(normals.chunks_exact(d)) {
+            *o = self.tree.support(a, &mut stack);
+        }
+    }
+
+    /// The same support function as one blocked dense product `A O^T` through faer: every
+    /// facet against every OWS point. The reference for [`Self::support_function`].
+    pub fn support_function_dense(&self, normals: &[Real], out: &mut [Real]) {
         let d = self.dim();
         let rows = out.len();
         out.fill(Real::NEG_INFINITY);
@@ -345,7 +387,6 @@ impl Evaluation {
             quality: 0.0,
             epsilon: 0.0,
             hull: None,
-            support: Vec::new(),
             wrenches,
             limiting_facet: None,
             tolerance,
@@ -451,13 +492,41 @@ pub(crate) mod tests {
     fn support_function_equals_brute_force() {
         let p = planar_sphere_problem(0.3);
         let dirs = [1.0, 0.0, 0.0, 0.0, -2.0, 0.5, 0.3, 0.3, 0.3];
-        let mut out = [0.0; 3];
-        p.support_function(&dirs, &mut out);
+        let (mut tree, mut dense) = ([0.0; 3], [0.0; 3]);
+        p.support_function(&dirs, &mut tree);
+        p.support_function_dense(&dirs, &mut dense);
         for (f, a) in dirs.chunks_exact(3).enumerate() {
             let brute = (0..p.ows_count())
                 .map(|k| crate::hull::dot(a, p.ows_wrench(k)))
                 .fold(Real::NEG_INFINITY, Real::max);
-            assert!((out[f] - brute).abs() < 1e-12);
+            assert!((tree[f] - brute).abs() < 1e-12);
+            assert!((dense[f] - brute).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn alpha_star_by_the_tree_equals_the_dense_facet_formula() {
+        for mu in [0.3, 0.8] {
+            let p = planar_sphere_problem(mu);
+            for contacts in [[6, 66, 28], [0, 24, 48], [3, 30, 50]] {
+                let e = p.evaluate(&contacts).unwrap();
+                let hull = e.hull.as_ref().unwrap();
+                let mut h = vec![0.0; hull.facet_count()];
+                p.support_function_dense(hull.normals(), &mut h);
+                let dense = hull
+                    .offsets()
+                    .iter()
+                    .zip(&h)
+                    .filter(|(_, h)| **h > 0.0)
+                    .map(|(b, h)| b / h)
+                    .fold(Real::INFINITY, Real::min);
+                let dense = if e.force_closure() { dense } else { 0.0 };
+                assert!(
+                    (e.quality - dense).abs() <= 1e-12 * dense.max(1.0),
+                    "{} vs {dense}",
+                    e.quality
+                );
+            }
         }
     }
 

@@ -80,7 +80,11 @@ impl ObjectSpec {
             } => Object::cylinder(*radius, *height, segments[0], segments[1]),
             ObjectSpec::Mesh { path } => Object::from_file(path),
         };
-        object.with_context(|| format!("object: {}", self.describe()))
+        match self {
+            // The mesh error names the file.
+            ObjectSpec::Mesh { .. } => object.context("object"),
+            _ => object.with_context(|| format!("object: {}", self.describe())),
+        }
     }
 
     /// One-line description.

@@ -148,7 +148,7 @@ pub enum ObjectError {
         max: usize,
     },
     /// A file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     ReadFile {
         /// The file.
         path: PathBuf,
@@ -157,7 +157,7 @@ pub enum ObjectError {
         source: std::io::Error,
     },
     /// A file could not be written.
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}", path.display())]
     WriteFile {
         /// The file.
         path: PathBuf,
@@ -182,7 +182,7 @@ pub enum ObjectError {
         path: PathBuf,
     },
     /// A mesh read from a file failed validation.
-    #[error("invalid mesh in {}: {source}", path.display())]
+    #[error("invalid mesh in {}", path.display())]
     InvalidMesh {
         /// The file.
         path: PathBuf,

@@ -442,7 +442,7 @@ f 2 4 8 6
             panic!("{e}")
         };
         assert!(matches!(**source, ObjectError::OpenEdge { .. }), "{e}");
-        assert!(e.to_string().contains("open surface"), "{e}");
+        assert!(source.to_string().contains("open surface"), "{source}");
     }
 
     #[test]

@@ -1,0 +1,215 @@
+//! `icrflow analyze` end to end: the real binary on the shipped configs and on bad ones.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn icrflow(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("running icrflow")
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let out = icrflow(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("analyze --json prints one JSON object")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("icrflow-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn paper_sphere_json_has_the_documented_keys_and_regions() {
+    let v = json(&["analyze", "config/paper_sphere.toml", "--json"]);
+    assert_eq!(v["force_closure"], true);
+    assert_eq!(v["space"], "planar");
+    assert_eq!(v["friction"], 0.3);
+    assert_eq!(v["cone_edges"], 8);
+    assert_eq!(v["alpha"], 0.1);
+    let quality = v["quality"].as_f64().unwrap();
+    assert!(quality > 0.1 && quality < 1.0, "alpha* = {quality}");
+    assert!(v["epsilon"].as_f64().unwrap() > 0.0);
+    let contacts = v["contacts"].as_array().unwrap();
+    let fingers: Vec<u64> = contacts
+        .iter()
+        .map(|c| c["finger"].as_u64().unwrap())
+        .collect();
+    assert_eq!(fingers, [1, 2, 4]);
+    for (c, angle) in contacts.iter().zip([30.0, 330.0, 140.0]) {
+        assert!((c["angle_deg"].as_f64().unwrap() - angle).abs() < 1e-9);
+        let p: Vec<f64> = c["point"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert!(((p[0] * p[0] + p[1] * p[1]).sqrt() - 0.0475).abs() < 1e-12 && p[2] == 0.0);
+        let points = c["icr"]["points"].as_array().unwrap();
+        assert!(
+            points.len() > 1,
+            "finger {}: region is only the contact",
+            c["finger"]
+        );
+        assert!(
+            points
+                .iter()
+                .any(|q| q.as_array().unwrap() == c["point"].as_array().unwrap())
+        );
+        // Each region is one interval of the ring, containing the contact's angle.
+        let iv = c["icr"]["angle_intervals_deg"].as_array().unwrap();
+        assert_eq!(iv.len(), 1);
+        let (a, b) = (iv[0][0].as_f64().unwrap(), iv[0][1].as_f64().unwrap());
+        assert!((a <= angle && angle <= b) || (a <= angle + 360.0 && angle + 360.0 <= b));
+        assert!(((b - a) / 5.0 + 1.0 - points.len() as f64).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn the_papers_own_friction_is_reported_as_not_force_closure() {
+    let v = json(&["analyze", "config/paper_sphere_mu003.toml", "--json"]);
+    assert_eq!(v["force_closure"], false);
+    assert_eq!(v["quality"], 0.0);
+    assert!(v["epsilon"].as_f64().unwrap() < 0.0);
+    assert!(
+        v["icr_status"]
+            .as_str()
+            .unwrap()
+            .contains("not force closure")
+    );
+    for c in v["contacts"].as_array().unwrap() {
+        assert!(
+            c["icr"].is_null(),
+            "no regions may be printed for a grasp that is not force closure"
+        );
+    }
+    let out = icrflow(&["analyze", "config/paper_sphere_mu003.toml"]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("NOT force closure"), "{text}");
+    assert!(text.contains("epsilon"), "{text}");
+}
+
+#[test]
+fn spatial_grasp_of_a_mesh_file() {
+    let dir = scratch("mesh");
+    // A cube of quads, written by hand as OBJ.
+    std::fs::write(
+        dir.join("cube.obj"),
+        "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("grasp.toml"),
+        r#"
+[object]
+shape = "mesh"
+path = "cube.obj"
+
+[grasp]
+space = "spatial"
+friction = 0.5
+alpha = 0.01
+contacts = [
+  { finger = 1, point = [1.0, 0.0, 0.0] },
+  { finger = 2, point = [-1.0, 0.0, 0.0] },
+  { finger = 3, point = [0.0, 1.0, 0.0] },
+  { finger = 4, point = [0.0, -1.0, 0.0] },
+]
+"#,
+    )
+    .unwrap();
+    let v = json(&[
+        "analyze",
+        dir.join("grasp.toml").to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(v["space"], "spatial");
+    assert_eq!(v["facets"], 6);
+    // Four face-centre contacts with friction on the side faces resist every wrench.
+    assert_eq!(v["force_closure"], true, "{v}");
+    for c in v["contacts"].as_array().unwrap() {
+        assert!(c.get("angle_deg").is_none());
+        assert!(!c["icr"]["points"].as_array().unwrap().is_empty());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_configs_fail_with_the_key_named_and_a_nonzero_exit() {
+    let dir = scratch("bad");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let cases = [
+        (
+            "unknown",
+            good.replace("alpha = 0.1", "alpha = 0.1\nalhpa = 0.2"),
+            "alhpa",
+        ),
+        (
+            "friction",
+            good.replace("friction = 0.3", "friction = -1.0"),
+            "grasp.friction",
+        ),
+        (
+            "radius",
+            good.replace("radius = 0.0475", "radius = nan"),
+            "object.radius",
+        ),
+        (
+            "mesh",
+            good.replace(
+                "shape = \"sphere\"\nradius = 0.0475\nsegments = [72, 72]   # longitude, latitude",
+                "shape = \"mesh\"\npath = \"missing.stl\"",
+            ),
+            "object.path",
+        ),
+        ("syntax", "[object\n".to_string(), "invalid config"),
+    ];
+    for (name, text, needle) in cases {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = icrflow(&["analyze", path.to_str().unwrap()]);
+        assert!(!out.status.success(), "{name}: accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(needle),
+            "{name}: error does not name {needle:?}:\n{err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: panicked:\n{err}");
+    }
+    // A mesh that is open is refused with the reason.
+    std::fs::write(
+        dir.join("open.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("open.toml"),
+        good.replace(
+            "shape = \"sphere\"\nradius = 0.0475\nsegments = [72, 72]   # longitude, latitude",
+            "shape = \"mesh\"\npath = \"open.obj\"",
+        ),
+    )
+    .unwrap();
+    let out = icrflow(&["analyze", dir.join("open.toml").to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("open.obj") && err.to_lowercase().contains("open"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
