@@ -63,10 +63,7 @@ impl SupportTree {
     }
 
     fn bound(&self, node: &Node, g: &[Real], g_norm: Real) -> Real {
-        let mut s = 0.0;
-        for k in 0..self.dim {
-            s += g[k] * node.centre[k];
-        }
+        let s: Real = g.iter().zip(&node.centre).map(|(x, c)| x * c).sum();
         s + g_norm * node.radius
     }
 
