@@ -14,4 +14,6 @@ echo "== Rust (criterion, single thread)" >&2
 ICRFLOW_BENCH_CASES="$cases" cargo bench -p icrflow-grasp --bench quality -- "$@" 2>&1 \
     | grep -E '^grasp/|time:|OWS points' >&2
 echo "== Python reference (numpy + scipy Qhull), same cases" >&2
-"$py" bench/reference_qhull.py bench "$cases" --repeat 50
+# Single thread on both sides: numpy's BLAS would otherwise use both cores.
+OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+    "$py" bench/reference_qhull.py bench "$cases" --repeat 50

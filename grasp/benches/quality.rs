@@ -177,6 +177,9 @@ fn quality(c: &mut Criterion) {
         group.bench_function(format!("{}/support_only", b.id), |bench| {
             bench.iter(|| p.support_function(black_box(hull.normals()), black_box(&mut out)))
         });
+        group.bench_function(format!("{}/support_dense", b.id), |bench| {
+            bench.iter(|| p.support_function_dense(black_box(hull.normals()), black_box(&mut out)))
+        });
     }
     group.finish();
 }

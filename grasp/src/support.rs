@@ -1,8 +1,11 @@
 //! The OWS support function with bounds: a ball tree over the object wrenches, built once per
 //! object, so that `max_k a . o_k` skips whole clusters of OWS points.
 //!
-//! For a node with centre `c` and radius `r` (every point within `r` of `c`), no point of the
-//! node can exceed `a . c + |a| r`. Two queries use it:
+//! For a node with centre `c` and radius `r` (every point within `r` of `c`) and bounding box
+//! `[lo, hi]`, no point of the node can exceed `min(a . c + |a| r, sum_i max(a_i lo_i, a_i
+//! hi_i))`: the ball is tight for round clusters, the box for flat ones (a sphere's object
+//! wrenches have no torque, so in 6D they fill only the force coordinates). Two queries use
+//! it:
 //! - [`SupportTree::support`]: the exact support `h(a)` of one direction, branch and bound
 //!   (children visited best bound first, a node skipped when its bound cannot beat the best
 //!   point found so far);
@@ -27,6 +30,8 @@ pub const MAX_DIM: usize = 6;
 struct Node {
     centre: [Real; MAX_DIM],
     radius: Real,
+    lo: [Real; MAX_DIM],
+    hi: [Real; MAX_DIM],
     /// Children (`u32::MAX` for a leaf) or the leaf's point range.
     left: u32,
     right: u32,
@@ -63,8 +68,13 @@ impl SupportTree {
     }
 
     fn bound(&self, node: &Node, g: &[Real], g_norm: Real) -> Real {
-        let s: Real = g.iter().zip(&node.centre).map(|(x, c)| x * c).sum();
-        s + g_norm * node.radius
+        let mut ball = 0.0;
+        let mut bbox = 0.0;
+        for (k, x) in g.iter().enumerate() {
+            ball += x * node.centre[k];
+            bbox += (x * node.lo[k]).max(x * node.hi[k]);
+        }
+        (ball + g_norm * node.radius).min(bbox)
     }
 
     /// Largest `g . o` over the points of the subtree at `root`, or `best` if none exceeds
@@ -173,10 +183,24 @@ fn build(
         .fold(0.0, Real::max);
     // Inflate slightly so rounding in the bound never prunes a point that could win.
     let radius = radius * (1.0 + 1e-12) + 1e-300;
+    let mut lo = [0.0; MAX_DIM];
+    let mut hi = [0.0; MAX_DIM];
+    for k in 0..dim {
+        let (l, h) = order[start..end]
+            .iter()
+            .fold((Real::INFINITY, Real::NEG_INFINITY), |(l, h), &i| {
+                (l.min(p(i)[k]), h.max(p(i)[k]))
+            });
+        let pad = 1e-12 * l.abs().max(h.abs()) + 1e-300;
+        lo[k] = l - pad;
+        hi[k] = h + pad;
+    }
     let index = nodes.len() as u32;
     nodes.push(Node {
         centre,
         radius,
+        lo,
+        hi,
         left: u32::MAX,
         right: u32::MAX,
         start: start as u32,

@@ -4,11 +4,16 @@ use super::{Hull, HullError};
 use crate::math::Real;
 
 /// Runs Qhull with its default options on full-rank input.
+///
+/// Qhull's output capture is off: the `qhull` crate would open two temporary files per hull
+/// for it (most of the cost of a small hull, and a panic if no temporary file can be made).
+/// With no output options Qhull prints nothing on success; on failure it prints its message
+/// to stderr and the error code comes back here.
 pub(super) fn hull(points: &[Real], dim: usize) -> Result<Hull, HullError> {
     let mut coords = points.to_vec();
     let qh = qhull::Qh::builder()
-        .capture_stdout(true)
-        .capture_stderr(true)
+        .capture_stdout(false)
+        .capture_stderr(false)
         .build(dim, &mut coords)
         .map_err(|e| HullError::Backend {
             message: e.to_string(),
