@@ -19,7 +19,7 @@
 
 use std::collections::VecDeque;
 
-use crate::hull::dot;
+use crate::hull::{Hull, dot};
 use crate::math::Real;
 use crate::quality::{Evaluation, GraspProblem};
 
@@ -69,13 +69,12 @@ pub struct Region {
     pub zones: usize,
 }
 
-/// The search zones of one contact: for each zone, the facets whose half-spaces intersect.
-struct Zones {
-    /// Facets used by any zone of the contact (indices into the hull).
+/// One search zone: the facets at a hull vertex, and the cone edge of that vertex.
+struct Zone {
+    /// Cone edge index `j` of the vertex `omega = w_ij`.
+    edge: usize,
+    /// Facets whose half-spaces `H_f+` intersect to the zone.
     facets: Vec<u32>,
-    /// Rows of `facets` per zone (CSR over positions in `facets`).
-    offsets: Vec<usize>,
-    members: Vec<usize>,
 }
 
 impl GraspProblem {
@@ -108,32 +107,30 @@ impl GraspProblem {
                 quality: eval.quality,
             });
         }
-        let mut thresholds = vec![0.0; hull.facet_count()];
-        self.support_function(hull.normals(), &mut thresholds);
-        for t in &mut thresholds {
-            *t *= alpha;
+        // Membership limits: a_f . w >= alpha h_f - tol.
+        let mut limits = vec![0.0; hull.facet_count()];
+        self.support_function(hull.normals(), &mut limits);
+        for l in &mut limits {
+            *l = alpha * *l - eval.tolerance;
         }
         let vertex_facets = hull.vertex_facets(contacts.len() * s);
         let mut visited = vec![u32::MAX; self.candidates().points.len()];
         let mut regions = Vec::with_capacity(contacts.len());
-        let mut products = Vec::new();
         for (i, &contact) in contacts.iter().enumerate() {
-            let zones = Self::zones_of(&vertex_facets[i * s..(i + 1) * s]);
-            let normals: Vec<Real> = zones
-                .facets
+            let zones: Vec<Zone> = vertex_facets[i * s..(i + 1) * s]
                 .iter()
-                .flat_map(|&f| hull.normal(f as usize).iter().copied())
-                .collect();
-            let limits: Vec<Real> = zones
-                .facets
-                .iter()
-                .map(|&f| thresholds[f as usize] - eval.tolerance)
+                .enumerate()
+                .filter(|(_, f)| !f.is_empty())
+                .map(|(edge, facets)| Zone {
+                    edge,
+                    facets: facets.clone(),
+                })
                 .collect();
             let mut members = Vec::new();
             let mut queue = VecDeque::from([contact]);
             visited[contact] = i as u32;
             while let Some(q) = queue.pop_front() {
-                if !self.satisfies(q, &zones, &normals, &limits, &mut products) {
+                if !self.satisfies(q, &zones, hull, &limits) {
                     continue;
                 }
                 members.push(q as u32);
@@ -148,58 +145,28 @@ impl GraspProblem {
             regions.push(Region {
                 contact,
                 members,
-                zones: zones.offsets.len() - 1,
+                zones: zones.len(),
             });
         }
         Ok(regions)
     }
 
-    /// Groups the facets at each of a contact's vertices into zones.
-    fn zones_of(vertex_facets: &[Vec<u32>]) -> Zones {
-        let mut facets: Vec<u32> = vertex_facets.iter().flatten().copied().collect();
-        facets.sort_unstable();
-        facets.dedup();
-        let mut offsets = vec![0];
-        let mut members = Vec::new();
-        for vf in vertex_facets.iter().filter(|vf| !vf.is_empty()) {
-            for f in vf {
-                // `facets` is sorted and holds every f.
-                if let Ok(pos) = facets.binary_search(f) {
-                    members.push(pos);
-                }
-            }
-            offsets.push(members.len());
-        }
-        Zones {
-            facets,
-            offsets,
-            members,
-        }
-    }
-
-    /// Whether candidate `q` has a primitive wrench in every zone.
-    fn satisfies(
-        &self,
-        q: usize,
-        zones: &Zones,
-        normals: &[Real],
-        limits: &[Real],
-        products: &mut Vec<Real>,
-    ) -> bool {
+    /// Whether candidate `q` has a primitive wrench in every zone. Each zone tries first the
+    /// wrench of the same cone edge as its vertex (a neighbouring point's cone is nearly the
+    /// same, so that is almost always the one inside), and every facet test stops at the
+    /// first failure.
+    fn satisfies(&self, q: usize, zones: &[Zone], hull: &Hull, limits: &[Real]) -> bool {
         let d = self.dim();
         let wrenches = self.candidate_wrenches(q);
         let s = wrenches.len() / d;
-        // products[j * F + f] = a_f . w_j - limit_f
-        let nf = zones.facets.len();
-        products.clear();
-        for w in wrenches.chunks_exact(d) {
-            for (a, lim) in normals.chunks_exact(d).zip(limits) {
-                products.push(dot(a, w) - lim);
-            }
-        }
-        zones.offsets.windows(2).all(|z| {
-            let rows = &zones.members[z[0]..z[1]];
-            (0..s).any(|j| rows.iter().all(|&f| products[j * nf + f] >= 0.0))
+        let inside = |j: usize, facets: &[u32]| {
+            let w = &wrenches[j * d..(j + 1) * d];
+            facets
+                .iter()
+                .all(|&f| dot(hull.normal(f as usize), w) >= limits[f as usize])
+        };
+        zones.iter().all(|z| {
+            inside(z.edge, &z.facets) || (0..s).any(|j| j != z.edge && inside(j, &z.facets))
         })
     }
 }

@@ -343,11 +343,7 @@ impl GraspProblem {
     /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`
     /// (`out.len()` rows of `dim`), exact, by branch and bound over the OWS tree.
     pub fn support_function(&self, normals: &[Real], out: &mut [Real]) {
-        let d = self.dim();
-        let mut stack = Vec::new();
-        for (o, a) in out.iter_mut().zip(normals.chunks_exact(d)) {
-            *o = self.tree.support(a, &mut stack);
-        }
+        self.tree.support_many(normals, out, &mut Vec::new());
     }
 
     /// The same support function as one blocked dense product `A O^T` through faer: every

@@ -77,9 +77,10 @@ impl SupportTree {
         (ball + g_norm * node.radius).min(bbox)
     }
 
-    /// Largest `g . o` over the points of the subtree at `root`, or `best` if none exceeds
-    /// it; `stack` is scratch space.
-    fn search(&self, g: &[Real], mut best: Real, stack: &mut Vec<u32>) -> Real {
+    /// Largest `g . o` over the points, or `best` if none exceeds it, with the position (in
+    /// tree order) of the point attaining it; `stack` is scratch space.
+    fn search(&self, g: &[Real], mut best: Real, stack: &mut Vec<u32>) -> (Real, Option<u32>) {
+        let mut arg = None;
         let d = self.dim;
         let g_norm = g.iter().map(|x| x * x).sum::<Real>().sqrt();
         stack.clear();
@@ -91,10 +92,11 @@ impl SupportTree {
             }
             if node.left == u32::MAX {
                 let pts = &self.points[node.start as usize * d..node.end as usize * d];
-                for p in pts.chunks_exact(d) {
+                for (k, p) in pts.chunks_exact(d).enumerate() {
                     let v: Real = p.iter().zip(g).map(|(x, y)| x * y).sum();
                     if v > best {
                         best = v;
+                        arg = Some(node.start + k as u32);
                     }
                 }
                 continue;
@@ -111,12 +113,37 @@ impl SupportTree {
                 stack.extend([node.left, node.right]);
             }
         }
-        best
+        (best, arg)
     }
 
     /// The exact support `max_k a . o_k` of direction `a`.
     pub fn support(&self, a: &[Real], stack: &mut Vec<u32>) -> Real {
-        self.search(a, Real::NEG_INFINITY, stack)
+        self.search(a, Real::NEG_INFINITY, stack).0
+    }
+
+    /// The exact support of every row-major direction in `dirs`, into `out`. Neighbouring
+    /// directions (facets of one hull) mostly share their maximising points, so the points
+    /// that won for earlier directions are tried first: their best value starts the search
+    /// and prunes most of the tree.
+    pub fn support_many(&self, dirs: &[Real], out: &mut [Real], stack: &mut Vec<u32>) {
+        const WARM: usize = 16;
+        let d = self.dim;
+        let mut warm: Vec<u32> = Vec::with_capacity(WARM);
+        for (o, g) in out.iter_mut().zip(dirs.chunks_exact(d)) {
+            let mut start = Real::NEG_INFINITY;
+            for &k in &warm {
+                let p = &self.points[k as usize * d..(k as usize + 1) * d];
+                start = start.max(p.iter().zip(g).map(|(x, y)| x * y).sum());
+            }
+            let (best, arg) = self.search(g, start, stack);
+            *o = best;
+            if let Some(k) = arg {
+                if warm.len() == WARM {
+                    warm.remove(0);
+                }
+                warm.push(k);
+            }
+        }
     }
 
     /// The largest `g_f . o_k` over the row-major directions `dirs` and all points, with the
@@ -144,7 +171,7 @@ impl SupportTree {
                 break;
             }
             let g = &dirs[f as usize * d..(f as usize + 1) * d];
-            let v = self.search(g, best, stack);
+            let (v, _) = self.search(g, best, stack);
             if v > best {
                 best = v;
                 arg = Some(f as usize);
@@ -263,6 +290,19 @@ mod tests {
             for a in points(50, dim, 11).chunks_exact(dim) {
                 assert_eq!(tree.support(a, &mut stack), brute(&pts, dim, a));
             }
+        }
+    }
+
+    #[test]
+    fn support_many_equals_brute_force() {
+        let dim = 6;
+        let pts = points(3000, dim, 13);
+        let tree = SupportTree::new(&pts, dim);
+        let dirs = points(300, dim, 17);
+        let mut out = vec![0.0; 300];
+        tree.support_many(&dirs, &mut out, &mut Vec::new());
+        for (o, a) in out.iter().zip(dirs.chunks_exact(dim)) {
+            assert_eq!(*o, brute(&pts, dim, a));
         }
     }
 
