@@ -22,6 +22,7 @@ use std::collections::VecDeque;
 use crate::hull::{Hull, dot};
 use crate::math::Real;
 use crate::quality::{Evaluation, GraspProblem};
+use crate::support::SupportScratch;
 
 /// Why no regions were computed. These are grasp outcomes the caller branches on.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -107,12 +108,20 @@ impl GraspProblem {
                 quality: eval.quality,
             });
         }
-        // Membership limits: a_f . w >= alpha h_f - tol.
-        let mut limits = vec![0.0; hull.facet_count()];
-        self.support_function(hull.normals(), &mut limits);
-        for l in &mut limits {
-            *l = alpha * *l - eval.tolerance;
-        }
+        // Membership: a_f . w >= alpha h_f - tol. The exact OWS support h_f is computed only
+        // for the facets where it matters: alpha* <= b_f / h_f gives h_f <= b_f / alpha*, so a
+        // wrench with a_f . w >= alpha b_f / alpha* - tol passes without it.
+        let mut limits = Limits {
+            sure: hull
+                .offsets()
+                .iter()
+                .map(|b| alpha * (b / eval.quality) - eval.tolerance)
+                .collect(),
+            exact: vec![Real::NAN; hull.facet_count()],
+            alpha,
+            tolerance: eval.tolerance,
+            scratch: SupportScratch::default(),
+        };
         let vertex_facets = hull.vertex_facets(contacts.len() * s);
         let mut visited = vec![u32::MAX; self.candidates().points.len()];
         let mut regions = Vec::with_capacity(contacts.len());
@@ -130,7 +139,7 @@ impl GraspProblem {
             let mut queue = VecDeque::from([contact]);
             visited[contact] = i as u32;
             while let Some(q) = queue.pop_front() {
-                if !self.satisfies(q, &zones, hull, &limits) {
+                if !self.satisfies(q, &zones, hull, &mut limits) {
                     continue;
                 }
                 members.push(q as u32);
@@ -155,19 +164,43 @@ impl GraspProblem {
     /// wrench of the same cone edge as its vertex (a neighbouring point's cone is nearly the
     /// same, so that is almost always the one inside), and every facet test stops at the
     /// first failure.
-    fn satisfies(&self, q: usize, zones: &[Zone], hull: &Hull, limits: &[Real]) -> bool {
+    fn satisfies(&self, q: usize, zones: &[Zone], hull: &Hull, limits: &mut Limits) -> bool {
         let d = self.dim();
         let wrenches = self.candidate_wrenches(q);
         let s = wrenches.len() / d;
-        let inside = |j: usize, facets: &[u32]| {
+        let mut inside = |j: usize, facets: &[u32]| {
             let w = &wrenches[j * d..(j + 1) * d];
-            facets
-                .iter()
-                .all(|&f| dot(hull.normal(f as usize), w) >= limits[f as usize])
+            facets.iter().all(|&f| {
+                let f = f as usize;
+                let a = hull.normal(f);
+                let v = dot(a, w);
+                v >= limits.sure[f] || v >= limits.exact(self, f, a)
+            })
         };
         zones.iter().all(|z| {
             inside(z.edge, &z.facets) || (0..s).any(|j| j != z.edge && inside(j, &z.facets))
         })
+    }
+}
+
+/// Membership limits per facet: a sufficient one from alpha*, the exact one on demand.
+struct Limits {
+    /// `alpha b_f / alpha* - tol >= alpha h_f - tol`.
+    sure: Vec<Real>,
+    /// `alpha h_f - tol`, NaN until computed.
+    exact: Vec<Real>,
+    alpha: Real,
+    tolerance: Real,
+    scratch: SupportScratch,
+}
+
+impl Limits {
+    fn exact(&mut self, problem: &GraspProblem, f: usize, a: &[Real]) -> Real {
+        if self.exact[f].is_nan() {
+            let h = problem.support_tree().support_warm(a, &mut self.scratch);
+            self.exact[f] = self.alpha * h - self.tolerance;
+        }
+        self.exact[f]
     }
 }
 

@@ -230,6 +230,11 @@ impl GraspProblem {
         self.frame.dim()
     }
 
+    /// The ball tree over the object wrenches.
+    pub fn support_tree(&self) -> &SupportTree {
+        &self.tree
+    }
+
     /// The candidate contact points.
     pub fn candidates(&self) -> &SurfaceSamples {
         &self.candidates
@@ -343,7 +348,8 @@ impl GraspProblem {
     /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`
     /// (`out.len()` rows of `dim`), exact, by branch and bound over the OWS tree.
     pub fn support_function(&self, normals: &[Real], out: &mut [Real]) {
-        self.tree.support_many(normals, out, &mut Vec::new());
+        self.tree
+            .support_many(normals, out, &mut crate::support::SupportScratch::default());
     }
 
     /// The same support function as one blocked dense product `A O^T` through faer: every

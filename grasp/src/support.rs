@@ -19,10 +19,11 @@
 //! ([`crate::quality::GraspProblem::support_function_dense`]) is the reference they are
 //! tested against.
 
+use crate::hull::dot;
 use crate::math::Real;
 
 /// Points per leaf.
-const LEAF: usize = 12;
+const LEAF: usize = 32;
 /// Largest supported dimension.
 pub const MAX_DIM: usize = 6;
 
@@ -37,6 +38,16 @@ struct Node {
     right: u32,
     start: u32,
     end: u32,
+}
+
+/// Recent maximising points remembered for warm starts.
+const WARM: usize = 16;
+
+/// Scratch space for support queries: the search stack and the warm-start points.
+#[derive(Debug, Clone, Default)]
+pub struct SupportScratch {
+    stack: Vec<u32>,
+    warm: Vec<u32>,
 }
 
 /// A ball tree over a fixed point set (row-major, `dim` coordinates per point).
@@ -93,7 +104,7 @@ impl SupportTree {
             if node.left == u32::MAX {
                 let pts = &self.points[node.start as usize * d..node.end as usize * d];
                 for (k, p) in pts.chunks_exact(d).enumerate() {
-                    let v: Real = p.iter().zip(g).map(|(x, y)| x * y).sum();
+                    let v = dot(p, g);
                     if v > best {
                         best = v;
                         arg = Some(node.start + k as u32);
@@ -121,29 +132,32 @@ impl SupportTree {
         self.search(a, Real::NEG_INFINITY, stack).0
     }
 
-    /// The exact support of every row-major direction in `dirs`, into `out`. Neighbouring
-    /// directions (facets of one hull) mostly share their maximising points, so the points
-    /// that won for earlier directions are tried first: their best value starts the search
-    /// and prunes most of the tree.
-    pub fn support_many(&self, dirs: &[Real], out: &mut [Real], stack: &mut Vec<u32>) {
-        const WARM: usize = 16;
-        let d = self.dim;
-        let mut warm: Vec<u32> = Vec::with_capacity(WARM);
-        for (o, g) in out.iter_mut().zip(dirs.chunks_exact(d)) {
-            let mut start = Real::NEG_INFINITY;
-            for &k in &warm {
-                let p = &self.points[k as usize * d..(k as usize + 1) * d];
-                start = start.max(p.iter().zip(g).map(|(x, y)| x * y).sum());
-            }
-            let (best, arg) = self.search(g, start, stack);
-            *o = best;
-            if let Some(k) = arg {
-                if warm.len() == WARM {
-                    warm.remove(0);
-                }
-                warm.push(k);
-            }
+    /// The exact support of every row-major direction in `dirs`, into `out`, with warm starts
+    /// (see [`Self::support_warm`]).
+    pub fn support_many(&self, dirs: &[Real], out: &mut [Real], scratch: &mut SupportScratch) {
+        for (o, g) in out.iter_mut().zip(dirs.chunks_exact(self.dim)) {
+            *o = self.support_warm(g, scratch);
         }
+    }
+
+    /// The exact support of `g`. Neighbouring directions (facets of one hull) mostly share
+    /// their maximising points, so the points that won the last few queries made with the
+    /// same `scratch` are tried first: their best value starts the search and prunes most of
+    /// the tree.
+    pub fn support_warm(&self, g: &[Real], scratch: &mut SupportScratch) -> Real {
+        let d = self.dim;
+        let mut start = Real::NEG_INFINITY;
+        for &k in &scratch.warm {
+            start = start.max(dot(&self.points[k as usize * d..(k as usize + 1) * d], g));
+        }
+        let (best, arg) = self.search(g, start, &mut scratch.stack);
+        if let Some(k) = arg {
+            if scratch.warm.len() == WARM {
+                scratch.warm.remove(0);
+            }
+            scratch.warm.push(k);
+        }
+        best
     }
 
     /// The largest `g_f . o_k` over the row-major directions `dirs` and all points, with the
@@ -300,7 +314,7 @@ mod tests {
         let tree = SupportTree::new(&pts, dim);
         let dirs = points(300, dim, 17);
         let mut out = vec![0.0; 300];
-        tree.support_many(&dirs, &mut out, &mut Vec::new());
+        tree.support_many(&dirs, &mut out, &mut SupportScratch::default());
         for (o, a) in out.iter().zip(dirs.chunks_exact(dim)) {
             assert_eq!(*o, brute(&pts, dim, a));
         }

@@ -180,8 +180,17 @@ impl Hull {
     }
 }
 
-/// Dot product of two equal-length slices.
+/// Dot product of two equal-length slices, unrolled for the wrench dimensions 3 and 6.
+#[inline(always)]
 pub(crate) fn dot(a: &[Real], b: &[Real]) -> Real {
+    if let (Ok(a), Ok(b)) = (<&[Real; 6]>::try_from(a), <&[Real; 6]>::try_from(b)) {
+        return (a[0] * b[0] + a[1] * b[1])
+            + (a[2] * b[2] + a[3] * b[3])
+            + (a[4] * b[4] + a[5] * b[5]);
+    }
+    if let (Ok(a), Ok(b)) = (<&[Real; 3]>::try_from(a), <&[Real; 3]>::try_from(b)) {
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    }
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
