@@ -291,7 +291,7 @@ mod tests {
 
     fn brute(pts: &[Real], dim: usize, a: &[Real]) -> Real {
         pts.chunks_exact(dim)
-            .map(|p| p.iter().zip(a).map(|(x, y)| x * y).sum::<Real>())
+            .map(|p| dot(p, a))
             .fold(Real::NEG_INFINITY, Real::max)
     }
 
