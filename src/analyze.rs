@@ -96,13 +96,7 @@ pub fn analyze(config: &Config) -> Result<Report> {
         }
         Space::Spatial => (object.facets.clone(), None),
     };
-    let problem = GraspProblem::new(
-        &object.facets.points,
-        &object.facets.normals,
-        candidates,
-        frame,
-        g.model,
-    )?;
+    let problem = GraspProblem::new(&object.facets, candidates, frame, g.model)?;
     let mut indices = Vec::with_capacity(g.contacts.len());
     let mut snaps = Vec::with_capacity(g.contacts.len());
     for (i, c) in g.contacts.iter().enumerate() {

@@ -27,14 +27,7 @@ fn problem(object: &Object, space: Space) -> GraspProblem {
     let frame = WrenchFrame::new(object.centre_of_mass, object.max_radius(), space).unwrap();
     let model = ContactModel::new(MU, EDGES).unwrap();
     let c = candidates(object, space).clone();
-    GraspProblem::new(
-        &object.facets.points,
-        &object.facets.normals,
-        c,
-        frame,
-        model,
-    )
-    .unwrap()
+    GraspProblem::new(&object.facets, c, frame, model).unwrap()
 }
 
 /// Three contacts near the directions at 0, 120 and 240 degrees about z, tilted by `tilt`

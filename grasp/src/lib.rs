@@ -11,7 +11,7 @@
 //! | [`wrench`] | friction cones, primitive wrenches, object wrenches, planar and spatial spaces |
 //! | [`hull`] | convex hulls in 3 and 6 dimensions (Qhull), with degenerate input as a status |
 //! | [`quality`] | force closure, the quality alpha* (paper eq. 6) and the Ferrari-Canny epsilon |
-//! | [`support`] | the OWS support function by branch and bound over a ball tree |
+//! | [`support`] | the OWS support function by branch and bound over a tree of bounding ellipsoids |
 //! | [`lp`] | alpha* by ray-shooting linear programs (clarabel): the independent check |
 //! | [`icr`] | independent contact regions with margin alpha (search zones + region growing) |
 //! | [`reference`](mod@reference) | case export for the Python/Qhull reference `bench/reference_qhull.py` |

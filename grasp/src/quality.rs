@@ -21,7 +21,7 @@
 //!   wrench has no margin.
 //!
 //! alpha* never needs the whole support function: with `g_f = a_f / b_f`, alpha* is
-//! `1 / max_{f,k} g_f . o_k`, a search over a ball tree of the OWS points built once per object
+//! `1 / max_{f,k} g_f . o_k`, a search over a tree of the OWS points (bounding ellipsoids) built once per object
 //! ([`crate::support::SupportTree::max_over`]) that skips clusters of points and whole facets
 //! by bounds. The full support function (every facet, needed by the ICRs) uses the same tree
 //! per facet; the plain dense product `A O^T` through faer, blocked over the OWS, is kept as
@@ -30,7 +30,7 @@
 use faer::{Accum, MatMut, MatRef, Par};
 
 use crate::hull::{Hull, HullError};
-use crate::math::{Real, Vec3};
+use crate::math::Real;
 use crate::object::SurfaceSamples;
 use crate::support::SupportTree;
 use crate::wrench::{ContactModel, Space, WrenchFrame};
@@ -142,15 +142,16 @@ pub struct GraspProblem {
 }
 
 impl GraspProblem {
-    /// Builds the problem from the OWS generators (every facet centre `l_k` with its outward
-    /// normal `n_k`) and the candidate contact points.
+    /// Builds the problem from the object's facets (the OWS generators: every facet centre
+    /// `l_k` with its outward normal `n_k`; their adjacency guides the support search) and the
+    /// candidate contact points.
     pub fn new(
-        ows_points: &[Vec3],
-        ows_normals: &[Vec3],
+        facets: &SurfaceSamples,
         candidates: SurfaceSamples,
         frame: WrenchFrame,
         model: ContactModel,
     ) -> Result<Self, GraspError> {
+        let (ows_points, ows_normals) = (&facets.points, &facets.normals);
         if ows_points.is_empty() || ows_points.len() != ows_normals.len() {
             return Err(GraspError::Empty { what: "facets" });
         }
@@ -198,7 +199,7 @@ impl GraspProblem {
                 index: k / (s * d),
             });
         }
-        let tree = SupportTree::new(&ows, d);
+        let tree = SupportTree::new(&ows, d, |i| facets.adjacency.neighbours(i));
         Ok(Self {
             frame,
             model,
@@ -230,7 +231,7 @@ impl GraspProblem {
         self.frame.dim()
     }
 
-    /// The ball tree over the object wrenches.
+    /// The bounding-ellipsoid tree over the object wrenches.
     pub fn support_tree(&self) -> &SupportTree {
         &self.tree
     }
@@ -399,6 +400,7 @@ impl Evaluation {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::math::Vec3;
     use crate::object::Adjacency;
 
     /// Quasi-uniform points on a sphere (Fibonacci lattice), with their radial normals.
@@ -413,6 +415,17 @@ pub(crate) mod tests {
             })
             .collect();
         (normals.iter().map(|n| n * radius).collect(), normals)
+    }
+
+    /// Samples with no neighbourhood graph.
+    pub(crate) fn unconnected(points: Vec<Vec3>, normals: Vec<Vec3>) -> SurfaceSamples {
+        let n = points.len();
+        SurfaceSamples {
+            points,
+            normals,
+            areas: vec![1.0; n],
+            adjacency: Adjacency::from_lists(&vec![Vec::new(); n]),
+        }
     }
 
     /// An equator ring of `count` points on a sphere, ring adjacency.
@@ -439,8 +452,7 @@ pub(crate) mod tests {
         let (pts, nrm) = fibonacci_sphere(2000, r);
         let frame = WrenchFrame::new(Vec3::zeros(), r, Space::Planar).unwrap();
         GraspProblem::new(
-            &pts,
-            &nrm,
+            &unconnected(pts, nrm),
             ring(72, r),
             frame,
             ContactModel::new(mu, 8).unwrap(),
@@ -550,15 +562,15 @@ pub(crate) mod tests {
     fn two_contacts_in_6d_are_not_force_closure() {
         let r = 0.05;
         let (pts, nrm) = fibonacci_sphere(500, r);
-        let cand = SurfaceSamples {
-            points: pts.clone(),
-            normals: nrm.clone(),
-            areas: vec![1.0; pts.len()],
-            adjacency: Adjacency::from_lists(&vec![Vec::new(); pts.len()]),
-        };
+        let cand = unconnected(pts, nrm);
         let frame = WrenchFrame::new(Vec3::zeros(), r, Space::Spatial).unwrap();
-        let p =
-            GraspProblem::new(&pts, &nrm, cand, frame, ContactModel::new(0.5, 8).unwrap()).unwrap();
+        let p = GraspProblem::new(
+            &cand,
+            cand.clone(),
+            frame,
+            ContactModel::new(0.5, 8).unwrap(),
+        )
+        .unwrap();
         let e = p.evaluate(&[0, 499]).unwrap();
         assert!(!e.force_closure());
         assert_eq!(e.quality, 0.0);

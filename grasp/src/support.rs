@@ -1,11 +1,14 @@
-//! The OWS support function with bounds: a ball tree over the object wrenches, built once per
+//! The OWS support function with bounds: a tree of bounding ellipsoids over the object wrenches, built once per
 //! object, so that `max_k a . o_k` skips whole clusters of OWS points.
 //!
-//! For a node with centre `c` and radius `r` (every point within `r` of `c`) and bounding box
-//! `[lo, hi]`, no point of the node can exceed `min(a . c + |a| r, sum_i max(a_i lo_i, a_i
-//! hi_i))`: the ball is tight for round clusters, the box for flat ones (a sphere's object
-//! wrenches have no torque, so in 6D they fill only the force coordinates). Two queries use
-//! it:
+//! Each node keeps its centre `c` (the mean), a bounding ellipsoid `{c + L y : |y| <= 1}` with
+//! `L L^T = s^2 (C + eps I)` (`C` the covariance of its points, `s` the largest Mahalanobis
+//! distance, `eps` a tiny regularisation) and its bounding box `[lo, hi]`. No point of the
+//! node can exceed `min(a . c + |L^T a|, sum_i max(a_i lo_i, a_i hi_i))`. The ellipsoid is
+//! what makes the bound tight where it matters: the points that nearly maximise `a . o` lie on
+//! a curved patch roughly normal to `a`, thin along `a`, where a ball bound is as loose as the
+//! patch is wide; flat sets (a sphere's object wrenches have no torque) cost nothing in their
+//! missing directions. Two queries use it:
 //! - [`SupportTree::support`]: the exact support `h(a)` of one direction, branch and bound
 //!   (children visited best bound first, a node skipped when its bound cannot beat the best
 //!   point found so far);
@@ -30,7 +33,8 @@ pub const MAX_DIM: usize = 6;
 #[derive(Debug, Clone)]
 struct Node {
     centre: [Real; MAX_DIM],
-    radius: Real,
+    /// The ellipsoid matrix `L L^T` (row-major, `dim x dim` used).
+    shape: [[Real; MAX_DIM]; MAX_DIM],
     lo: [Real; MAX_DIM],
     hi: [Real; MAX_DIM],
     /// Children (`u32::MAX` for a leaf) or the leaf's point range.
@@ -46,61 +50,90 @@ const WARM: usize = 16;
 /// Scratch space for support queries: the search stack and the warm-start points.
 #[derive(Debug, Clone, Default)]
 pub struct SupportScratch {
-    stack: Vec<u32>,
+    stack: Vec<(Real, u32)>,
     warm: Vec<u32>,
 }
 
-/// A ball tree over a fixed point set (row-major, `dim` coordinates per point).
+/// A tree of bounding ellipsoids over a fixed point set (row-major, `dim` coordinates per point).
 #[derive(Debug, Clone)]
 pub struct SupportTree {
     dim: usize,
     nodes: Vec<Node>,
     /// Points in tree order, row-major.
     points: Vec<Real>,
+    /// Neighbours of each point (tree order), CSR: for hill climbing to a warm start.
+    neighbour_offsets: Vec<u32>,
+    neighbours: Vec<u32>,
 }
 
 impl SupportTree {
     /// Builds the tree (`dim` <= [`MAX_DIM`]; the points must be finite and non-empty).
-    pub fn new(points: &[Real], dim: usize) -> Self {
+    /// `neighbours(i)` lists the points adjacent to point `i` (e.g. the facets sharing an
+    /// edge with facet `i`), used only to climb to a good starting value; any graph, even an
+    /// empty one, gives exact results.
+    pub fn new<'a>(points: &[Real], dim: usize, neighbours: impl Fn(usize) -> &'a [u32]) -> Self {
         assert!(dim <= MAX_DIM && dim > 0, "support tree dimension {dim}");
         let count = points.len() / dim;
         let mut order: Vec<u32> = (0..count as u32).collect();
         let mut nodes = Vec::with_capacity(2 * count / LEAF + 1);
         build(points, dim, &mut order, 0, count, &mut nodes);
         let mut sorted = Vec::with_capacity(points.len());
-        for &i in &order {
+        let mut position = vec![0u32; count];
+        for (pos, &i) in order.iter().enumerate() {
             sorted.extend_from_slice(&points[i as usize * dim..(i as usize + 1) * dim]);
+            position[i as usize] = pos as u32;
+        }
+        let mut neighbour_offsets = Vec::with_capacity(count + 1);
+        let mut adjacent = Vec::new();
+        neighbour_offsets.push(0);
+        for &i in &order {
+            adjacent.extend(
+                neighbours(i as usize)
+                    .iter()
+                    .filter(|&&j| (j as usize) < count)
+                    .map(|&j| position[j as usize]),
+            );
+            neighbour_offsets.push(adjacent.len() as u32);
         }
         Self {
             dim,
             nodes,
             points: sorted,
+            neighbour_offsets,
+            neighbours: adjacent,
         }
     }
 
-    fn bound(&self, node: &Node, g: &[Real], g_norm: Real) -> Real {
-        let mut ball = 0.0;
-        let mut bbox = 0.0;
-        for (k, x) in g.iter().enumerate() {
-            ball += x * node.centre[k];
-            bbox += (x * node.lo[k]).max(x * node.hi[k]);
+    fn point(&self, k: u32) -> &[Real] {
+        &self.points[k as usize * self.dim..(k as usize + 1) * self.dim]
+    }
+
+    #[inline(always)]
+    fn bound(&self, node: &Node, g: &[Real]) -> Real {
+        match self.dim {
+            6 => bound_fixed::<6>(node, g),
+            3 => bound_fixed::<3>(node, g),
+            _ => bound_any(node, g),
         }
-        (ball + g_norm * node.radius).min(bbox)
     }
 
     /// Largest `g . o` over the points, or `best` if none exceeds it, with the position (in
     /// tree order) of the point attaining it; `stack` is scratch space.
-    fn search(&self, g: &[Real], mut best: Real, stack: &mut Vec<u32>) -> (Real, Option<u32>) {
+    fn search(
+        &self,
+        g: &[Real],
+        mut best: Real,
+        stack: &mut Vec<(Real, u32)>,
+    ) -> (Real, Option<u32>) {
         let mut arg = None;
         let d = self.dim;
-        let g_norm = g.iter().map(|x| x * x).sum::<Real>().sqrt();
         stack.clear();
-        stack.push(0);
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
-            if self.bound(node, g, g_norm) <= best {
+        stack.push((Real::INFINITY, 0));
+        while let Some((bound, i)) = stack.pop() {
+            if bound <= best {
                 continue;
             }
+            let node = &self.nodes[i as usize];
             if node.left == u32::MAX {
                 let pts = &self.points[node.start as usize * d..node.end as usize * d];
                 for (k, p) in pts.chunks_exact(d).enumerate() {
@@ -116,19 +149,19 @@ impl SupportTree {
                 &self.nodes[node.left as usize],
                 &self.nodes[node.right as usize],
             );
-            let (bl, br) = (self.bound(l, g, g_norm), self.bound(r, g, g_norm));
+            let (bl, br) = (self.bound(l, g), self.bound(r, g));
             // Push the better child last so it is searched first.
             if bl > br {
-                stack.extend([node.right, node.left]);
+                stack.extend([(br, node.right), (bl, node.left)]);
             } else {
-                stack.extend([node.left, node.right]);
+                stack.extend([(bl, node.left), (br, node.right)]);
             }
         }
         (best, arg)
     }
 
     /// The exact support `max_k a . o_k` of direction `a`.
-    pub fn support(&self, a: &[Real], stack: &mut Vec<u32>) -> Real {
+    pub fn support(&self, a: &[Real], stack: &mut Vec<(Real, u32)>) -> Real {
         self.search(a, Real::NEG_INFINITY, stack).0
     }
 
@@ -145,14 +178,40 @@ impl SupportTree {
     /// same `scratch` are tried first: their best value starts the search and prunes most of
     /// the tree.
     pub fn support_warm(&self, g: &[Real], scratch: &mut SupportScratch) -> Real {
-        let d = self.dim;
+        // Best remembered point, then climb the neighbourhood graph while it improves.
+        let mut at = None;
         let mut start = Real::NEG_INFINITY;
         for &k in &scratch.warm {
-            start = start.max(dot(&self.points[k as usize * d..(k as usize + 1) * d], g));
+            let v = dot(self.point(k), g);
+            if v > start {
+                start = v;
+                at = Some(k);
+            }
+        }
+        if let Some(mut k) = at {
+            loop {
+                let range = self.neighbour_offsets[k as usize] as usize
+                    ..self.neighbour_offsets[k as usize + 1] as usize;
+                let mut next = k;
+                for &j in &self.neighbours[range] {
+                    let v = dot(self.point(j), g);
+                    if v > start {
+                        start = v;
+                        next = j;
+                    }
+                }
+                if next == k {
+                    break;
+                }
+                k = next;
+            }
+            at = Some(k);
         }
         let (best, arg) = self.search(g, start, &mut scratch.stack);
-        if let Some(k) = arg {
-            if scratch.warm.len() == WARM {
+        if let Some(k) = arg.or(at) {
+            if let Some(pos) = scratch.warm.iter().position(|&w| w == k) {
+                scratch.warm.remove(pos);
+            } else if scratch.warm.len() == WARM {
                 scratch.warm.remove(0);
             }
             scratch.warm.push(k);
@@ -168,14 +227,13 @@ impl SupportTree {
         dirs: &[Real],
         floor: Real,
         order: &mut Vec<(Real, u32)>,
-        stack: &mut Vec<u32>,
+        stack: &mut Vec<(Real, u32)>,
     ) -> Option<(usize, Real)> {
         let d = self.dim;
         let root = &self.nodes[0];
         order.clear();
         for (f, g) in dirs.chunks_exact(d).enumerate() {
-            let g_norm = g.iter().map(|x| x * x).sum::<Real>().sqrt();
-            order.push((self.bound(root, g, g_norm), f as u32));
+            order.push((self.bound(root, g), f as u32));
         }
         order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
         let mut best = floor;
@@ -212,18 +270,7 @@ fn build(
             *c += x / n;
         }
     }
-    let radius = order[start..end]
-        .iter()
-        .map(|&i| {
-            p(i).iter()
-                .zip(&centre)
-                .map(|(x, c)| (x - c) * (x - c))
-                .sum::<Real>()
-                .sqrt()
-        })
-        .fold(0.0, Real::max);
-    // Inflate slightly so rounding in the bound never prunes a point that could win.
-    let radius = radius * (1.0 + 1e-12) + 1e-300;
+    let shape = bounding_ellipsoid(order[start..end].iter().map(|&i| p(i)), &centre, dim);
     let mut lo = [0.0; MAX_DIM];
     let mut hi = [0.0; MAX_DIM];
     for k in 0..dim {
@@ -239,7 +286,7 @@ fn build(
     let index = nodes.len() as u32;
     nodes.push(Node {
         centre,
-        radius,
+        shape,
         lo,
         hi,
         left: u32::MAX,
@@ -248,29 +295,121 @@ fn build(
         end: end as u32,
     });
     if end - start > LEAF {
-        // Split at the median of the coordinate of largest spread.
-        let axis = (0..dim)
-            .max_by(|&a, &b| {
-                let spread = |k: usize| {
-                    let (lo, hi) = order[start..end]
-                        .iter()
-                        .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), &i| {
-                            (lo.min(p(i)[k]), hi.max(p(i)[k]))
-                        });
-                    hi - lo
-                };
-                spread(a).total_cmp(&spread(b))
-            })
-            .unwrap_or(0);
+        // Split at the median along the principal axis of the node's ellipsoid (power
+        // iteration), so that leaves are compact, nearly flat patches.
+        let shape = &nodes[index as usize].shape;
+        let mut axis = [1.0; MAX_DIM];
+        for _ in 0..30 {
+            let mut next = [0.0; MAX_DIM];
+            for i in 0..dim {
+                next[i] = (0..dim).map(|j| shape[i][j] * axis[j]).sum();
+            }
+            let norm = next[..dim].iter().map(|x| x * x).sum::<Real>().sqrt();
+            if norm == 0.0 {
+                break;
+            }
+            for k in 0..dim {
+                axis[k] = next[k] / norm;
+            }
+        }
+        let key = |i: u32| dot(p(i), &axis[..dim]);
         let mid = start + (end - start) / 2;
-        order[start..end]
-            .select_nth_unstable_by(mid - start, |&a, &b| p(a)[axis].total_cmp(&p(b)[axis]));
+        order[start..end].select_nth_unstable_by(mid - start, |&a, &b| key(a).total_cmp(&key(b)));
         let left = build(points, dim, order, start, mid, nodes);
         let right = build(points, dim, order, mid, end, nodes);
         nodes[index as usize].left = left;
         nodes[index as usize].right = right;
     }
     index
+}
+
+/// The packed factor `L` of an ellipsoid about `centre` containing the points: `L L^T =
+/// s^2 (C + eps I)`, `C` their covariance, `eps = 1e-12 trace(C)` (so flat sets work), `s` the
+/// largest Mahalanobis distance, inflated so rounding never excludes a point.
+fn bounding_ellipsoid<'a>(
+    points: impl Iterator<Item = &'a [Real]> + Clone,
+    centre: &[Real; MAX_DIM],
+    dim: usize,
+) -> [[Real; MAX_DIM]; MAX_DIM] {
+    let n = points.clone().count().max(1) as Real;
+    let mut cov = nalgebra::DMatrix::<Real>::zeros(dim, dim);
+    for p in points.clone() {
+        for i in 0..dim {
+            for j in 0..=i {
+                cov[(i, j)] += (p[i] - centre[i]) * (p[j] - centre[j]) / n;
+            }
+        }
+    }
+    let trace: Real = (0..dim).map(|i| cov[(i, i)]).sum();
+    let eps = (1e-12 * trace).max(Real::MIN_POSITIVE);
+    for i in 0..dim {
+        cov[(i, i)] += eps;
+        for j in 0..i {
+            cov[(j, i)] = cov[(i, j)];
+        }
+    }
+    let mut shape = [[0.0; MAX_DIM]; MAX_DIM];
+    let Some(chol) = cov.clone().cholesky() else {
+        // Cannot happen for a regularised covariance; fall back to the bounding ball.
+        let r2 = points
+            .map(|p| (0..dim).map(|k| (p[k] - centre[k]).powi(2)).sum::<Real>())
+            .fold(0.0, Real::max);
+        for (i, row) in shape.iter_mut().enumerate().take(dim) {
+            row[i] = r2 * (1.0 + 1e-8);
+        }
+        return shape;
+    };
+    let l = chol.l();
+    let mut s2: Real = 0.0;
+    for p in points {
+        let dev = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
+        let y = l.solve_lower_triangular(&dev).unwrap_or(dev);
+        s2 = s2.max(y.norm_squared());
+    }
+    // Inflate so that rounding (here and in the bound) never excludes a point.
+    let s2 = s2 * (1.0 + 1e-8) + Real::MIN_POSITIVE;
+    for (i, row) in shape.iter_mut().enumerate().take(dim) {
+        for (j, m) in row.iter_mut().enumerate().take(dim) {
+            *m = s2 * cov[(i, j)];
+        }
+    }
+    shape
+}
+
+/// The node bound `min(g . c + sqrt(g^T M g), box)` for a fixed dimension (unrolled).
+#[inline(always)]
+fn bound_fixed<const D: usize>(node: &Node, g: &[Real]) -> Real {
+    let Ok(g) = <&[Real; D]>::try_from(g) else {
+        return bound_any(node, g);
+    };
+    let mut centre = 0.0;
+    let mut bbox = 0.0;
+    let mut quad = 0.0;
+    for i in 0..D {
+        centre += g[i] * node.centre[i];
+        bbox += (g[i] * node.lo[i]).max(g[i] * node.hi[i]);
+        let row: Real = node.shape[i][..D].iter().zip(g).map(|(m, x)| m * x).sum();
+        quad += g[i] * row;
+    }
+    (centre + quad.max(0.0).sqrt()).min(bbox)
+}
+
+/// [`bound_fixed`] for any dimension.
+fn bound_any(node: &Node, g: &[Real]) -> Real {
+    let mut centre = 0.0;
+    let mut bbox = 0.0;
+    let mut quad = 0.0;
+    for (i, gi) in g.iter().enumerate() {
+        centre += gi * node.centre[i];
+        bbox += (gi * node.lo[i]).max(gi * node.hi[i]);
+        let row: Real = g
+            .iter()
+            .enumerate()
+            .map(|(j, gj)| node.shape[i][j] * gj)
+            .sum();
+        quad += gi * row;
+    }
+    (centre + quad.max(0.0).sqrt()).min(bbox)
 }
 
 #[cfg(test)]
@@ -299,7 +438,7 @@ mod tests {
     fn support_equals_brute_force() {
         for dim in [3, 6] {
             let pts = points(3000, dim, 7);
-            let tree = SupportTree::new(&pts, dim);
+            let tree = SupportTree::new(&pts, dim, |_| &[]);
             let mut stack = Vec::new();
             for a in points(50, dim, 11).chunks_exact(dim) {
                 assert_eq!(tree.support(a, &mut stack), brute(&pts, dim, a));
@@ -311,7 +450,7 @@ mod tests {
     fn support_many_equals_brute_force() {
         let dim = 6;
         let pts = points(3000, dim, 13);
-        let tree = SupportTree::new(&pts, dim);
+        let tree = SupportTree::new(&pts, dim, |_| &[]);
         let dirs = points(300, dim, 17);
         let mut out = vec![0.0; 300];
         tree.support_many(&dirs, &mut out, &mut SupportScratch::default());
@@ -324,7 +463,7 @@ mod tests {
     fn max_over_equals_brute_force() {
         let dim = 6;
         let pts = points(2000, dim, 3);
-        let tree = SupportTree::new(&pts, dim);
+        let tree = SupportTree::new(&pts, dim, |_| &[]);
         let dirs = points(200, dim, 5);
         let (mut order, mut stack) = (Vec::new(), Vec::new());
         let (f, v) = tree
@@ -341,7 +480,7 @@ mod tests {
 
     #[test]
     fn tiny_sets_work() {
-        let tree = SupportTree::new(&[1.0, 2.0, 3.0], 3);
+        let tree = SupportTree::new(&[1.0, 2.0, 3.0], 3, |_| &[]);
         assert_eq!(tree.support(&[1.0, 0.0, 0.0], &mut Vec::new()), 1.0);
     }
 }

@@ -33,8 +33,7 @@ pub fn posed_problem(
         .unwrap()
         .with_orientation(orientation);
     GraspProblem::new(
-        &object.facets.points,
-        &object.facets.normals,
+        &object.facets,
         candidates(object, space).clone(),
         frame,
         ContactModel::new(mu, edges).unwrap(),
