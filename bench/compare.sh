@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Times the Rust grasp analysis (criterion) and the Python/Qhull reference on identical cases,
 # in the same run on the same machine. Usage: bench/compare.sh [criterion filter]
-# Results: target/criterion (Rust) and the JSON lines printed at the end (Python).
+# Prints the Python reference's JSON lines, then a markdown table of both (medians).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
@@ -16,4 +16,6 @@ ICRFLOW_BENCH_CASES="$cases" cargo bench -p icrflow-grasp --bench quality -- "$@
 echo "== Python reference (numpy + scipy Qhull), same cases" >&2
 # Single thread on both sides: numpy's BLAS would otherwise use both cores.
 OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 \
-    "$py" bench/reference_qhull.py bench "$cases" --repeat 50
+    "$py" bench/reference_qhull.py bench "$cases" --repeat 50 | tee "$CARGO_TARGET_DIR/bench-python.jsonl"
+echo "== Table (medians)" >&2
+python3 bench/table.py "$CARGO_TARGET_DIR/criterion" "$CARGO_TARGET_DIR/bench-python.jsonl"

@@ -140,13 +140,13 @@ impl Hull {
             .fold(Real::NEG_INFINITY, Real::max)
     }
 
-    /// For each vertex (by input index), the facets it lies on, as a map from input index to
-    /// facet list (`None` for input points that are not vertices).
+    /// For each input point, the facets it lies on if it is a vertex (an extreme point), else
+    /// an empty list.
     pub fn vertex_facets(&self, input_count: usize) -> Vec<Vec<u32>> {
-        let mut out = vec![Vec::new(); input_count];
-        for f in 0..self.facet_count() {
-            for &v in self.facet_vertices(f) {
-                out[v as usize].push(f as u32);
+        let mut out = incident_facets(&self.facet_offsets, &self.facet_indices, input_count);
+        for (i, facets) in out.iter_mut().enumerate() {
+            if self.vertices.binary_search(&(i as u32)).is_err() {
+                facets.clear();
             }
         }
         out
@@ -166,9 +166,30 @@ impl Hull {
             facet_indices.extend_from_slice(&f);
             facet_offsets.push(facet_indices.len() as u32);
         }
-        let mut vertices = facet_indices.clone();
-        vertices.sort_unstable();
-        vertices.dedup();
+        // A point on facets is a vertex (an extreme point) when the normals of its facets span
+        // the space: its normal cone is full-dimensional. This leaves out points that lie on
+        // the boundary without being extreme (inside a facet, on an edge between two vertices).
+        let count = facet_indices
+            .iter()
+            .map(|&i| i as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let vertices = incident_facets(&facet_offsets, &facet_indices, count)
+            .iter()
+            .enumerate()
+            .filter(|(_, facets)| {
+                facets.len() >= dim && {
+                    // Linear rank of the normals = affine rank of the origin and the normals.
+                    let mut cone = vec![0.0; dim];
+                    for &f in facets.iter() {
+                        let f = f as usize;
+                        cone.extend_from_slice(&normals[f * dim..(f + 1) * dim]);
+                    }
+                    affine_rank(&cone, dim) == dim
+                }
+            })
+            .map(|(i, _)| i as u32)
+            .collect();
         Self {
             dim,
             normals,
@@ -178,6 +199,19 @@ impl Hull {
             vertices,
         }
     }
+}
+
+/// For each input point, the facets whose lists hold it.
+fn incident_facets(offsets: &[u32], indices: &[u32], count: usize) -> Vec<Vec<u32>> {
+    let mut out = vec![Vec::new(); count];
+    for f in 0..offsets.len().saturating_sub(1) {
+        for &v in &indices[offsets[f] as usize..offsets[f + 1] as usize] {
+            if let Some(list) = out.get_mut(v as usize) {
+                list.push(f as u32);
+            }
+        }
+    }
+    out
 }
 
 /// Dot product of two equal-length slices, unrolled for the wrench dimensions 3 and 6.
