@@ -128,3 +128,62 @@ proptest! {
         prop_assert_eq!(e.quality > 0.0, e.force_closure());
     }
 }
+
+/// Facet hyperplanes and extreme vertices of two hulls agree (facets matched by normal and
+/// offset within `tol`).
+fn same_hull(
+    a: &icrflow_grasp::hull::Hull,
+    b: &icrflow_grasp::hull::Hull,
+    tol: Real,
+) -> Result<(), String> {
+    if a.vertices() != b.vertices() {
+        return Err(format!(
+            "vertices differ: {:?} vs {:?}",
+            a.vertices(),
+            b.vertices()
+        ));
+    }
+    let find = |x: &icrflow_grasp::hull::Hull, y: &icrflow_grasp::hull::Hull| {
+        (0..x.facet_count()).find(|&f| {
+            !(0..y.facet_count()).any(|g| {
+                (x.offsets()[f] - y.offsets()[g]).abs() <= tol
+                    && x.normal(f)
+                        .iter()
+                        .zip(y.normal(g))
+                        .all(|(p, q)| (p - q).abs() <= tol)
+            })
+        })
+    };
+    if let Some(f) = find(a, b).or_else(|| find(b, a)) {
+        return Err(format!(
+            "facet {f} has no match ({} vs {} facets)",
+            a.facet_count(),
+            b.facet_count()
+        ));
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
+
+    /// The hull used for evaluation and Qhull give the same facets and vertices.
+    #[test]
+    fn hull_equals_qhull(g in grasp()) {
+        let (object, c) = contacts(&g);
+        let p = common::problem(object, g.space, g.mu, g.edges);
+        let w: Vec<Real> = c.iter().flat_map(|&i| p.candidate_wrenches(i).to_vec()).collect();
+        let fast = icrflow_grasp::hull::Hull::new(&w, p.dim());
+        let reference = icrflow_grasp::hull::Hull::new_qhull(&w, p.dim());
+        match (fast, reference) {
+            (Ok(a), Ok(b)) => {
+                let scale = w.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
+                if let Err(e) = same_hull(&a, &b, 1e-8 * scale.max(1.0)) {
+                    return Err(TestCaseError::fail(format!("{e} ({g:?})")));
+                }
+            }
+            (Err(a), Err(b)) => prop_assert_eq!(a, b),
+            (a, b) => return Err(TestCaseError::fail(format!("one failed: {a:?} / {b:?}"))),
+        }
+    }
+}

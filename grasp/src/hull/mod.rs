@@ -76,23 +76,13 @@ pub struct Hull {
 impl Hull {
     /// Builds the convex hull of `points` (row-major, `dim` coordinates per point).
     pub fn new(points: &[Real], dim: usize) -> Result<Self, HullError> {
-        if !(2..=8).contains(&dim) {
-            return Err(HullError::Dimension { dim });
-        }
-        if !points.len().is_multiple_of(dim) {
-            return Err(HullError::Ragged {
-                len: points.len(),
-                dim,
-            });
-        }
-        if let Some(i) = points.iter().position(|x| !x.is_finite()) {
-            return Err(HullError::NonFinite { index: i / dim });
-        }
-        let count = points.len() / dim;
-        let rank = affine_rank(points, dim);
-        if rank < dim {
-            return Err(HullError::Degenerate { count, rank, dim });
-        }
+        check(points, dim)?;
+        qhull::hull(points, dim)
+    }
+
+    /// The same hull computed by Qhull alone: the reference for the fast path.
+    pub fn new_qhull(points: &[Real], dim: usize) -> Result<Self, HullError> {
+        check(points, dim)?;
         qhull::hull(points, dim)
     }
 
@@ -212,6 +202,28 @@ fn incident_facets(offsets: &[u32], indices: &[u32], count: usize) -> Vec<Vec<u3
         }
     }
     out
+}
+
+/// Checks the input: dimension, whole points, finite, full-dimensional.
+fn check(points: &[Real], dim: usize) -> Result<(), HullError> {
+    if !(2..=8).contains(&dim) {
+        return Err(HullError::Dimension { dim });
+    }
+    if !points.len().is_multiple_of(dim) {
+        return Err(HullError::Ragged {
+            len: points.len(),
+            dim,
+        });
+    }
+    if let Some(i) = points.iter().position(|x| !x.is_finite()) {
+        return Err(HullError::NonFinite { index: i / dim });
+    }
+    let count = points.len() / dim;
+    let rank = affine_rank(points, dim);
+    if rank < dim {
+        return Err(HullError::Degenerate { count, rank, dim });
+    }
+    Ok(())
 }
 
 /// Dot product of two equal-length slices, unrolled for the wrench dimensions 3 and 6.
