@@ -1,20 +1,30 @@
 //! Convex hulls in 3 and 6 dimensions, as an H-representation with facet-vertex incidence.
 //!
-//! # Why Qhull
+//! # Two implementations: a fast one, and Qhull as the reference
 //! The hulls here are small (the `n x s` primitive wrenches of a grasp, in R^3 or R^6) but
 //! their input is degenerate by construction: the `s` edges of one linearised friction cone
 //! lie on a 2-flat, so many facets of a 6D grasp hull are not simplices, and duplicate or
-//! coplanar points are the rule. Qhull (Barber, Dobkin & Huhdanpaa 1996) is the field's
-//! standard for exactly this: it merges coplanar facets with a bounded error and reports
-//! degenerate input as an error value instead of returning a wrong hull. We call it through
-//! the `qhull` crate (bundled Qhull sources, safe Rust API). Its default options are used,
-//! which in 5D and up include exact pre-merges (`Qx`), so each facet of [`Hull`] is a merged
-//! facet whose vertex list is the full set of input points on it.
+//! coplanar points are the rule.
+//!
+//! - Qhull (Barber, Dobkin & Huhdanpaa 1996) is the field's standard for exactly this: it
+//!   merges coplanar facets with a bounded error and reports degenerate input as an error
+//!   value instead of returning a wrong hull. We call it through the `qhull` crate (bundled
+//!   Qhull sources, safe Rust API) with its default options, which in 5D and up include exact
+//!   pre-merges (`Qx`). But a 6D hull of 24 points costs it about 2 to 3 ms here, most of a
+//!   quality evaluation.
+//! - [`beneath_beyond`] is an incremental construction written for these inputs (tens of
+//!   points, 2 to 8 dimensions) that keeps merged, non-simplicial facets as bit sets of
+//!   points and checks its result against every input point. It is what [`Hull::new`] uses;
+//!   for inputs it declines (more than 128 points, or near-degeneracies at the scale of its
+//!   tolerance) [`Hull::new`] falls back to Qhull. [`Hull::new_qhull`] is Qhull alone, the
+//!   reference the fast path is tested against (same facet hyperplanes and vertices, in
+//!   `grasp/tests/properties.rs`).
 //!
 //! # Conventions
 //! Facet `f` is the half-space `a_f . x <= b_f` with `a_f` a unit outward normal. Vertex and
 //! facet-vertex indices refer to the input points.
 
+pub mod beneath_beyond;
 mod qhull;
 
 use crate::math::Real;
@@ -74,10 +84,15 @@ pub struct Hull {
 }
 
 impl Hull {
-    /// Builds the convex hull of `points` (row-major, `dim` coordinates per point).
+    /// Builds the convex hull of `points` (row-major, `dim` coordinates per point): by the
+    /// beneath-beyond construction for small sets ([`beneath_beyond`]), falling back to
+    /// Qhull for the inputs it declines.
     pub fn new(points: &[Real], dim: usize) -> Result<Self, HullError> {
         check(points, dim)?;
-        qhull::hull(points, dim)
+        match beneath_beyond::hull(points, dim) {
+            Ok((normals, offsets, facets)) => Ok(Self::from_parts(dim, normals, offsets, facets)),
+            Err(_) => qhull::hull(points, dim),
+        }
     }
 
     /// The same hull computed by Qhull alone: the reference for the fast path.
@@ -111,12 +126,13 @@ impl Hull {
         &self.offsets
     }
 
-    /// Input indices of the vertices of facet `f`.
+    /// Input indices of the points on facet `f` (within the tolerance of its hyperplane).
     pub fn facet_vertices(&self, f: usize) -> &[u32] {
         &self.facet_indices[self.facet_offsets[f] as usize..self.facet_offsets[f + 1] as usize]
     }
 
-    /// Input indices of the hull's vertices, ascending.
+    /// Input indices of the hull's vertices (extreme points; every copy of a duplicated
+    /// extreme point), ascending.
     pub fn vertices(&self) -> &[u32] {
         &self.vertices
     }
@@ -326,6 +342,10 @@ mod tests {
         let hull = Hull::new(&pts, 3).unwrap();
         assert!(!hull.vertices().contains(&8));
         assert!(!hull.vertices().contains(&9));
+        // A duplicate of a vertex is a vertex too (both backends).
+        assert!(hull.vertices().contains(&10) && hull.vertices().contains(&7));
+        let reference = Hull::new_qhull(&pts, 3).unwrap();
+        assert_eq!(reference.vertices(), hull.vertices());
         assert_eq!(hull.facet_count(), 6);
     }
 

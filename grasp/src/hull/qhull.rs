@@ -1,6 +1,6 @@
 //! The Qhull backend.
 
-use super::{Hull, HullError};
+use super::{Hull, HullError, dot};
 use crate::math::Real;
 
 /// Runs Qhull with its default options on full-rank input.
@@ -9,6 +9,11 @@ use crate::math::Real;
 /// for it (most of the cost of a small hull, and a panic if no temporary file can be made).
 /// With no output options Qhull prints nothing on success; on failure it prints its message
 /// to stderr and the error code comes back here.
+///
+/// Facet lists are taken as the beneath-beyond path defines them, every input point within
+/// the tolerance of the facet's hyperplane, rather than Qhull's vertex lists (which keep only
+/// one of duplicate points and none of the points inside a facet), so that both paths give
+/// the same vertices.
 pub(super) fn hull(points: &[Real], dim: usize) -> Result<Hull, HullError> {
     let mut coords = points.to_vec();
     let qh = qhull::Qh::builder()
@@ -20,26 +25,28 @@ pub(super) fn hull(points: &[Real], dim: usize) -> Result<Hull, HullError> {
         })?;
     let mut normals = Vec::with_capacity(qh.num_facets() * dim);
     let mut offsets = Vec::with_capacity(qh.num_facets());
-    let mut facets = Vec::with_capacity(qh.num_facets());
     for facet in qh.facets() {
-        let (Some(normal), Some(vertices)) = (facet.normal(), facet.vertices()) else {
+        let Some(normal) = facet.normal() else {
             return Err(HullError::Backend {
-                message: format!("facet {} has no normal or no vertices", facet.id()),
+                message: format!("facet {} has no normal", facet.id()),
             });
         };
-        let mut ids = Vec::with_capacity(vertices.size(&qh));
-        for v in vertices.iter() {
-            let id = v.point_id(&qh).map_err(|e| HullError::Backend {
-                message: e.to_string(),
-            })?;
-            let id = u32::try_from(id).map_err(|_| HullError::Backend {
-                message: format!("vertex {} has no input point", v.id()),
-            })?;
-            ids.push(id);
-        }
         normals.extend_from_slice(normal);
         offsets.push(-facet.offset());
-        facets.push(ids);
     }
+    let tol = super::beneath_beyond::RELATIVE_TOLERANCE
+        * points.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
+    let facets = normals
+        .chunks_exact(dim)
+        .zip(&offsets)
+        .map(|(a, b)| {
+            points
+                .chunks_exact(dim)
+                .enumerate()
+                .filter(|(_, p)| (dot(a, p) - b).abs() <= tol)
+                .map(|(i, _)| i as u32)
+                .collect()
+        })
+        .collect();
     Ok(Hull::from_parts(dim, normals, offsets, facets))
 }
