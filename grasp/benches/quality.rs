@@ -158,6 +158,14 @@ fn quality(c: &mut Criterion) {
             group.bench_function(format!("{}/icrs_only", b.id), |bench| {
                 bench.iter(|| black_box(p.icrs(black_box(&b.contacts), &e, alpha).unwrap()))
             });
+            group.bench_function(format!("{}/hull_qhull", b.id), |bench| {
+                bench.iter(|| {
+                    black_box(
+                        icrflow_grasp::hull::Hull::new_qhull(black_box(&e.wrenches), p.dim())
+                            .unwrap(),
+                    )
+                })
+            });
             group.bench_function(format!("{}/hull_only", b.id), |bench| {
                 bench.iter(|| {
                     black_box(
