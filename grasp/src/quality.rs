@@ -64,6 +64,10 @@ pub enum GraspError {
         /// What is missing.
         what: &'static str,
     },
+    /// No hull could be built for the contacts' wrenches (not a degenerate grasp: both hull
+    /// implementations failed).
+    #[error("no hull for the grasp wrenches: {0}")]
+    Hull(HullError),
     /// A facet or candidate gives a non-finite wrench (a non-finite point or normal).
     #[error("{what} {index} gives a non-finite wrench (check its point and normal)")]
     NonFinite {
@@ -280,28 +284,28 @@ impl GraspProblem {
         for &c in contacts {
             wrenches.extend_from_slice(self.candidate_wrenches(c));
         }
-        Ok(self.evaluate_wrenches(wrenches))
+        self.evaluate_wrenches(wrenches)
     }
 
     /// Evaluates the grasp whose primitive wrenches are given (row-major, `dim` per wrench).
-    pub fn evaluate_wrenches(&self, wrenches: Vec<Real>) -> Evaluation {
+    ///
+    /// Errors: only when no hull can be built for a reason other than degeneracy (both hull
+    /// implementations failed, or non-finite wrenches): that is not a grasp outcome, and no
+    /// quality is reported for it.
+    pub fn evaluate_wrenches(&self, wrenches: Vec<Real>) -> Result<Evaluation, GraspError> {
         let d = self.dim();
         let scale = wrenches.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
         let tolerance = RELATIVE_TOLERANCE * scale.max(Real::MIN_POSITIVE);
         let hull = match Hull::new(&wrenches, d) {
             Ok(h) => h,
             Err(HullError::Degenerate { rank, .. }) => {
-                return Evaluation::without_hull(Closure::Degenerate { rank }, wrenches, tolerance);
-            }
-            Err(_) => {
-                // Non-finite wrenches cannot come from validated candidates; a backend failure
-                // on full-rank input is reported as a degenerate grasp rather than a quality.
-                return Evaluation::without_hull(
-                    Closure::Degenerate { rank: 0 },
+                return Ok(Evaluation::without_hull(
+                    Closure::Degenerate { rank },
                     wrenches,
                     tolerance,
-                );
+                ));
             }
+            Err(e) => return Err(GraspError::Hull(e)),
         };
         let b_min = hull
             .offsets()
@@ -335,7 +339,7 @@ impl GraspProblem {
                 None => quality = Real::INFINITY,
             }
         }
-        Evaluation {
+        Ok(Evaluation {
             closure,
             quality,
             epsilon,
@@ -343,7 +347,7 @@ impl GraspProblem {
             wrenches,
             limiting_facet,
             tolerance,
-        }
+        })
     }
 
     /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`

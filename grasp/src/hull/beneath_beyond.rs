@@ -258,20 +258,23 @@ const NEW: u8 = 3;
 /// Coplanar and extended by the cone over one of its ridges with a visible facet.
 const GROWN: u8 = 4;
 
+/// The `state` of a facet of class `class` at insertion `step`.
+fn tag(step: u32, class: u8) -> u32 {
+    step << 3 | class as u32
+}
+
 /// A facet (a slot: dead slots are recycled). Fields in the order the insertion touches
-/// them (`repr(C)` keeps it), so that classifying a facet reads one cache line.
+/// them (`repr(C)` keeps it). Its class for the current insertion is in `Builder::state`.
 #[derive(Clone, Copy)]
 #[repr(C)]
 struct Facet<const D: usize, S> {
-    stamp: u32,
-    class: u8,
     alive: bool,
     nb_len: u32,
     nb_start: u32,
     nb_cap: u32,
     offset: f64,
     normal: [f64; D],
-    /// `a . p - b` for the point being inserted (valid where `stamp` is the current step).
+    /// `a . p - b` for the point being inserted (valid where `state` is of this insertion).
     dist: f64,
     verts: S,
     /// Bound on `|a . x - b|` over the points that define the hyperplane.
@@ -279,8 +282,8 @@ struct Facet<const D: usize, S> {
 }
 
 /// A sub-ridge of a cone through the new point: its points, the facet that owns the cone
-/// and the position in that facet's neighbour list reserved for the facet across it (`NONE`
-/// for a grown coplanar facet, whose list is appended to).
+/// and the arena index, in that facet's neighbour list, reserved for the facet across it
+/// (`NONE` for a grown coplanar facet, whose list is appended to).
 #[derive(Clone, Copy)]
 struct Key<S> {
     key: S,
@@ -317,7 +320,8 @@ fn sub<const D: usize>(a: &[f64; D], b: &[f64; D]) -> [f64; D] {
 }
 
 struct Builder<const D: usize, S> {
-    /// The input points, scaled by a power of two (`1 / unscale`) into [-1, 1].
+    /// The input points, scaled by a power of two (`1 / unscale`) into [-1, 1] (unless the
+    /// input's magnitude is beyond 2^±1000).
     pts: Vec<[f64; D]>,
     unscale: f64,
     /// Largest coordinate magnitude of `pts`.
@@ -325,6 +329,9 @@ struct Builder<const D: usize, S> {
     tol: f64,
     interior: [f64; D],
     facets: Vec<Facet<D, S>>,
+    /// Per facet, `step << 3 | class` where it was classified for insertion `step` (kept
+    /// apart from the facets so that class tests touch little memory).
+    state: Vec<u32>,
     arena: Vec<u32>,
     free: Vec<u32>,
     created: usize,
@@ -336,7 +343,8 @@ struct Builder<const D: usize, S> {
     queue: Vec<u32>,
     visible: Vec<u32>,
     grown: Vec<u32>,
-    fresh: Vec<(u32, u32, u32)>,
+    /// New facets and where each replaces a visible facet in its below neighbour's list.
+    fresh: Vec<(u32, u32)>,
     keys: Vec<Key<S>>,
     pending: Vec<(u32, u32)>,
     subs: Vec<S>,
@@ -355,14 +363,13 @@ impl<const D: usize, S: Set> Builder<D, S> {
         b.output()
     }
 
-    #[inline(never)]
     fn new(points: &[f64]) -> Self {
         let n = points.len() / D;
         // Work on the points scaled by a power of two into [-1, 1]: exact, and products
         // cannot overflow whatever the input's magnitude. `output` scales the offsets back.
         let max = points.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let exponent = if max > 0.0 {
-            max.log2().ceil() as i32
+            (max.log2().ceil() as i32).clamp(-1000, 1000)
         } else {
             0
         };
@@ -387,6 +394,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             tol: RELATIVE_TOLERANCE * scale,
             interior: [0.0; D],
             facets: Vec::with_capacity(cap),
+            state: Vec::with_capacity(cap),
             arena: Vec::with_capacity(cap * (D + 2)),
             free: Vec::with_capacity(cap),
             created: 0,
@@ -445,7 +453,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
         fc.nb_cap = cap as u32;
     }
 
-    #[inline(never)]
     fn add_facet(
         &mut self,
         normal: [f64; D],
@@ -477,17 +484,17 @@ impl<const D: usize, S: Set> Builder<D, S> {
             nb_start,
             nb_len: 0,
             nb_cap,
-            stamp: 0,
-            class: BELOW,
             alive: true,
         };
         Ok(match slot {
             Some(f) => {
                 self.facets[f] = facet;
+                self.state[f] = 0;
                 f
             }
             None => {
                 self.facets.push(facet);
+                self.state.push(0);
                 self.facets.len() - 1
             }
         })
@@ -508,7 +515,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
     /// Unit outward normal, offset and residual bound of the hyperplane through point `o` and
     /// the points of `set` (which must span a `(D - 1)`-flat with `o`), oriented away from
     /// the interior point.
-    #[inline(never)]
     fn plane(&mut self, o: usize, set: S) -> Result<([f64; D], f64, f64), String> {
         let x0 = self.pts[o];
         let mut m = 0;
@@ -596,7 +602,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     // ---- construction ----------------------------------------------------------------------
 
-    #[inline(never)]
     fn initial_simplex(&mut self) -> Result<(), String> {
         let n = self.pts.len();
         let mut centroid = [0.0; D];
@@ -682,7 +687,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
         Ok(())
     }
 
-    #[inline(never)]
     fn next_point(&self) -> Option<usize> {
         let mut best = None;
         let mut h = 0.0;
@@ -694,7 +698,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
         best
     }
 
-    #[inline(never)]
     fn insert(&mut self, p: usize) -> Result<(), String> {
         let x = self.pts[p];
         let start = self.owner[p];
@@ -710,6 +713,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         {
             let Self {
                 facets,
+                state,
                 arena,
                 queue,
                 visible,
@@ -720,30 +724,31 @@ impl<const D: usize, S: Set> Builder<D, S> {
             if s <= tol {
                 return Err("conflict list out of date".into());
             }
-            (fc.stamp, fc.dist, fc.class) = (step, s, VISIBLE);
+            fc.dist = s;
+            state[start as usize] = tag(step, VISIBLE);
             queue.push(start);
             visible.push(start);
             while let Some(f) = queue.pop() {
                 let fc = &facets[f as usize];
                 let (lo, hi) = (fc.nb_start as usize, (fc.nb_start + fc.nb_len) as usize);
                 for &g in &arena[lo..hi] {
-                    let gc = &mut facets[g as usize];
-                    if gc.stamp == step {
+                    if state[g as usize] >> 3 == step {
                         continue;
                     }
+                    let gc = &mut facets[g as usize];
                     let s = dot(&gc.normal, &x) - gc.offset;
-                    gc.stamp = step;
                     gc.dist = s;
-                    if s > tol {
-                        gc.class = VISIBLE;
+                    let class = if s > tol {
                         visible.push(g);
                         queue.push(g);
+                        VISIBLE
                     } else if s >= -tol {
-                        gc.class = COPLANAR;
                         queue.push(g);
+                        COPLANAR
                     } else {
-                        gc.class = BELOW;
-                    }
+                        BELOW
+                    };
+                    state[g as usize] = tag(step, class);
                 }
             }
         }
@@ -763,28 +768,37 @@ impl<const D: usize, S: Set> Builder<D, S> {
             );
             for k in lo..lo + len {
                 let g = self.arena[k] as usize;
-                match self.facets[g].class {
+                match (self.state[g] & 7) as u8 {
                     VISIBLE => {}
                     BELOW => {
                         let ridge = self.facets[f].verts & self.facets[g].verts;
+                        // Where f sits in g's list: the new facet takes its place there.
+                        let gc = &self.facets[g];
+                        let (lo, hi) = (gc.nb_start as usize, (gc.nb_start + gc.nb_len) as usize);
+                        let Some(at_g) = self.arena[lo..hi].iter().position(|&e| e == f as u32)
+                        else {
+                            return Err("inconsistent adjacency".into());
+                        };
                         let (a, b, err) = self.rotate(f, g, ridge, p)?;
                         let h = self.add_facet(a, b, err, ridge | pbit)?;
-                        let fc = &mut self.facets[h];
-                        fc.stamp = step;
-                        fc.class = NEW;
-                        self.fresh.push((h as u32, f as u32, g as u32));
+                        self.state[h] = tag(step, NEW);
+                        self.fresh.push((h as u32, (lo + at_g) as u32));
                         // Neighbour list: g, then one slot per sub-ridge, filled by matching.
                         let first = self.keys.len();
                         self.sub_ridges(f, g, h as u32, true)?;
-                        self.nb_reserve(h, 1 + self.keys.len() - first);
+                        let m = self.keys.len() - first;
+                        self.nb_reserve(h, 1 + m);
                         let fc = &mut self.facets[h];
                         let at = fc.nb_start as usize;
-                        fc.nb_len = (1 + self.keys.len() - first) as u32;
+                        fc.nb_len = (1 + m) as u32;
                         self.arena[at] = g as u32;
-                        self.arena[at + 1..at + 1 + self.keys.len() - first].fill(NONE);
+                        self.arena[at + 1..at + 1 + m].fill(NONE);
+                        for (j, key) in self.keys[first..].iter_mut().enumerate() {
+                            key.slot = (at + 1 + j) as u32;
+                        }
                     }
                     COPLANAR => {
-                        self.facets[g].class = GROWN;
+                        self.state[g] = tag(step, GROWN);
                         self.grown.push(g as u32);
                         self.sub_ridges(f, g, g as u32, false)?;
                     }
@@ -811,33 +825,26 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     /// Updates the neighbour lists after an insertion (the new facets' lists were filled
     /// while matching sub-ridges).
-    #[inline(never)]
     fn link(&mut self, step: u32) -> Result<(), String> {
-        for i in 0..self.fresh.len() {
-            let (h, f, g) = self.fresh[i];
-            // The new facet replaces the visible one in the below facet's list.
-            let gc = &self.facets[g as usize];
-            let (lo, hi) = (gc.nb_start as usize, (gc.nb_start + gc.nb_len) as usize);
-            match self.arena[lo..hi].iter().position(|&e| e == f) {
-                Some(k) => self.arena[lo + k] = h,
-                None => return Err("inconsistent adjacency".into()),
-            }
+        for &(h, at) in &self.fresh {
+            self.arena[at as usize] = h;
         }
         {
             let Self {
                 facets,
+                state,
                 arena,
                 grown,
                 ..
             } = self;
+            let visible = tag(step, VISIBLE);
             for &g in grown.iter() {
                 let gc = &facets[g as usize];
                 let (lo, len) = (gc.nb_start as usize, gc.nb_len as usize);
                 let mut w = 0;
                 for r in lo..lo + len {
                     let e = arena[r];
-                    let ec = &facets[e as usize];
-                    if !(ec.stamp == step && ec.class == VISIBLE) {
+                    if state[e as usize] != visible {
                         arena[lo + w] = e;
                         w += 1;
                     }
@@ -845,10 +852,11 @@ impl<const D: usize, S: Set> Builder<D, S> {
                 facets[g as usize].nb_len = w as u32;
             }
         }
+        let grown = tag(step, GROWN);
         for li in 0..self.pending.len() {
             let (x, y) = self.pending[li];
             let (x, y) = (x as usize, y as usize);
-            if self.facets[y].class == GROWN {
+            if self.state[y] == grown {
                 // Two grown facets may already be neighbours, or meet at several sub-ridges.
                 let xc = &self.facets[x];
                 let lo = xc.nb_start as usize;
@@ -862,7 +870,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
     }
 
     /// Moves the conflict points of the deleted (visible) facets to the new and grown ones.
-    #[inline(never)]
     fn reassign(&mut self, step: u32) {
         let tol = self.tol;
         for q in 0..self.pts.len() {
@@ -870,8 +877,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             if o == NONE {
                 continue;
             }
-            let oc = &self.facets[o as usize];
-            if !(oc.stamp == step && oc.class == VISIBLE) {
+            if self.state[o as usize] != tag(step, VISIBLE) {
                 continue;
             }
             let x = &self.pts[q];
@@ -890,7 +896,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             }
             if bf == NONE {
                 for (f, fc) in self.facets.iter().enumerate() {
-                    if fc.alive && !(fc.stamp == step && fc.class == VISIBLE) {
+                    if fc.alive && self.state[f] != tag(step, VISIBLE) {
                         let d = dot(&fc.normal, x) - fc.offset;
                         if d > bh {
                             (bf, bh) = (f as u32, d);
@@ -907,7 +913,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
     /// `p`: the combination of the two hyperplanes that vanishes at `p` (both contain the
     /// ridge). Its rounding is bounded from theirs; past `tol / 1000` the hyperplane is
     /// recomputed from the points.
-    #[inline(never)]
     fn rotate(
         &mut self,
         f: usize,
@@ -950,7 +955,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
     /// a facet of the ridge: for a simplex ridge, the ridge minus one point; otherwise the
     /// inclusion-maximal intersections of the ridge with the other neighbours of `f` (or of
     /// `g`): each facet of the ridge is `f`'s ridge with one of them.
-    #[inline(never)]
     fn sub_ridges(&mut self, f: usize, g: usize, owner: u32, slots: bool) -> Result<(), String> {
         let ridge = self.facets[f].verts & self.facets[g].verts;
         if !ridge.at_least(D - 1) {
@@ -974,12 +978,11 @@ impl<const D: usize, S: Set> Builder<D, S> {
             return Ok(());
         }
         // Scan the shorter neighbour list of the two facets at the ridge.
-        let (e0, skip) =
-            if self.facets[g].nb_len < self.facets[f].nb_len && self.facets[g].class != NEW {
-                (g, f)
-            } else {
-                (f, g)
-            };
+        let (e0, skip) = if self.facets[g].nb_len < self.facets[f].nb_len {
+            (g, f)
+        } else {
+            (f, g)
+        };
         let subs = &mut self.subs;
         subs.clear();
         let (start, len) = (
@@ -1021,7 +1024,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     /// Pairs equal keys: each pair is a ridge through p shared by its two owners. Writes the
     /// new facets' reserved neighbour slots; grown facets' new neighbours go to `pending`.
-    #[inline(never)]
     fn match_keys(&mut self) -> Result<(), String> {
         self.pending.clear();
         let want = (2 * self.keys.len()).next_power_of_two().max(16);
@@ -1044,7 +1046,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
         let Self {
             table,
             keys,
-            facets,
             arena,
             pending,
             ..
@@ -1083,7 +1084,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
                 if sx == NONE {
                     pending.push((x, y));
                 } else {
-                    arena[(facets[x as usize].nb_start + sx) as usize] = y;
+                    arena[sx as usize] = y;
                 }
             }
         }
@@ -1095,7 +1096,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     /// The final check: every facet against every input point. Returns the facets with the
     /// set of input points on each.
-    #[inline(never)]
     fn output(&self) -> Result<Facets<S>, String> {
         let live = self.facets.iter().filter(|f| f.alive).count();
         let mut normals = Vec::with_capacity(live * D);
@@ -1157,7 +1157,6 @@ impl<const D: usize, S: Set> Builder<D, S> {
 /// Evaluates `BLOCK` facets (`a` by coordinate, `b`) at the points: returns, per facet, the
 /// points within `tol` of it as bits (point `i` at bit `i`), and sets `above` for a point
 /// more than `tol` above it.
-#[inline(never)]
 fn scan_block<const D: usize>(
     pts: &[[f64; D]],
     a: &[[f64; BLOCK]; D],
