@@ -184,15 +184,13 @@ impl Hull {
             .iter()
             .enumerate()
             .filter(|(_, facets)| {
-                facets.len() >= dim && {
-                    // Linear rank of the normals = affine rank of the origin and the normals.
-                    let mut cone = vec![0.0; dim];
-                    for &f in facets.iter() {
-                        let f = f as usize;
-                        cone.extend_from_slice(&normals[f * dim..(f + 1) * dim]);
-                    }
-                    affine_rank(&cone, dim) == dim
-                }
+                facets.len() >= dim
+                    && spans(
+                        dim,
+                        facets
+                            .iter()
+                            .map(|&f| &normals[f as usize * dim..(f as usize + 1) * dim]),
+                    )
             })
             .map(|(i, _)| i as u32)
             .collect();
@@ -205,6 +203,34 @@ impl Hull {
             vertices,
         }
     }
+}
+
+/// Whether the unit vectors span R^dim (`dim` <= 8): greedy Gram-Schmidt in fixed arrays,
+/// stopping as soon as a basis is found, a vector counting when its residual exceeds 1e-10.
+fn spans<'a>(dim: usize, vectors: impl Iterator<Item = &'a [Real]>) -> bool {
+    let mut basis = [[0.0; 8]; 8];
+    let mut rank = 0;
+    for v in vectors {
+        let mut r = [0.0; 8];
+        r[..dim].copy_from_slice(&v[..dim]);
+        for e in &basis[..rank] {
+            let c = dot(&r[..dim], &e[..dim]);
+            for k in 0..dim {
+                r[k] -= c * e[k];
+            }
+        }
+        let norm = dot(&r[..dim], &r[..dim]).sqrt();
+        if norm > 1e-10 {
+            for k in 0..dim {
+                basis[rank][k] = r[k] / norm;
+            }
+            rank += 1;
+            if rank == dim {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 /// For each input point, the facets whose lists hold it.
