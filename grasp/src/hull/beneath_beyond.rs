@@ -1194,16 +1194,7 @@ const BLOCK: usize = 4;
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn cube(dim: usize) -> Vec<f64> {
-        let mut pts = Vec::new();
-        for mask in 0..(1u32 << dim) {
-            for k in 0..dim {
-                pts.push(if mask >> k & 1 == 1 { 1.0 } else { -1.0 });
-            }
-        }
-        pts
-    }
+    use crate::hull::tests::cube;
 
     #[test]
     fn cubes_have_merged_facets() {

@@ -330,10 +330,11 @@ pub fn affine_rank(points: &[Real], dim: usize) -> usize {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn cube(dim: usize) -> Vec<Real> {
+    /// The vertices of the cube [-1, 1]^dim, row-major.
+    pub(crate) fn cube(dim: usize) -> Vec<Real> {
         let mut pts = Vec::new();
         for mask in 0..(1u32 << dim) {
             for k in 0..dim {
