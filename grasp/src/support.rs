@@ -71,6 +71,9 @@ impl SupportTree {
     /// `neighbours(i)` lists the points adjacent to point `i` (e.g. the facets sharing an
     /// edge with facet `i`), used only to climb to a good starting value; any graph, even an
     /// empty one, gives exact results.
+    ///
+    /// # Panics
+    /// If `dim` is 0 or above [`MAX_DIM`] (wrench spaces have 3 or 6 dimensions).
     pub fn new<'a>(points: &[Real], dim: usize, neighbours: impl Fn(usize) -> &'a [u32]) -> Self {
         assert!(dim <= MAX_DIM && dim > 0, "support tree dimension {dim}");
         let count = points.len() / dim;
