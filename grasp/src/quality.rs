@@ -483,10 +483,9 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn alpha_star_of_a_symmetric_planar_grasp_matches_the_closed_form() {
-        // Three contacts 120 degrees apart on a circle, frictionless limit mu -> small:
-        // the planar force hull is a triangle with inradius 1/2 ... checked against the
-        // facet formula: alpha* = min_f b_f / h_f, with h_f = |a_f,xy| for a circular OWS.
+    fn alpha_star_with_a_round_ows_is_the_offset_over_the_force_norm() {
+        // A sphere's planar OWS is (nearly) the unit disc in (f_x, f_y) with no torque, whose
+        // support is |a_xy|: alpha* = min_f b_f / |a_f,xy| for three contacts 120 deg apart.
         let p = planar_sphere_problem(0.3);
         let e = p.evaluate(&[0, 24, 48]).unwrap();
         assert!(e.force_closure());
@@ -504,6 +503,11 @@ pub(crate) mod tests {
             e.quality,
             expected
         );
+        // The reported limiting facet attains alpha*.
+        let f = e.limiting_facet.unwrap();
+        let mut h = [0.0];
+        p.support_function(hull.normal(f), &mut h);
+        assert!((hull.offsets()[f] / h[0] - e.quality).abs() <= 1e-12 * e.quality);
     }
 
     #[test]
