@@ -174,7 +174,14 @@ fn resolve(object: &Object, problem: &GraspProblem, at: ContactSpec) -> Result<(
                 .section
                 .nearest_angle(a)
                 .context("the object's section has no samples")?;
-            Ok((i, d.to_degrees()))
+            if problem.space() == Space::Planar {
+                return Ok((i, d.to_degrees()));
+            }
+            // Spatial: the facet nearest to that point of the section.
+            problem
+                .candidates()
+                .nearest(&object.section.samples.points[i])
+                .context("the object has no candidate points")
         }
         ContactSpec::Point(p) => problem
             .candidates()

@@ -25,4 +25,18 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Plan the in-hand rolling scenario in CONFIG offline: roll within the ICRs, switch
+    /// fingers at their limits, until the object has turned by plan.rotation_deg. Writes
+    /// trajectory.csv and trajectory.json and prints a summary. Exit status 2: the planner
+    /// stopped before the goal (the files say why).
+    Plan {
+        /// Config file (TOML; see config/README.md).
+        config: PathBuf,
+        /// Output directory [default: out/<config file stem>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Print the summary as one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }

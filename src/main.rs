@@ -3,6 +3,7 @@
 mod analyze;
 mod cli;
 mod config;
+mod plan;
 
 use std::process::ExitCode;
 
@@ -11,10 +12,11 @@ use clap::Parser;
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
-        cli::Command::Analyze { config, json } => analyze::run(&config, json),
+        cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
+        cli::Command::Plan { config, out, json } => plan::run(&config, out, json),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => ExitCode::from(code),
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

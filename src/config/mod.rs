@@ -11,7 +11,12 @@ use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::Object;
 use icrflow_grasp::wrench::{ContactModel, Space};
 
-use raw::{RawConfig, RawContact, RawObject};
+use icrflow_grasp::math::{Isometry3, UnitQuaternion};
+use icrflow_plan::hand::{Hand, planar_finger};
+use icrflow_plan::planner::Settings;
+use icrflow_plan::urdf::UrdfFinger;
+
+use raw::{RawConfig, RawContact, RawHand, RawObject, RawPlan};
 
 /// Default number of friction-cone edges.
 pub const DEFAULT_CONE_EDGES: usize = 8;
@@ -136,6 +141,84 @@ pub struct FingerContact {
     pub finger: u32,
     /// Where it touches.
     pub at: ContactSpec,
+    /// Where the contact lies on the fingertip cap (rad from the cap axis), if given.
+    pub cap_angle: Option<Real>,
+}
+
+/// Default fingertip cap half-angle (a hemisphere).
+pub const DEFAULT_CAP_HALF_ANGLE_DEG: Real = 90.0;
+
+/// A finger given by link lengths.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkFinger {
+    /// Finger number.
+    pub finger: u32,
+    /// Base position (m) and yaw of the first link at q = 0 (rad).
+    pub base: [Real; 3],
+    /// Link lengths (m); the last ends at the fingertip centre.
+    pub links: Vec<Real>,
+    /// Joint limits (rad).
+    pub limits: Vec<[Real; 2]>,
+    /// Home pose (rad).
+    pub home: Option<Vec<Real>>,
+    /// Fingertip radius (m).
+    pub tip_radius: Real,
+}
+
+/// The validated `[hand]` section.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HandSpec {
+    /// No `[hand]`: the paper's four-finger planar hand (`icrflow_plan::paper`).
+    Paper,
+    /// Fingers from link lengths.
+    Links {
+        /// Cap half-angle (rad).
+        cap_half_angle: Real,
+        /// The fingers.
+        fingers: Vec<LinkFinger>,
+    },
+    /// Fingers from a URDF file.
+    Urdf {
+        /// The file (checked to exist).
+        path: PathBuf,
+        /// Placement of the URDF's root in the hand frame.
+        root: Isometry3,
+        /// The fingers.
+        fingers: Vec<UrdfFinger>,
+    },
+}
+
+impl HandSpec {
+    /// Builds the hand; errors name the finger.
+    pub fn build(&self) -> Result<Hand> {
+        let fingers = match self {
+            HandSpec::Paper => return Ok(icrflow_plan::paper::hand()),
+            HandSpec::Links {
+                cap_half_angle,
+                fingers,
+            } => fingers
+                .iter()
+                .map(|f| {
+                    planar_finger(
+                        f.finger,
+                        f.base,
+                        &f.links,
+                        &f.limits,
+                        f.tip_radius,
+                        *cap_half_angle,
+                        f.home.clone(),
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .context("hand")?,
+            HandSpec::Urdf {
+                path,
+                root,
+                fingers,
+            } => icrflow_plan::urdf::fingers_from_file(path, *root, fingers).context("hand")?,
+        };
+        Hand::new(fingers).context("hand")
+    }
 }
 
 /// The validated `[grasp]` section.
@@ -162,6 +245,10 @@ pub struct Config {
     pub object: ObjectSpec,
     /// The grasp.
     pub grasp: GraspSpec,
+    /// The hand.
+    pub hand: HandSpec,
+    /// Planner settings (alpha from `[grasp]`).
+    pub plan: Settings,
 }
 
 impl Config {
@@ -177,10 +264,18 @@ impl Config {
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
         let base = path.parent().unwrap_or(Path::new("."));
+        let grasp = grasp_spec(raw.grasp)?;
+        let hand = match raw.hand {
+            None => HandSpec::Paper,
+            Some(h) => hand_spec(h, base)?,
+        };
+        let plan = plan_spec(raw.plan, grasp.alpha)?;
         Ok(Self {
             path: path.to_path_buf(),
             object: object_spec(raw.object, base)?,
-            grasp: grasp_spec(raw.grasp)?,
+            grasp,
+            hand,
+            plan,
         })
     }
 }
@@ -286,7 +381,7 @@ fn grasp_spec(raw: raw::RawGrasp) -> Result<GraspSpec> {
     }
     let mut contacts: Vec<FingerContact> = Vec::with_capacity(raw.contacts.len());
     for (i, c) in raw.contacts.into_iter().enumerate() {
-        let contact = contact_spec(i, c, space)?;
+        let contact = contact_spec(i, c)?;
         if contacts.iter().any(|o| o.finger == contact.finger) {
             bail!(
                 "grasp.contacts[{i}].finger: finger {} appears twice",
@@ -304,16 +399,11 @@ fn grasp_spec(raw: raw::RawGrasp) -> Result<GraspSpec> {
     })
 }
 
-fn contact_spec(i: usize, c: RawContact, space: Space) -> Result<FingerContact> {
+fn contact_spec(i: usize, c: RawContact) -> Result<FingerContact> {
     let at = match (c.angle_deg, c.point) {
         (Some(_), Some(_)) => bail!("grasp.contacts[{i}]: give `angle_deg` or `point`, not both"),
         (None, None) => bail!("grasp.contacts[{i}]: give `angle_deg` or `point`"),
         (Some(a), None) => {
-            if space != Space::Planar {
-                bail!(
-                    "grasp.contacts[{i}].angle_deg: angles are for planar problems; give `point` for a spatial one"
-                );
-            }
             if !a.is_finite() {
                 bail!("grasp.contacts[{i}].angle_deg: must be finite, got {a}");
             }
@@ -326,9 +416,219 @@ fn contact_spec(i: usize, c: RawContact, space: Space) -> Result<FingerContact> 
             ContactSpec::Point(Vec3::from(p))
         }
     };
+    let cap_angle = match c.cap_angle_deg {
+        None => None,
+        Some(a) if a.is_finite() && a.abs() < 180.0 => Some(a.to_radians()),
+        Some(a) => bail!("grasp.contacts[{i}].cap_angle_deg: must be in (-180, 180), got {a}"),
+    };
     Ok(FingerContact {
         finger: c.finger,
         at,
+        cap_angle,
+    })
+}
+
+fn degrees(key: &str, x: Real) -> Result<Real> {
+    if !x.is_finite() {
+        bail!("{key}: must be finite, got {x}");
+    }
+    Ok(x.to_radians())
+}
+
+fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
+    let cap_half_angle = match raw.cap_half_angle_deg {
+        None => DEFAULT_CAP_HALF_ANGLE_DEG.to_radians(),
+        Some(a) if a.is_finite() && a > 0.0 && a < 180.0 => a.to_radians(),
+        Some(a) => bail!("hand.cap_half_angle_deg: must be in (0, 180), got {a}"),
+    };
+    let radius = raw
+        .fingertip_radius
+        .map(|r| positive("hand.fingertip_radius", r))
+        .transpose()?;
+    if raw.fingers.is_empty() {
+        bail!("hand.fingers: at least one finger is needed");
+    }
+    let home = |i: usize, h: &Option<Vec<Real>>| -> Result<Option<Vec<Real>>> {
+        h.as_ref()
+            .map(|v| {
+                v.iter()
+                    .map(|a| degrees(&format!("hand.fingers[{i}].home_deg"), *a))
+                    .collect()
+            })
+            .transpose()
+    };
+    let mut seen = Vec::new();
+    for (i, f) in raw.fingers.iter().enumerate() {
+        if seen.contains(&f.finger) {
+            bail!(
+                "hand.fingers[{i}].finger: finger {} appears twice",
+                f.finger
+            );
+        }
+        seen.push(f.finger);
+    }
+    match raw.urdf {
+        Some(file) => {
+            let full = base.join(&file);
+            if !full.is_file() {
+                bail!("hand.urdf: file {} does not exist", full.display());
+            }
+            let o = raw.urdf_origin.unwrap_or([0.0; 3]);
+            if o.iter().any(|x| !x.is_finite()) {
+                bail!("hand.urdf_origin: must be finite, got {o:?}");
+            }
+            let r = raw.urdf_rpy_deg.unwrap_or([0.0; 3]);
+            let r = [
+                degrees("hand.urdf_rpy_deg", r[0])?,
+                degrees("hand.urdf_rpy_deg", r[1])?,
+                degrees("hand.urdf_rpy_deg", r[2])?,
+            ];
+            let root = Isometry3::from_parts(
+                nalgebra::Translation3::new(o[0], o[1], o[2]),
+                UnitQuaternion::from_euler_angles(r[0], r[1], r[2]),
+            );
+            let mut fingers = Vec::new();
+            for (i, f) in raw.fingers.into_iter().enumerate() {
+                let key = |k: &str| format!("hand.fingers[{i}].{k}");
+                if f.base.is_some() || f.links.is_some() || f.limits_deg.is_some() {
+                    bail!(
+                        "{}: a URDF hand takes `tip_link` (and optionally `home_deg`, `fingertip_radius`), not base/links/limits",
+                        key("tip_link")
+                    );
+                }
+                let Some(tip_link) = f.tip_link.clone() else {
+                    bail!("{}: required for a URDF hand", key("tip_link"));
+                };
+                let tip_radius = f
+                    .fingertip_radius
+                    .map(|r| positive(&key("fingertip_radius"), r))
+                    .transpose()?
+                    .or(radius);
+                fingers.push(UrdfFinger {
+                    id: f.finger,
+                    tip_link,
+                    tip_radius,
+                    cap_half_angle,
+                    home: home(i, &f.home_deg)?,
+                });
+            }
+            Ok(HandSpec::Urdf {
+                path: full,
+                root,
+                fingers,
+            })
+        }
+        None => {
+            let mut fingers = Vec::new();
+            for (i, f) in raw.fingers.into_iter().enumerate() {
+                let key = |k: &str| format!("hand.fingers[{i}].{k}");
+                if f.tip_link.is_some() {
+                    bail!("{}: only for URDF hands (set hand.urdf)", key("tip_link"));
+                }
+                let Some(b) = f.base else {
+                    bail!("{}: required ([x, y] in metres)", key("base"));
+                };
+                if b.iter().any(|x| !x.is_finite()) {
+                    bail!("{}: must be finite, got {b:?}", key("base"));
+                }
+                let yaw = degrees(&key("base_yaw_deg"), f.base_yaw_deg.unwrap_or(0.0))?;
+                let Some(links) = f.links else {
+                    bail!("{}: required (link lengths in metres)", key("links"));
+                };
+                for (j, l) in links.iter().enumerate() {
+                    positive(&format!("hand.fingers[{i}].links[{j}]"), *l)?;
+                }
+                let Some(limits) = f.limits_deg else {
+                    bail!("{}: required ([lower, upper] per joint)", key("limits_deg"));
+                };
+                if limits.len() != links.len() {
+                    bail!(
+                        "{}: {} joint limits for {} links (one joint per link)",
+                        key("limits_deg"),
+                        limits.len(),
+                        links.len()
+                    );
+                }
+                let mut lim = Vec::with_capacity(limits.len());
+                for (j, [lo, hi]) in limits.iter().enumerate() {
+                    let k = format!("hand.fingers[{i}].limits_deg[{j}]");
+                    let (lo, hi) = (degrees(&k, *lo)?, degrees(&k, *hi)?);
+                    if lo > hi {
+                        bail!(
+                            "{k}: lower limit {} deg is above the upper limit {} deg (finger {})",
+                            lo.to_degrees(),
+                            hi.to_degrees(),
+                            f.finger
+                        );
+                    }
+                    lim.push([lo, hi]);
+                }
+                let tip_radius = match f
+                    .fingertip_radius
+                    .map(|r| positive(&key("fingertip_radius"), r))
+                    .transpose()?
+                    .or(radius)
+                {
+                    Some(r) => r,
+                    None => bail!(
+                        "hand.fingertip_radius: required (or per finger: {})",
+                        key("fingertip_radius")
+                    ),
+                };
+                fingers.push(LinkFinger {
+                    finger: f.finger,
+                    base: [b[0], b[1], yaw],
+                    links,
+                    limits: lim,
+                    home: home(i, &f.home_deg)?,
+                    tip_radius,
+                });
+            }
+            Ok(HandSpec::Links {
+                cap_half_angle,
+                fingers,
+            })
+        }
+    }
+}
+
+/// Planner defaults.
+pub const DEFAULT_ROTATION_DEG: Real = 360.0;
+/// Default object rotation per rolling step (deg).
+pub const DEFAULT_STEP_DEG: Real = 5.0;
+
+fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
+    let raw = raw.unwrap_or(RawPlan {
+        rotation_deg: None,
+        step_deg: None,
+        cap_margin_deg: None,
+        min_manipulability: None,
+        max_steps: None,
+        attach_resolution_deg: None,
+    });
+    let angle = |key: &str, v: Option<Real>, default: Real| -> Result<Real> {
+        Ok(positive(key, v.unwrap_or(default))?.to_radians())
+    };
+    let cap_margin = raw.cap_margin_deg.unwrap_or(5.0);
+    if !(cap_margin.is_finite() && cap_margin >= 0.0) {
+        bail!("plan.cap_margin_deg: must be >= 0, got {cap_margin}");
+    }
+    let m = raw.min_manipulability.unwrap_or(1e-4);
+    if !(m.is_finite() && m >= 0.0) {
+        bail!("plan.min_manipulability: must be >= 0, got {m}");
+    }
+    let max_steps = raw.max_steps.unwrap_or(100_000);
+    if max_steps == 0 {
+        bail!("plan.max_steps: must be >= 1");
+    }
+    Ok(Settings {
+        alpha,
+        goal: angle("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?,
+        step: angle("plan.step_deg", raw.step_deg, DEFAULT_STEP_DEG)?,
+        cap_margin: cap_margin.to_radians(),
+        min_manipulability: m,
+        max_steps,
+        attach_resolution: angle("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?,
     })
 }
 
@@ -381,9 +681,6 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
         assert!(err(&GOOD.replace("\"planar\"", "\"3d\"")).contains("grasp.space"));
         assert!(
             err(&GOOD.replace("finger = 2", "finger = 1")).contains("grasp.contacts[1].finger")
-        );
-        assert!(
-            err(&GOOD.replace("\"planar\"", "\"spatial\"")).contains("grasp.contacts[0].angle_deg")
         );
         assert!(
             err(&GOOD

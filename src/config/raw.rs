@@ -10,6 +10,8 @@ use serde::Deserialize;
 pub struct RawConfig {
     pub object: RawObject,
     pub grasp: RawGrasp,
+    pub hand: Option<RawHand>,
+    pub plan: Option<RawPlan>,
 }
 
 /// `[object]`: the shape is chosen by `shape`.
@@ -61,4 +63,47 @@ pub struct RawContact {
     pub finger: u32,
     pub angle_deg: Option<f64>,
     pub point: Option<[f64; 3]>,
+    pub cap_angle_deg: Option<f64>,
+}
+
+/// `[hand]`: fingers from link lengths, or from a URDF file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawHand {
+    pub urdf: Option<PathBuf>,
+    /// URDF root placement in the hand frame: `[x, y, z]` (m).
+    pub urdf_origin: Option<[f64; 3]>,
+    /// URDF root orientation: `[roll, pitch, yaw]` (deg).
+    pub urdf_rpy_deg: Option<[f64; 3]>,
+    pub fingertip_radius: Option<f64>,
+    pub cap_half_angle_deg: Option<f64>,
+    pub fingers: Vec<RawFinger>,
+}
+
+/// `[[hand.fingers]]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawFinger {
+    pub finger: u32,
+    /// Link-length fingers: base position `[x, y]` (m) in the hand's plane.
+    pub base: Option<[f64; 2]>,
+    pub base_yaw_deg: Option<f64>,
+    pub links: Option<Vec<f64>>,
+    pub limits_deg: Option<Vec<[f64; 2]>>,
+    /// URDF fingers: the fingertip link.
+    pub tip_link: Option<String>,
+    pub home_deg: Option<Vec<f64>>,
+    pub fingertip_radius: Option<f64>,
+}
+
+/// `[plan]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawPlan {
+    pub rotation_deg: Option<f64>,
+    pub step_deg: Option<f64>,
+    pub cap_margin_deg: Option<f64>,
+    pub min_manipulability: Option<f64>,
+    pub max_steps: Option<usize>,
+    pub attach_resolution_deg: Option<f64>,
 }

@@ -1,0 +1,677 @@
+//! Hand model: fingers as serial revolute chains with joint limits and a spherical fingertip.
+//!
+//! # Frames and conventions
+//! - The *hand frame* is the world frame of the planner: the hand moves in (or around) its
+//!   horizontal plane `z = 0`, the object's centre of mass sits at the origin.
+//! - A finger is `base * (origin_1 * R(axis_1, q_1)) * ... * (origin_n * R(axis_n, q_n)) * tip`:
+//!   `base` places the chain in the hand frame, each joint has a fixed `origin` (parent frame
+//!   to joint frame at `q = 0`) and rotates about its unit `axis` (joint frame), and `tip` is
+//!   the translation from the last joint frame to the fingertip sphere's centre.
+//! - The fingertip is a sphere of radius `tip_radius` of which only a cap can touch: the
+//!   points within `cap_half_angle` of the *cap axis*, the direction of `tip` in the last
+//!   joint frame (along the distal link). A hemispherical fingertip has a half-angle of 90 deg.
+//! - Angles are radians; joint limits are inclusive.
+//!
+//! # Planar fingers
+//! A finger whose joint axes are all parallel to the hand's z axis and whose joints and tip
+//! lie in one horizontal plane is *planar*. Its fingertip pose in the plane is
+//! `(x, y, phi)`, with `phi` the world angle of the cap axis. For three joints that pose
+//! fixes the joints (up to the elbow branch) and [`Finger::ik_planar`] solves it in closed
+//! form; other chains use damped least squares ([`Finger::ik_position`]).
+
+use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion, Vec3};
+use nalgebra::{DMatrix, DVector, Translation3, Unit};
+use std::f64::consts::PI;
+
+/// Tolerance (m, rad) for treating a chain as planar.
+const PLANAR_TOLERANCE: Real = 1e-9;
+
+/// Why a hand description or a kinematic query failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HandError {
+    /// A value of the description is impossible.
+    #[error("finger {finger}: {what}")]
+    Invalid {
+        /// Finger number.
+        finger: u32,
+        /// What is wrong.
+        what: String,
+    },
+    /// The URDF could not be used.
+    #[error("URDF: {0}")]
+    Urdf(String),
+}
+
+/// Why inverse kinematics found no admissible solution.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum IkError {
+    /// The target is out of reach of the chain (ignoring limits).
+    #[error("target out of reach by {distance:.3e} m")]
+    OutOfReach {
+        /// How far beyond the reachable annulus.
+        distance: Real,
+    },
+    /// Solutions exist but each violates a joint limit.
+    #[error("joint {} would be at {angle_deg:.2} deg, outside [{lower_deg:.2}, {upper_deg:.2}] deg", joint + 1)]
+    JointLimit {
+        /// Joint index (0-based) of the first violated limit of the best solution.
+        joint: usize,
+        /// The angle it would need (degrees).
+        angle_deg: Real,
+        /// Its lower limit (degrees).
+        lower_deg: Real,
+        /// Its upper limit (degrees).
+        upper_deg: Real,
+    },
+    /// Damped least squares did not converge.
+    #[error("no convergence: residual {residual:.3e} m after {iterations} iterations")]
+    NoConvergence {
+        /// Remaining error.
+        residual: Real,
+        /// Iterations used.
+        iterations: usize,
+    },
+    /// The finger is not planar, so a planar pose cannot be asked of it.
+    #[error("the finger is not a planar chain")]
+    NotPlanar,
+}
+
+/// One revolute joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// Name (from the URDF, or `j1`, `j2`, ... for TOML hands).
+    pub name: String,
+    /// Parent frame to joint frame at `q = 0`.
+    pub origin: Isometry3,
+    /// Rotation axis in the joint frame.
+    pub axis: Unit<Vec3>,
+    /// Lower limit (rad).
+    pub lower: Real,
+    /// Upper limit (rad).
+    pub upper: Real,
+}
+
+/// The planar description of a planar finger, derived from its chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanarChain {
+    /// Height of the plane in the hand frame.
+    pub z: Real,
+    /// Position of the first joint in the plane.
+    pub root: [Real; 2],
+    /// Lengths of the links: joint 1 to 2, ..., last joint to the fingertip centre.
+    pub lengths: Vec<Real>,
+    /// World angle of each link at `q = 0`.
+    pub angles0: Vec<Real>,
+    /// `+1` or `-1`: the sign of each joint axis along the hand's z.
+    pub signs: Vec<Real>,
+    /// World angle of the cap axis minus that of the last link (constant).
+    pub cap_offset: Real,
+}
+
+/// A finger.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finger {
+    /// Finger number as the config uses it.
+    pub id: u32,
+    /// Places the chain in the hand frame.
+    pub base: Isometry3,
+    /// The joints, from the palm out.
+    pub joints: Vec<Joint>,
+    /// Last joint frame to the fingertip centre.
+    pub tip: Vec3,
+    /// Fingertip sphere radius (m).
+    pub tip_radius: Real,
+    /// Half-angle of the fingertip cap that can touch (rad).
+    pub cap_half_angle: Real,
+    /// Joint angles when the finger is not in contact.
+    pub home: Vec<Real>,
+    /// The planar description, if the chain is planar.
+    pub planar: Option<PlanarChain>,
+}
+
+/// A finger's pose from forward kinematics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FingerPose {
+    /// Origin of each joint frame in the hand frame (index `i`: joint `i`).
+    pub joints: Vec<Vec3>,
+    /// Fingertip sphere centre.
+    pub tip_centre: Vec3,
+    /// Orientation of the last joint frame (the fingertip's).
+    pub tip_rotation: UnitQuaternion,
+    /// Unit cap axis in the hand frame.
+    pub cap_axis: Vec3,
+}
+
+/// The hand.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hand {
+    /// Fingers, in ascending `id`.
+    pub fingers: Vec<Finger>,
+}
+
+/// Wraps an angle to `(-pi, pi]`.
+pub fn wrap(a: Real) -> Real {
+    let w = (a + PI).rem_euclid(2.0 * PI) - PI;
+    if w <= -PI { w + 2.0 * PI } else { w }
+}
+
+impl Finger {
+    /// Builds a finger and checks it: at least one joint, finite values, `lower <= upper`,
+    /// a tip beyond the last joint, a positive radius, a cap half-angle in (0, 180) deg and a
+    /// home pose inside the limits.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        id: u32,
+        base: Isometry3,
+        joints: Vec<Joint>,
+        tip: Vec3,
+        tip_radius: Real,
+        cap_half_angle: Real,
+        home: Option<Vec<Real>>,
+    ) -> Result<Self, HandError> {
+        let bad = |what: String| HandError::Invalid { finger: id, what };
+        if joints.is_empty() {
+            return Err(bad("has no revolute joint".into()));
+        }
+        for (i, j) in joints.iter().enumerate() {
+            let finite = j.origin.translation.vector.iter().all(|x| x.is_finite())
+                && j.origin.rotation.coords.iter().all(|x| x.is_finite())
+                && j.axis.iter().all(|x| x.is_finite());
+            if !finite {
+                return Err(bad(format!("joint {} ({}) is not finite", i + 1, j.name)));
+            }
+            if !(j.lower.is_finite() && j.upper.is_finite()) || j.lower > j.upper {
+                return Err(bad(format!(
+                    "joint {} ({}) has limits [{}, {}] deg: need finite lower <= upper",
+                    i + 1,
+                    j.name,
+                    j.lower.to_degrees(),
+                    j.upper.to_degrees()
+                )));
+            }
+        }
+        if !tip.iter().all(|x| x.is_finite()) || tip.norm() <= 0.0 {
+            return Err(bad(
+                "the fingertip centre must be a finite, non-zero offset from the last joint".into(),
+            ));
+        }
+        if !tip_radius.is_finite() || tip_radius <= 0.0 {
+            return Err(bad(format!(
+                "fingertip radius must be > 0, got {tip_radius}"
+            )));
+        }
+        if !(cap_half_angle > 0.0 && cap_half_angle < PI) {
+            return Err(bad(format!(
+                "cap half-angle must be in (0, 180) deg, got {}",
+                cap_half_angle.to_degrees()
+            )));
+        }
+        let home = home.unwrap_or_else(|| {
+            joints
+                .iter()
+                .map(|j| 0.0_f64.clamp(j.lower, j.upper))
+                .collect()
+        });
+        if home.len() != joints.len() {
+            return Err(bad(format!(
+                "home pose has {} angles for {} joints",
+                home.len(),
+                joints.len()
+            )));
+        }
+        for (i, (h, j)) in home.iter().zip(&joints).enumerate() {
+            if !(j.lower..=j.upper).contains(h) {
+                return Err(bad(format!(
+                    "home angle of joint {} is {:.2} deg, outside its limits [{:.2}, {:.2}] deg",
+                    i + 1,
+                    h.to_degrees(),
+                    j.lower.to_degrees(),
+                    j.upper.to_degrees()
+                )));
+            }
+        }
+        let mut finger = Self {
+            id,
+            base,
+            joints,
+            tip,
+            tip_radius,
+            cap_half_angle,
+            home,
+            planar: None,
+        };
+        finger.planar = finger.planar_chain();
+        Ok(finger)
+    }
+
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Forward kinematics.
+    pub fn fk(&self, q: &[Real]) -> FingerPose {
+        let mut t = self.base;
+        let mut joints = Vec::with_capacity(self.joints.len());
+        for (j, &qi) in self.joints.iter().zip(q) {
+            t *= j.origin;
+            joints.push(t.translation.vector);
+            t *= Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&j.axis, qi),
+            );
+        }
+        let tip_centre = t * nalgebra::Point3::from(self.tip);
+        FingerPose {
+            joints,
+            tip_centre: tip_centre.coords,
+            tip_rotation: t.rotation,
+            cap_axis: t.rotation * self.tip.normalize(),
+        }
+    }
+
+    /// The first joint whose limits `q` violates (beyond `slack` rad), if any.
+    pub fn limit_violation(&self, q: &[Real], slack: Real) -> Option<IkError> {
+        self.joints
+            .iter()
+            .zip(q)
+            .enumerate()
+            .find(|(_, (j, a))| **a < j.lower - slack || **a > j.upper + slack)
+            .map(|(i, (j, a))| IkError::JointLimit {
+                joint: i,
+                angle_deg: a.to_degrees(),
+                lower_deg: j.lower.to_degrees(),
+                upper_deg: j.upper.to_degrees(),
+            })
+    }
+
+    /// Jacobian of the fingertip centre (3 x n) and of the rotation about the hand's z axis
+    /// (1 x n, the last row), at `q`.
+    pub fn jacobian(&self, q: &[Real]) -> DMatrix<Real> {
+        let n = self.dof();
+        let mut jac = DMatrix::zeros(4, n);
+        let mut t = self.base;
+        let mut axes = Vec::with_capacity(n);
+        for (j, &qi) in self.joints.iter().zip(q) {
+            t *= j.origin;
+            axes.push((t.translation.vector, t.rotation * j.axis.into_inner()));
+            t *= Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&j.axis, qi),
+            );
+        }
+        let p = (t * nalgebra::Point3::from(self.tip)).coords;
+        for (c, (o, a)) in axes.iter().enumerate() {
+            let v = a.cross(&(p - o));
+            jac[(0, c)] = v.x;
+            jac[(1, c)] = v.y;
+            jac[(2, c)] = v.z;
+            jac[(3, c)] = a.z;
+        }
+        jac
+    }
+
+    /// Manipulability `sqrt(det(J J^T))` of the task the planner uses: `(x, y, phi)` for a
+    /// planar finger, the fingertip centre otherwise. Zero at a singularity.
+    pub fn manipulability(&self, q: &[Real]) -> Real {
+        let jac = self.jacobian(q);
+        let task = if self.planar.is_some() {
+            jac.select_rows(&[0, 1, 3])
+        } else {
+            jac.rows(0, 3).into_owned()
+        };
+        (task.clone() * task.transpose())
+            .determinant()
+            .max(0.0)
+            .sqrt()
+    }
+
+    /// Inverse kinematics of the fingertip centre by damped least squares, from `q0`, with
+    /// the joints clamped to their limits at every iteration. Converges to `1e-10` m.
+    pub fn ik_position(&self, target: &Vec3, q0: &[Real]) -> Result<Vec<Real>, IkError> {
+        const ITERATIONS: usize = 500;
+        const DAMPING: Real = 1e-4;
+        let mut q: Vec<Real> = q0
+            .iter()
+            .zip(&self.joints)
+            .map(|(a, j)| a.clamp(j.lower, j.upper))
+            .collect();
+        let mut residual = Real::INFINITY;
+        for _ in 0..ITERATIONS {
+            let e = target - self.fk(&q).tip_centre;
+            residual = e.norm();
+            if residual <= 1e-10 {
+                return Ok(q);
+            }
+            let jac = self.jacobian(&q).rows(0, 3).into_owned();
+            let jjt = &jac * jac.transpose() + DMatrix::identity(3, 3) * DAMPING * DAMPING;
+            let Some(chol) = jjt.cholesky() else { break };
+            let dq = jac.transpose() * chol.solve(&DVector::from_column_slice(e.as_slice()));
+            for ((qi, d), j) in q.iter_mut().zip(dq.iter()).zip(&self.joints) {
+                *qi = (*qi + d.clamp(-0.2, 0.2)).clamp(j.lower, j.upper);
+            }
+        }
+        Err(IkError::NoConvergence {
+            residual,
+            iterations: ITERATIONS,
+        })
+    }
+
+    /// Closed-form inverse kinematics of a planar three-joint finger: the fingertip centre at
+    /// `(x, y)` with the cap axis at world angle `phi`. Of the two elbow branches, returns the
+    /// one inside the joint limits, the nearer to `near` if both are.
+    pub fn ik_planar(
+        &self,
+        x: Real,
+        y: Real,
+        phi: Real,
+        near: &[Real],
+    ) -> Result<Vec<Real>, IkError> {
+        let p = self.planar.as_ref().ok_or(IkError::NotPlanar)?;
+        if self.dof() != 3 {
+            return Err(IkError::NotPlanar);
+        }
+        let (l1, l2, l3) = (p.lengths[0], p.lengths[1], p.lengths[2]);
+        let a3 = phi - p.cap_offset;
+        // The wrist (third joint) and the fingertip centre lie along link 3.
+        let wx = x - l3 * a3.cos() - p.root[0];
+        let wy = y - l3 * a3.sin() - p.root[1];
+        let r = (wx * wx + wy * wy).sqrt();
+        let (lo, hi) = ((l1 - l2).abs(), l1 + l2);
+        if r > hi || r < lo {
+            let distance = if r > hi { r - hi } else { lo - r };
+            return Err(IkError::OutOfReach { distance });
+        }
+        let c = ((r * r - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)).clamp(-1.0, 1.0);
+        let bend = c.acos();
+        let mut best: Option<(Real, Vec<Real>)> = None;
+        let mut first_violation = None;
+        for elbow in [bend, -bend] {
+            let a1 = wy.atan2(wx) - (l2 * elbow.sin()).atan2(l1 + l2 * elbow.cos());
+            let a2 = a1 + elbow;
+            let abs = [a1, a2, a3];
+            let q: Vec<Real> = (0..3)
+                .map(|i| {
+                    let rel = if i == 0 {
+                        abs[0] - p.angles0[0]
+                    } else {
+                        (abs[i] - abs[i - 1]) - (p.angles0[i] - p.angles0[i - 1])
+                    };
+                    // The branch of the angle nearest the reference pose.
+                    let target = p.signs[i] * rel;
+                    let reference = near.get(i).copied().unwrap_or(0.0);
+                    reference + wrap(target - reference)
+                })
+                .collect();
+            match self.limit_violation(&q, 1e-12) {
+                None => {
+                    let d: Real = q.iter().zip(near).map(|(a, b)| (a - b).powi(2)).sum();
+                    if best.as_ref().is_none_or(|(bd, _)| d < *bd) {
+                        best = Some((d, q));
+                    }
+                }
+                Some(v) => {
+                    first_violation.get_or_insert(v);
+                }
+            }
+        }
+        match best {
+            Some((_, q)) => Ok(q
+                .iter()
+                .zip(&self.joints)
+                .map(|(a, j)| a.clamp(j.lower, j.upper))
+                .collect()),
+            None => Err(first_violation.expect("a violation was recorded")),
+        }
+    }
+
+    /// The planar pose `(x, y, phi)` of the fingertip at `q` (planar fingers).
+    pub fn planar_pose(&self, q: &[Real]) -> Option<(Real, Real, Real)> {
+        self.planar.as_ref()?;
+        let pose = self.fk(q);
+        Some((
+            pose.tip_centre.x,
+            pose.tip_centre.y,
+            pose.cap_axis.y.atan2(pose.cap_axis.x),
+        ))
+    }
+
+    /// Derives the planar description if the chain is planar.
+    fn planar_chain(&self) -> Option<PlanarChain> {
+        let zero = vec![0.0; self.dof()];
+        let pose = self.fk(&zero);
+        let mut t = self.base;
+        let mut signs = Vec::with_capacity(self.dof());
+        for j in &self.joints {
+            t *= j.origin;
+            let a = t.rotation * j.axis.into_inner();
+            if a.x.abs() > PLANAR_TOLERANCE || a.y.abs() > PLANAR_TOLERANCE {
+                return None;
+            }
+            signs.push(a.z.signum());
+        }
+        let z = pose.joints[0].z;
+        let mut points: Vec<Vec3> = pose.joints.clone();
+        points.push(pose.tip_centre);
+        if points.iter().any(|p| (p.z - z).abs() > PLANAR_TOLERANCE)
+            || pose.cap_axis.z.abs() > PLANAR_TOLERANCE
+        {
+            return None;
+        }
+        let mut lengths = Vec::with_capacity(points.len() - 1);
+        let mut angles0 = Vec::with_capacity(points.len() - 1);
+        for w in points.windows(2) {
+            let d = w[1] - w[0];
+            lengths.push(d.norm());
+            angles0.push(d.y.atan2(d.x));
+        }
+        // A zero-length link carries no angle: such a chain is not handled as planar.
+        if lengths.iter().any(|l| *l <= PLANAR_TOLERANCE) {
+            return None;
+        }
+        let last_link = angles0[angles0.len() - 1];
+        let cap = pose.cap_axis.y.atan2(pose.cap_axis.x);
+        Some(PlanarChain {
+            z,
+            root: [points[0].x, points[0].y],
+            lengths,
+            angles0,
+            signs,
+            cap_offset: wrap(cap - last_link),
+        })
+    }
+}
+
+impl Hand {
+    /// A hand from fingers; ids must be unique.
+    pub fn new(mut fingers: Vec<Finger>) -> Result<Self, HandError> {
+        if fingers.is_empty() {
+            return Err(HandError::Invalid {
+                finger: 0,
+                what: "the hand has no fingers".into(),
+            });
+        }
+        fingers.sort_by_key(|f| f.id);
+        if let Some(w) = fingers.windows(2).find(|w| w[0].id == w[1].id) {
+            return Err(HandError::Invalid {
+                finger: w[0].id,
+                what: "appears twice".into(),
+            });
+        }
+        Ok(Self { fingers })
+    }
+
+    /// The finger numbered `id`.
+    pub fn finger(&self, id: u32) -> Option<&Finger> {
+        self.fingers.iter().find(|f| f.id == id)
+    }
+}
+
+/// A planar finger from link lengths: base at `(x, y)` in the hand's plane `z = 0`, first
+/// link along world angle `yaw` at `q = 0`, joints about +z, links of the given lengths
+/// (the last one ends at the fingertip centre, so it is the distal link plus the offset to
+/// the sphere's centre).
+pub fn planar_finger(
+    id: u32,
+    base: [Real; 3],
+    lengths: &[Real],
+    limits: &[[Real; 2]],
+    tip_radius: Real,
+    cap_half_angle: Real,
+    home: Option<Vec<Real>>,
+) -> Result<Finger, HandError> {
+    let bad = |what: String| HandError::Invalid { finger: id, what };
+    if lengths.len() < 2 {
+        return Err(bad(format!(
+            "needs at least 2 links (joints + fingertip offset), got {}",
+            lengths.len()
+        )));
+    }
+    if limits.len() != lengths.len() {
+        return Err(bad(format!(
+            "has {} links but {} joint limits",
+            lengths.len(),
+            limits.len()
+        )));
+    }
+    if let Some((i, l)) = lengths
+        .iter()
+        .enumerate()
+        .find(|(_, l)| !l.is_finite() || **l <= 0.0)
+    {
+        return Err(bad(format!("link {} has length {l}: must be > 0", i + 1)));
+    }
+    if base.iter().any(|x| !x.is_finite()) {
+        return Err(bad(format!("base {base:?} is not finite")));
+    }
+    let z = Unit::new_unchecked(Vec3::z());
+    let joints = limits
+        .iter()
+        .enumerate()
+        .map(|(i, lim)| Joint {
+            name: format!("j{}", i + 1),
+            origin: if i == 0 {
+                Isometry3::new(Vec3::new(base[0], base[1], 0.0), Vec3::z() * base[2])
+            } else {
+                Isometry3::translation(lengths[i - 1], 0.0, 0.0)
+            },
+            axis: z,
+            lower: lim[0],
+            upper: lim[1],
+        })
+        .collect();
+    Finger::new(
+        id,
+        Isometry3::identity(),
+        joints,
+        Vec3::new(lengths[lengths.len() - 1], 0.0, 0.0),
+        tip_radius,
+        cap_half_angle,
+        home,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn finger() -> Finger {
+        planar_finger(
+            1,
+            [0.14, 0.0, PI],
+            &[0.05, 0.04, 0.025],
+            &[[-1.5, 1.5], [-2.5, 2.5], [-2.5, 2.5]],
+            0.025,
+            PI / 2.0,
+            None,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn planar_fk_matches_link_sums() {
+        let f = finger();
+        assert!(f.planar.is_some());
+        let q = [0.3, -0.7, 1.1];
+        let pose = f.fk(&q);
+        let (a1, a2, a3) = (PI + 0.3, PI + 0.3 - 0.7, PI + 0.3 - 0.7 + 1.1);
+        let x = 0.14 + 0.05 * a1.cos() + 0.04 * a2.cos() + 0.025 * a3.cos();
+        let y = 0.05 * a1.sin() + 0.04 * a2.sin() + 0.025 * a3.sin();
+        assert!((pose.tip_centre - Vec3::new(x, y, 0.0)).norm() < 1e-15);
+        let (_, _, phi) = f.planar_pose(&q).unwrap();
+        assert!(wrap(phi - a3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn planar_ik_inverts_fk_on_both_branches() {
+        let f = finger();
+        for q in [[0.3, -0.7, 1.1], [-0.2, 0.9, -0.4], [1.0, 1.5, 0.2]] {
+            let (x, y, phi) = f.planar_pose(&q).unwrap();
+            let sol = f.ik_planar(x, y, phi, &q).unwrap();
+            for (a, b) in sol.iter().zip(&q) {
+                assert!((a - b).abs() < 1e-9, "{sol:?} vs {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn unreachable_and_limited_targets_are_errors() {
+        let f = finger();
+        assert!(matches!(
+            f.ik_planar(-0.2, 0.0, PI, &[0.0; 3]),
+            Err(IkError::OutOfReach { .. })
+        ));
+        let tight = planar_finger(
+            1,
+            [0.14, 0.0, PI],
+            &[0.05, 0.04, 0.025],
+            &[[-0.1, 0.1], [0.5, 0.6], [-0.1, 0.1]],
+            0.025,
+            PI / 2.0,
+            Some(vec![0.0, 0.55, 0.0]),
+        )
+        .unwrap();
+        assert!(matches!(
+            tight.ik_planar(0.05, 0.0, PI, &[0.0; 3]),
+            Err(IkError::JointLimit { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_descriptions_name_the_finger() {
+        let e = planar_finger(
+            7,
+            [0.0; 3],
+            &[0.05, -1.0],
+            &[[0.0, 1.0]; 2],
+            0.02,
+            1.0,
+            None,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("finger 7") && e.to_string().contains("link 2"));
+        let e = planar_finger(
+            3,
+            [0.0; 3],
+            &[0.05, 0.02],
+            &[[1.0, 0.0]; 2],
+            0.02,
+            1.0,
+            None,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("limits"), "{e}");
+        let e = planar_finger(3, [0.0; 3], &[0.05, 0.02], &[[0.0, 1.0]; 2], 0.0, 1.0, None)
+            .unwrap_err();
+        assert!(e.to_string().contains("radius"), "{e}");
+    }
+
+    #[test]
+    fn manipulability_vanishes_when_stretched() {
+        let f = finger();
+        assert!(f.manipulability(&[0.0, 0.0, 0.0]) < 1e-12);
+        assert!(f.manipulability(&[0.0, 1.0, 0.0]) > 1e-4);
+    }
+}

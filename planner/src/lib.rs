@@ -1,0 +1,21 @@
+//! # icrflow-plan: the in-hand rolling planner
+//!
+//! The algorithm of the paper's section III (`shared/paper/icr-inhand-rolling.md`, DESIGN.md
+//! section 3) on top of the grasp-analysis core `icrflow-grasp`: a multi-finger hand turns an
+//! object by rolling its fingertips inside their independent contact regions and, when a
+//! finger reaches a limit, hands over to a free finger at a rendezvous point, while the grasp
+//! never drops below the quality margin alpha.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`hand`] | fingers as revolute chains: forward kinematics, closed-form planar and damped-least-squares inverse kinematics, limits, manipulability |
+//! | [`urdf`] | hands from URDF files |
+//! | [`paper`] | the paper's four-finger planar hand |
+//! | [`planner`] | rolling, finger switching, the trajectory and its summary |
+
+#![warn(missing_docs)]
+
+pub mod hand;
+pub mod paper;
+pub mod planner;
+pub mod urdf;

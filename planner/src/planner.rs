@@ -1,0 +1,1022 @@
+//! The in-hand rolling planner (paper section III, DESIGN.md section 3): rolling within ICRs,
+//! then finger switching at a rendezvous point, repeated until the object has turned by the
+//! goal.
+//!
+//! # Model
+//! - The hand moves in its horizontal plane `z = 0`; the object's centre of mass is held at
+//!   the origin and the object turns about the vertical axis by `theta` (counter-clockwise
+//!   seen from the top is positive). Body point `b` is at `Rz(theta) (b - c)` in the hand
+//!   frame, `c` the centre of mass.
+//! - Contacts are candidates of the grasp problem: the object's section by the hand's plane
+//!   (planar or spatial analysis). Everything about grasp quality is computed in the body
+//!   frame (alpha* is invariant under the object's rigid motion).
+//! - A finger in contact at body point `p` (outward normal `n`) has its fingertip centre at
+//!   `p_w + r_f n_w`. Its *cap angle* `gamma` is where the contact lies on the fingertip: the
+//!   angle from the cap axis (world angle `phi`) to the direction `-n_w` of the contact from
+//!   the fingertip's centre, `gamma = angle(-n_w) - phi`.
+//!
+//! # Rolling step
+//! The object turns by `step`. Each finger's next contact is the member of its ICR nearest to
+//! the body point that would stay still in the world (`c + Rz(-step) (p - c)`: just behind
+//! the current contact along the rolling direction). Rolling without slipping makes the arc
+//! travelled on the fingertip equal to the arc `s` travelled on the object, with opposite
+//! sense: `r_f dgamma = -s` (`s` counter-clockwise positive; for a sphere `s = r_o dtheta_b`,
+//! hence the paper's `dtheta_o = (r_f / r_o) dtheta_f` when the fingertips stay in place).
+//! The fingertip pose `(p_w + r_f n_w, phi = angle(-n_w) - gamma)` gives the joint angles by
+//! inverse kinematics. The step is refused when a finger would leave its joint limits, its
+//! fingertip cap (`|gamma| > cap half-angle - margin`), or fall below the mobility threshold;
+//! and (a bug guard) when the recomputed quality is below alpha.
+//!
+//! # Finger switching
+//! When a finger `k` cannot roll on, a free finger takes over. Its rendezvous region is the
+//! set of candidates `q` that can replace `k`'s contact keeping the margin: the zone rule of
+//! the ICRs (every search zone of contact `k` holds a wrench of `q`; see
+//! `icrflow_grasp::icr`), applied to every candidate, not only those connected to `k`'s
+//! contact. The exact region, the candidates whose grasp with the remaining contacts has
+//! quality >= alpha, is computed by brute force as the check; the rule guarantees the first
+//! is inside the second, and both are recorded. The rendezvous point is the region's
+//! candidate that the free finger reaches (inverse kinematics within limits, the cap, the
+//! mobility threshold, fingertips not overlapping) with the most rolling room ahead, i.e.
+//! the most steps it could roll before its own limits; ties go to the candidate farther ahead
+//! along the rolling direction. Then: attach (the grasp with one more contact is verified),
+//! detach finger `k` (the remaining grasp is verified), and `k` becomes a free finger.
+
+use std::f64::consts::PI;
+
+use icrflow_grasp::icr::IcrError;
+use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::quality::{GraspError, GraspProblem};
+use serde::Serialize;
+
+use crate::hand::{Finger, Hand, IkError, wrap};
+
+fn dot(a: &[Real], b: &[Real]) -> Real {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// What a rolling step found.
+enum Roll {
+    /// Every finger moved; the new contacts and their quality.
+    Moved(Vec<Contact>, Real),
+    /// Contact `.0` cannot move, for reason `.1`: a switch may help.
+    Blocked(usize, String),
+    /// The grasp as a whole cannot go on.
+    Stuck(String),
+}
+
+/// Relative slack on `quality >= alpha` checks (the ICR rule holds to 1e-9 relative).
+pub const QUALITY_SLACK: Real = 1e-9;
+
+/// Planner settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// The quality margin alpha.
+    pub alpha: Real,
+    /// Total rotation to reach (rad, > 0: counter-clockwise seen from the top).
+    pub goal: Real,
+    /// Object rotation per rolling step (rad, > 0).
+    pub step: Real,
+    /// Margin kept from the edge of the fingertip cap (rad).
+    pub cap_margin: Real,
+    /// Smallest admissible manipulability of a finger in contact.
+    pub min_manipulability: Real,
+    /// Upper bound on planner steps (rolling, attach and detach together).
+    pub max_steps: usize,
+    /// Resolution of the search over the cap angle when a finger attaches (rad).
+    pub attach_resolution: Real,
+}
+
+/// The problem the planner solves.
+pub struct Scenario<'a> {
+    /// Grasp problem whose candidates are the object's section in the hand's plane.
+    pub problem: &'a GraspProblem,
+    /// The hand.
+    pub hand: &'a Hand,
+    /// The object's centre of mass (body frame).
+    pub centre: Vec3,
+    /// Section angle of each candidate (rad), for reporting.
+    pub angles: Option<&'a [Real]>,
+    /// Initial contacts: (finger, candidate, cap angle). Without a cap angle the planner
+    /// picks the one with the most rolling room.
+    pub initial: Vec<(u32, usize, Option<Real>)>,
+    /// Settings.
+    pub settings: Settings,
+}
+
+/// Why a scenario is refused before planning.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// A finger of the grasp is not in the hand.
+    #[error("finger {finger} is not in the hand (fingers: {known:?})")]
+    UnknownFinger {
+        /// The finger.
+        finger: u32,
+        /// The hand's fingers.
+        known: Vec<u32>,
+    },
+    /// A finger is not a planar three-joint chain.
+    #[error(
+        "finger {finger} is not a planar three-joint chain in the hand's plane z = 0; the planner needs one"
+    )]
+    NotPlanar {
+        /// The finger.
+        finger: u32,
+    },
+    /// The initial grasp is not force closure.
+    #[error("the initial grasp is not force closure (epsilon = {epsilon:.6}): nothing to plan")]
+    NotForceClosure {
+        /// Ferrari-Canny epsilon of the grasp.
+        epsilon: Real,
+    },
+    /// The initial grasp's quality is below alpha.
+    #[error(
+        "the initial grasp's quality alpha* = {quality:.6} is below the margin alpha = {alpha}"
+    )]
+    BelowMargin {
+        /// Its quality.
+        quality: Real,
+        /// The margin.
+        alpha: Real,
+    },
+    /// An initial contact cannot be reached.
+    #[error("finger {finger} cannot reach its initial contact at {where_}: {reason}")]
+    Unreachable {
+        /// The finger.
+        finger: u32,
+        /// Where the contact is.
+        where_: String,
+        /// Why.
+        reason: String,
+    },
+    /// Two fingertips would overlap.
+    #[error(
+        "fingers {a} and {b} overlap: their fingertip centres are {distance_mm:.2} mm apart, less than the sum of the radii"
+    )]
+    Overlap {
+        /// One finger.
+        a: u32,
+        /// The other.
+        b: u32,
+        /// Distance between the fingertip centres (mm).
+        distance_mm: Real,
+    },
+    /// A setting is impossible.
+    #[error("{0}")]
+    Settings(String),
+    /// The grasp evaluation failed (not a grasp outcome: a numerical failure).
+    #[error(transparent)]
+    Grasp(#[from] GraspError),
+}
+
+/// The phase a trajectory step belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// The initial grasp.
+    Start,
+    /// A rolling step.
+    Rolling,
+    /// A free finger has attached.
+    Attach,
+    /// The finger at its limit has detached.
+    Detach,
+}
+
+impl Phase {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Start => "start",
+            Phase::Rolling => "rolling",
+            Phase::Attach => "attach",
+            Phase::Detach => "detach",
+        }
+    }
+}
+
+/// One finger in one step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FingerState {
+    /// Finger number.
+    pub finger: u32,
+    /// Candidate index of the contact, if in contact.
+    pub contact: Option<usize>,
+    /// Body-frame contact point (m).
+    pub point: Option<[Real; 3]>,
+    /// The contact's angle on the section (deg, [0, 360)).
+    pub angle_deg: Option<Real>,
+    /// Cap angle gamma of the contact on the fingertip (deg).
+    pub cap_angle_deg: Option<Real>,
+    /// World angle of the fingertip's cap axis phi (deg): the fingertip's rotation.
+    pub tip_rotation_deg: Real,
+    /// Fingertip centre in the hand frame (m).
+    pub tip_centre: [Real; 3],
+    /// Joint angles (deg).
+    pub joints_deg: Vec<Real>,
+}
+
+/// A finger switch.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Switch {
+    /// The finger that could not roll on.
+    pub released: u32,
+    /// The free finger that took over.
+    pub attached: u32,
+    /// Why the released finger stopped.
+    pub reason: String,
+    /// The rendezvous region by the zone rule (candidate indices, ascending).
+    pub region: Vec<usize>,
+    /// The exact region by brute force (candidate indices, ascending).
+    pub brute_force: Vec<usize>,
+    /// The chosen rendezvous candidate.
+    pub rendezvous: usize,
+    /// Its angle on the section (deg).
+    pub rendezvous_angle_deg: Option<Real>,
+    /// Rolling steps the attached finger could make from there alone.
+    pub room_steps: usize,
+}
+
+/// One step of the trajectory.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Step {
+    /// Step number from 0.
+    pub step: usize,
+    /// Phase.
+    pub phase: Phase,
+    /// Object rotation about the vertical axis (deg, counter-clockwise positive).
+    pub rotation_deg: Real,
+    /// Quality alpha* of the grasp in force (recomputed).
+    pub quality: Real,
+    /// Every finger of the hand.
+    pub fingers: Vec<FingerState>,
+    /// For an attach step: the switch.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch: Option<Switch>,
+}
+
+/// Summary of a plan.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Whether the goal rotation was reached.
+    pub completed: bool,
+    /// Why planning stopped early, if it did.
+    pub stop_reason: Option<String>,
+    /// Total object rotation (deg).
+    pub rotation_deg: Real,
+    /// Goal (deg).
+    pub goal_deg: Real,
+    /// Finger switches.
+    pub switches: usize,
+    /// Trajectory steps (all phases; the start included).
+    pub steps: usize,
+    /// Rolling steps.
+    pub rolling_steps: usize,
+    /// Smallest quality of any grasp in force.
+    pub min_quality: Real,
+    /// The margin.
+    pub alpha: Real,
+    /// Largest rolling-relation residual `|r_f dgamma + s|` (m), from forward kinematics of
+    /// the planned joint angles.
+    pub max_rolling_residual: Real,
+    /// Rendezvous candidates found by the zone rule, summed over the switches.
+    pub region_candidates: usize,
+    /// Rendezvous candidates found by brute force, summed over the switches.
+    pub brute_force_candidates: usize,
+}
+
+/// A plan.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Plan {
+    /// Summary.
+    pub summary: Summary,
+    /// The trajectory.
+    pub steps: Vec<Step>,
+}
+
+/// A finger in contact.
+#[derive(Debug, Clone, PartialEq)]
+struct Contact {
+    finger: u32,
+    candidate: usize,
+    gamma: Real,
+    q: Vec<Real>,
+}
+
+/// Why a finger cannot take a step.
+#[derive(Debug, Clone, PartialEq)]
+enum Blocked {
+    Cap { gamma: Real },
+    Ik(IkError),
+    Mobility { value: Real },
+    Jump { joint: usize, degrees: Real },
+}
+
+/// Largest joint motion accepted in one rolling step (rad): more means the inverse
+/// kinematics jumped to the other elbow branch, which the finger cannot do in contact.
+const MAX_JOINT_STEP: Real = 0.5;
+
+impl std::fmt::Display for Blocked {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Blocked::Cap { gamma } => write!(
+                f,
+                "the contact would leave the fingertip cap (cap angle {:.1} deg)",
+                gamma.to_degrees()
+            ),
+            Blocked::Ik(e) => write!(f, "{e}"),
+            Blocked::Mobility { value } => {
+                write!(f, "mobility lost (manipulability {value:.3e})")
+            }
+            Blocked::Jump { joint, degrees } => write!(
+                f,
+                "joint {} would have to jump by {degrees:.1} deg (the other elbow branch)",
+                joint + 1
+            ),
+        }
+    }
+}
+
+impl Scenario<'_> {
+    fn finger(&self, id: u32) -> &Finger {
+        self.hand.finger(id).expect("fingers are checked up front")
+    }
+
+    /// World position and normal of candidate `c` with the object at `theta`.
+    fn world(&self, c: usize, theta: Real) -> (Vec3, Vec3) {
+        let cands = self.problem.candidates();
+        let r = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
+        (r * (cands.points[c] - self.centre), r * cands.normals[c])
+    }
+
+    /// The fingertip pose for a contact at `c` with cap angle `gamma`: centre and phi.
+    fn tip_pose(&self, finger: &Finger, c: usize, theta: Real, gamma: Real) -> (Vec3, Real) {
+        let (p, n) = self.world(c, theta);
+        let centre = p + finger.tip_radius * n;
+        let inward = (-n.y).atan2(-n.x);
+        (centre, wrap(inward - gamma))
+    }
+
+    /// Joint angles for finger `finger` touching `c` at cap angle `gamma`, or why not. With
+    /// `continuous`, the joints must stay within [`MAX_JOINT_STEP`] of `near`.
+    fn place(
+        &self,
+        finger: &Finger,
+        c: usize,
+        theta: Real,
+        gamma: Real,
+        near: &[Real],
+        continuous: bool,
+    ) -> Result<Vec<Real>, Blocked> {
+        let s = &self.settings;
+        if gamma.abs() > finger.cap_half_angle - s.cap_margin {
+            return Err(Blocked::Cap { gamma });
+        }
+        let (centre, phi) = self.tip_pose(finger, c, theta, gamma);
+        let q = finger
+            .ik_planar(centre.x, centre.y, phi, near)
+            .map_err(Blocked::Ik)?;
+        let jump = q
+            .iter()
+            .zip(near)
+            .map(|(a, b)| (a - b).abs())
+            .enumerate()
+            .find(|(_, d)| *d > MAX_JOINT_STEP);
+        if let (true, Some((joint, d))) = (continuous, jump) {
+            return Err(Blocked::Jump {
+                joint,
+                degrees: d.to_degrees(),
+            });
+        }
+        let m = finger.manipulability(&q);
+        if m < s.min_manipulability {
+            return Err(Blocked::Mobility { value: m });
+        }
+        Ok(q)
+    }
+
+    /// Signed arc length (counter-clockwise positive) along the section from `a` to `b`,
+    /// from the chord and the turn of the normal (exact on circles).
+    fn arc(&self, a: usize, b: usize) -> Real {
+        if a == b {
+            return 0.0;
+        }
+        let cands = self.problem.candidates();
+        let (na, nb) = (cands.normals[a], cands.normals[b]);
+        let turn = wrap(nb.y.atan2(nb.x) - na.y.atan2(na.x));
+        let chord = (cands.points[b] - cands.points[a]).xy().norm();
+        let half = 0.5 * turn.abs();
+        let length = if half < 1e-12 {
+            chord
+        } else {
+            chord * half / half.sin()
+        };
+        if turn == 0.0 {
+            // A flat stretch: the sense of travel from the positions.
+            let (pa, pb) = (cands.points[a] - self.centre, cands.points[b] - self.centre);
+            length * pa.xy().perp(&pb.xy()).signum()
+        } else {
+            length * turn.signum()
+        }
+    }
+
+    /// The body point that stays still in the world when the object turns by `step`.
+    fn behind(&self, c: usize, step: Real) -> Vec3 {
+        let r = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), -step);
+        self.centre + r * (self.problem.candidates().points[c] - self.centre)
+    }
+
+    /// The candidate among `members` nearest to `target`.
+    fn nearest(&self, members: impl Iterator<Item = usize>, target: &Vec3) -> Option<usize> {
+        let pts = &self.problem.candidates().points;
+        members.min_by(|&a, &b| {
+            (pts[a] - target)
+                .norm_squared()
+                .total_cmp(&(pts[b] - target).norm_squared())
+        })
+    }
+
+    /// Steps finger `finger` could roll alone from `(c, gamma, q)`, up to `limit`, keeping
+    /// its contact still in the world (any candidate allowed).
+    fn room(
+        &self,
+        finger: &Finger,
+        mut c: usize,
+        mut gamma: Real,
+        mut q: Vec<Real>,
+        mut theta: Real,
+        limit: usize,
+    ) -> usize {
+        let n = self.problem.candidates().points.len();
+        for k in 0..limit {
+            let target = self.behind(c, self.settings.step);
+            let near = self.problem.candidates().adjacency.neighbours(c);
+            let next = self
+                .nearest(near.iter().map(|&m| m as usize).chain([c]), &target)
+                .unwrap_or(c)
+                .min(n - 1);
+            let g = gamma - self.arc(c, next) / finger.tip_radius;
+            theta += self.settings.step;
+            match self.place(finger, next, theta, g, &q, true) {
+                Ok(qn) => {
+                    (c, gamma, q) = (next, g, qn);
+                }
+                Err(_) => return k,
+            }
+        }
+        limit
+    }
+
+    /// The best way for `finger` to touch `c` with the object at `theta`: the cap angle
+    /// with the most rolling room; `(gamma, q, room)`.
+    fn best_attach(
+        &self,
+        finger: &Finger,
+        c: usize,
+        theta: Real,
+        near: &[Real],
+    ) -> Option<(Real, Vec<Real>, usize)> {
+        let s = &self.settings;
+        let span = finger.cap_half_angle - s.cap_margin;
+        let count = (2.0 * span / s.attach_resolution).floor() as usize;
+        let limit = ((self.settings.goal / s.step).ceil() as usize).clamp(1, 2000);
+        let mut best: Option<(Real, Vec<Real>, usize)> = None;
+        for i in 0..=count {
+            let gamma = -span + i as Real * s.attach_resolution;
+            let Ok(q) = self.place(finger, c, theta, gamma, near, false) else {
+                continue;
+            };
+            let room = self.room(finger, c, gamma, q.clone(), theta, limit);
+            if best.as_ref().is_none_or(|b| room > b.2) {
+                best = Some((gamma, q, room));
+            }
+        }
+        best
+    }
+
+    /// Every way finger `id` can touch candidate `c` with the object at `theta`: the cap
+    /// angles on the attach grid that are reachable, each with its rolling room (steps).
+    pub fn reach(&self, id: u32, c: usize, theta: Real) -> Vec<(Real, usize)> {
+        let Some(finger) = self.hand.finger(id) else {
+            return Vec::new();
+        };
+        let s = &self.settings;
+        let span = finger.cap_half_angle - s.cap_margin;
+        let count = (2.0 * span / s.attach_resolution).floor() as usize;
+        let limit = ((s.goal / s.step).ceil() as usize).clamp(1, 2000);
+        (0..=count)
+            .filter_map(|i| {
+                let gamma = -span + i as Real * s.attach_resolution;
+                let q = self
+                    .place(finger, c, theta, gamma, &finger.home, false)
+                    .ok()?;
+                Some((gamma, self.room(finger, c, gamma, q, theta, limit)))
+            })
+            .collect()
+    }
+
+    fn check(&self) -> Result<(), PlanError> {
+        let s = &self.settings;
+        let positive = |name: &str, x: Real| {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(PlanError::Settings(format!(
+                    "plan.{name}: must be a finite number > 0, got {x}"
+                )))
+            }
+        };
+        positive("rotation_deg", s.goal)?;
+        positive("step_deg", s.step)?;
+        positive("attach_resolution_deg", s.attach_resolution)?;
+        if !(s.cap_margin.is_finite() && s.cap_margin >= 0.0) {
+            return Err(PlanError::Settings(format!(
+                "plan.cap_margin_deg: must be >= 0, got {}",
+                s.cap_margin.to_degrees()
+            )));
+        }
+        if !(s.min_manipulability.is_finite() && s.min_manipulability >= 0.0) {
+            return Err(PlanError::Settings(format!(
+                "plan.min_manipulability: must be >= 0, got {}",
+                s.min_manipulability
+            )));
+        }
+        let known: Vec<u32> = self.hand.fingers.iter().map(|f| f.id).collect();
+        for &(id, _, _) in &self.initial {
+            let Some(f) = self.hand.finger(id) else {
+                return Err(PlanError::UnknownFinger { finger: id, known });
+            };
+            if f.dof() != 3 || f.planar.as_ref().is_none_or(|p| p.z.abs() > 1e-9) {
+                return Err(PlanError::NotPlanar { finger: id });
+            }
+        }
+        for f in &self.hand.fingers {
+            if f.cap_half_angle <= s.cap_margin {
+                return Err(PlanError::Settings(format!(
+                    "plan.cap_margin_deg: {} deg leaves no usable cap on finger {} (half-angle {} deg)",
+                    s.cap_margin.to_degrees(),
+                    f.id,
+                    f.cap_half_angle.to_degrees()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn describe(&self, c: usize) -> String {
+        match self.angles {
+            Some(a) => format!("{:.1} deg", a[c].to_degrees()),
+            None => {
+                let p = self.problem.candidates().points[c];
+                format!("[{:.4}, {:.4}, {:.4}] m", p.x, p.y, p.z)
+            }
+        }
+    }
+
+    fn overlap(&self, contacts: &[Contact]) -> Option<PlanError> {
+        let tips: Vec<(u32, Vec3, Real)> = contacts
+            .iter()
+            .map(|c| {
+                let f = self.finger(c.finger);
+                (c.finger, f.fk(&c.q).tip_centre, f.tip_radius)
+            })
+            .collect();
+        for (i, a) in tips.iter().enumerate() {
+            for b in &tips[i + 1..] {
+                let d = (a.1 - b.1).norm();
+                if d < a.2 + b.2 {
+                    return Some(PlanError::Overlap {
+                        a: a.0,
+                        b: b.0,
+                        distance_mm: 1e3 * d,
+                    });
+                }
+            }
+        }
+        None
+    }
+
+    fn record(
+        &self,
+        step: usize,
+        phase: Phase,
+        theta: Real,
+        quality: Real,
+        contacts: &[Contact],
+    ) -> Step {
+        let cands = self.problem.candidates();
+        let fingers = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let contact = contacts.iter().find(|c| c.finger == f.id);
+                let q = contact.map_or(&f.home, |c| &c.q);
+                let pose = f.fk(q);
+                let p = contact.map(|c| cands.points[c.candidate]);
+                FingerState {
+                    finger: f.id,
+                    contact: contact.map(|c| c.candidate),
+                    point: p.map(|p| [p.x, p.y, p.z]),
+                    angle_deg: contact
+                        .and_then(|c| self.angles.map(|a| a[c.candidate].to_degrees())),
+                    cap_angle_deg: contact.map(|c| c.gamma.to_degrees()),
+                    tip_rotation_deg: pose.cap_axis.y.atan2(pose.cap_axis.x).to_degrees(),
+                    tip_centre: [pose.tip_centre.x, pose.tip_centre.y, pose.tip_centre.z],
+                    joints_deg: q.iter().map(|a| a.to_degrees()).collect(),
+                }
+            })
+            .collect();
+        Step {
+            step,
+            phase,
+            rotation_deg: theta.to_degrees(),
+            quality,
+            fingers,
+            switch: None,
+        }
+    }
+
+    fn quality(&self, contacts: &[Contact]) -> Result<(Real, Real), GraspError> {
+        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
+        let e = self.problem.evaluate(&idx)?;
+        Ok((if e.force_closure() { e.quality } else { 0.0 }, e.epsilon))
+    }
+
+    /// The rendezvous region of the contact at `k` in the grasp `contacts` (zone rule,
+    /// every candidate tested) and the exact region by brute force.
+    fn rendezvous_regions(
+        &self,
+        contacts: &[Contact],
+        k: usize,
+    ) -> Result<(Vec<usize>, Vec<usize>), GraspError> {
+        let p = self.problem;
+        let alpha = self.settings.alpha;
+        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
+        let eval = p.evaluate(&idx)?;
+        let n = p.candidates().points.len();
+        let occupied = |q: usize| idx.iter().enumerate().any(|(i, &c)| i != k && c == q);
+        let mut region = Vec::new();
+        if let Some(hull) = eval.hull.as_ref().filter(|_| eval.force_closure()) {
+            let (d, s) = (p.dim(), p.model().edges());
+            let mut support = vec![0.0; hull.facet_count()];
+            p.support_function(hull.normals(), &mut support);
+            let vertex_facets = hull.vertex_facets(idx.len() * s);
+            let zones: Vec<&Vec<u32>> = vertex_facets[k * s..(k + 1) * s]
+                .iter()
+                .filter(|f| !f.is_empty())
+                .collect();
+            for q in (0..n).filter(|&q| !occupied(q)) {
+                let w = p.candidate_wrenches(q);
+                let ok = zones.iter().all(|facets| {
+                    (0..s).any(|j| {
+                        facets.iter().all(|&f| {
+                            let f = f as usize;
+                            dot(hull.normal(f), &w[j * d..(j + 1) * d])
+                                >= alpha * support[f] - eval.tolerance
+                        })
+                    })
+                });
+                if ok {
+                    region.push(q);
+                }
+            }
+        }
+        let mut brute = Vec::new();
+        let mut trial = idx.clone();
+        for q in (0..n).filter(|&q| !occupied(q)) {
+            trial[k] = q;
+            let e = p.evaluate(&trial)?;
+            if e.force_closure() && e.quality >= alpha * (1.0 - QUALITY_SLACK) {
+                brute.push(q);
+            }
+        }
+        Ok((region, brute))
+    }
+
+    /// Plans the scenario. `progress` is called after every step with the rotation done
+    /// (rad).
+    pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+        self.check()?;
+        let s = self.settings.clone();
+        let alpha = s.alpha;
+        let floor = alpha * (1.0 - QUALITY_SLACK);
+        let mut theta = 0.0;
+        // The initial grasp.
+        let idx: Vec<usize> = self.initial.iter().map(|c| c.1).collect();
+        let e = self.problem.evaluate(&idx)?;
+        if !e.force_closure() {
+            return Err(PlanError::NotForceClosure { epsilon: e.epsilon });
+        }
+        if e.quality < floor {
+            return Err(PlanError::BelowMargin {
+                quality: e.quality,
+                alpha,
+            });
+        }
+        let mut contacts = Vec::with_capacity(self.initial.len());
+        for &(id, c, cap) in &self.initial {
+            let f = self.finger(id);
+            let unreachable = |reason: String| PlanError::Unreachable {
+                finger: id,
+                where_: self.describe(c),
+                reason,
+            };
+            let (gamma, q) = match cap {
+                Some(gamma) => {
+                    let q = self
+                        .place(f, c, theta, gamma, &f.home, false)
+                        .map_err(|b| {
+                            unreachable(format!(
+                                "with cap angle {:.1} deg: {b}",
+                                gamma.to_degrees()
+                            ))
+                        })?;
+                    (gamma, q)
+                }
+                None => self
+                    .best_attach(f, c, theta, &f.home)
+                    .map(|(g, q, _)| (g, q))
+                    .ok_or_else(|| {
+                        unreachable(match self.place(f, c, theta, 0.0, &f.home, false) {
+                            Err(b) => format!("at any cap angle (at the cap's centre: {b})"),
+                            Ok(_) => "at any cap angle".into(),
+                        })
+                    })?,
+            };
+            contacts.push(Contact {
+                finger: id,
+                candidate: c,
+                gamma,
+                q,
+            });
+        }
+        if let Some(e) = self.overlap(&contacts) {
+            return Err(e);
+        }
+        let mut steps = vec![self.record(0, Phase::Start, theta, e.quality, &contacts)];
+        let mut min_quality = e.quality;
+        let mut switches = 0;
+        let mut stop_reason = None;
+        // Switches since the last rolling step, and the finger the last switch attached.
+        let mut switches_in_a_row = 0;
+        let mut just_attached = None;
+        while theta < s.goal - 1e-9 {
+            if steps.len() >= s.max_steps {
+                stop_reason = Some(format!(
+                    "stopped after plan.max_steps = {} steps",
+                    s.max_steps
+                ));
+                break;
+            }
+            let step = s.step.min(s.goal - theta);
+            match self.roll(&contacts, theta, step)? {
+                Roll::Stuck(reason) => {
+                    stop_reason = Some(reason);
+                    break;
+                }
+                Roll::Moved(next, quality) => {
+                    switches_in_a_row = 0;
+                    just_attached = None;
+                    contacts = next;
+                    theta += step;
+                    min_quality = min_quality.min(quality);
+                    steps.push(self.record(steps.len(), Phase::Rolling, theta, quality, &contacts));
+                    progress(theta);
+                }
+                Roll::Blocked(k, why) => {
+                    if just_attached == Some(contacts[k].finger)
+                        || switches_in_a_row >= self.hand.fingers.len()
+                    {
+                        stop_reason = Some(format!(
+                            "finger {} cannot roll on ({why}) right after it attached: the hand has no way forward",
+                            contacts[k].finger
+                        ));
+                        break;
+                    }
+                    match self.switch(&contacts, k, theta, &why)? {
+                        Ok((attach, detach, info, q_attach, q_detach)) => {
+                            min_quality = min_quality.min(q_attach).min(q_detach);
+                            let mut a =
+                                self.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
+                            a.switch = Some(info);
+                            steps.push(a);
+                            steps.push(self.record(
+                                steps.len(),
+                                Phase::Detach,
+                                theta,
+                                q_detach,
+                                &detach,
+                            ));
+                            contacts = detach;
+                            switches += 1;
+                            switches_in_a_row += 1;
+                            just_attached = steps
+                                .iter()
+                                .rev()
+                                .find_map(|s| s.switch.as_ref())
+                                .map(|s| s.attached);
+                            progress(theta);
+                        }
+                        Err(reason) => {
+                            stop_reason = Some(reason);
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        let completed = stop_reason.is_none();
+        let rolling_steps = steps.iter().filter(|s| s.phase == Phase::Rolling).count();
+        let (region_candidates, brute_force_candidates) = steps
+            .iter()
+            .filter_map(|s| s.switch.as_ref())
+            .fold((0, 0), |(a, b), sw| {
+                (a + sw.region.len(), b + sw.brute_force.len())
+            });
+        let summary = Summary {
+            completed,
+            stop_reason,
+            rotation_deg: theta.to_degrees(),
+            goal_deg: s.goal.to_degrees(),
+            switches,
+            steps: steps.len(),
+            rolling_steps,
+            min_quality,
+            alpha,
+            max_rolling_residual: rolling_residuals(self, &steps)
+                .into_iter()
+                .fold(0.0, Real::max),
+            region_candidates,
+            brute_force_candidates,
+        };
+        Ok(Plan { summary, steps })
+    }
+
+    /// One rolling step of every contact: the new contacts and their quality, or the index
+    /// of the first finger that cannot move and why.
+    fn roll(&self, contacts: &[Contact], theta: Real, step: Real) -> Result<Roll, PlanError> {
+        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
+        let eval = self.problem.evaluate(&idx)?;
+        let regions = match self.problem.icrs(&idx, &eval, self.settings.alpha) {
+            Ok(r) => r,
+            Err(e @ (IcrError::NotForceClosure | IcrError::MarginAboveQuality { .. })) => {
+                return Ok(Roll::Stuck(format!("the grasp lost its margin: {e}")));
+            }
+            Err(e) => return Ok(Roll::Stuck(e.to_string())),
+        };
+        let mut next = Vec::with_capacity(contacts.len());
+        for (i, (c, region)) in contacts.iter().zip(&regions).enumerate() {
+            let f = self.finger(c.finger);
+            let target = self.behind(c.candidate, step);
+            let n = self
+                .nearest(region.members.iter().map(|&m| m as usize), &target)
+                .unwrap_or(c.candidate);
+            let gamma = c.gamma - self.arc(c.candidate, n) / f.tip_radius;
+            match self.place(f, n, theta + step, gamma, &c.q, true) {
+                Ok(q) => next.push(Contact {
+                    finger: c.finger,
+                    candidate: n,
+                    gamma,
+                    q,
+                }),
+                Err(b) => return Ok(Roll::Blocked(i, b.to_string())),
+            }
+        }
+        if let Some(e) = self.overlap(&next) {
+            return Ok(Roll::Stuck(format!("rolling on: {e}")));
+        }
+        let (quality, _) = self.quality(&next)?;
+        if quality < self.settings.alpha * (1.0 - QUALITY_SLACK) {
+            return Ok(Roll::Stuck(format!(
+                "the next grasp would have quality {quality:.6} < alpha = {} (a defect: the ICRs guarantee the margin)",
+                self.settings.alpha
+            )));
+        }
+        Ok(Roll::Moved(next, quality))
+    }
+
+    /// Switches finger `contacts[k]` for the best free finger.
+    #[allow(clippy::type_complexity)]
+    fn switch(
+        &self,
+        contacts: &[Contact],
+        k: usize,
+        theta: Real,
+        why: &str,
+    ) -> Result<Result<(Vec<Contact>, Vec<Contact>, Switch, Real, Real), String>, PlanError> {
+        let released = contacts[k].finger;
+        let free: Vec<&Finger> = self
+            .hand
+            .fingers
+            .iter()
+            .filter(|f| contacts.iter().all(|c| c.finger != f.id))
+            .filter(|f| f.dof() == 3 && f.planar.is_some())
+            .collect();
+        if free.is_empty() {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}) and no free finger can take over"
+            )));
+        }
+        let (region, brute) = self.rendezvous_regions(contacts, k)?;
+        let angle = |c: usize| {
+            let p = self.problem.candidates().points[c] - self.centre;
+            p.y.atan2(p.x)
+        };
+        let here = angle(contacts[k].candidate);
+        // (room, ahead, finger, candidate, gamma, q)
+        let mut best: Option<(usize, Real, u32, usize, Real, Vec<Real>)> = None;
+        for f in &free {
+            for &c in &brute {
+                let Some((gamma, q, room)) = self.best_attach(f, c, theta, &f.home) else {
+                    continue;
+                };
+                let mut trial = contacts.to_vec();
+                trial.push(Contact {
+                    finger: f.id,
+                    candidate: c,
+                    gamma,
+                    q: q.clone(),
+                });
+                if self.overlap(&trial).is_some() {
+                    continue;
+                }
+                let ahead = wrap(angle(c) - here).rem_euclid(2.0 * PI);
+                let better = best
+                    .as_ref()
+                    .is_none_or(|b| room > b.0 || (room == b.0 && ahead > b.1 + 1e-12));
+                if better {
+                    best = Some((room, ahead, f.id, c, gamma, q));
+                }
+            }
+        }
+        let Some((room, _, id, c, gamma, q)) = best else {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?})",
+                brute.len(),
+                free.iter().map(|f| f.id).collect::<Vec<_>>()
+            )));
+        };
+        let mut attach = contacts.to_vec();
+        attach.push(Contact {
+            finger: id,
+            candidate: c,
+            gamma,
+            q,
+        });
+        let (q_attach, _) = self.quality(&attach)?;
+        let mut detach = attach.clone();
+        detach.remove(k);
+        let (q_detach, _) = self.quality(&detach)?;
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        if q_attach < floor || q_detach < floor {
+            return Ok(Err(format!(
+                "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {}",
+                self.describe(c),
+                self.settings.alpha
+            )));
+        }
+        let info = Switch {
+            released,
+            attached: id,
+            reason: why.to_string(),
+            region,
+            brute_force: brute,
+            rendezvous: c,
+            rendezvous_angle_deg: self.angles.map(|a| a[c].to_degrees()),
+            room_steps: room,
+        };
+        Ok(Ok((attach, detach, info, q_attach, q_detach)))
+    }
+}
+
+/// The rolling-relation residuals `|r_f dgamma + s|` (m) of every finger that stays in
+/// contact over a rolling step, with `gamma` recomputed from forward kinematics of the
+/// planned joint angles and `s` the signed arc between its two contacts.
+pub fn rolling_residuals(scenario: &Scenario<'_>, steps: &[Step]) -> Vec<Real> {
+    let mut out = Vec::new();
+    for w in steps.windows(2) {
+        if w[1].phase != Phase::Rolling {
+            continue;
+        }
+        for (a, b) in w[0].fingers.iter().zip(&w[1].fingers) {
+            let (Some(ca), Some(cb)) = (a.contact, b.contact) else {
+                continue;
+            };
+            let f = scenario.finger(a.finger);
+            let gamma = |c: usize, rot: Real, joints: &[Real]| {
+                let q: Vec<Real> = joints.iter().map(|d| d.to_radians()).collect();
+                let (_, n) = scenario.world(c, rot.to_radians());
+                let phi = {
+                    let axis = f.fk(&q).cap_axis;
+                    axis.y.atan2(axis.x)
+                };
+                wrap((-n.y).atan2(-n.x) - phi)
+            };
+            let ga = gamma(ca, w[0].rotation_deg, &a.joints_deg);
+            let gb = gamma(cb, w[1].rotation_deg, &b.joints_deg);
+            out.push((f.tip_radius * wrap(gb - ga) + scenario.arc(ca, cb)).abs());
+        }
+    }
+    out
+}

@@ -1,0 +1,151 @@
+//! Hands from URDF files (through the `urdf-rs` crate).
+//!
+//! Each finger is named by its fingertip link: the chain is every joint from the URDF's root
+//! link down to that link. Revolute joints become [`Joint`]s (continuous joints get limits of
+//! +-180 deg); fixed joints are folded into the neighbouring transforms; any other joint type
+//! is an error naming it. The fingertip centre is the origin of the fingertip link, and its
+//! radius is the radius of that link's sphere collision geometry unless the caller gives one.
+
+use std::f64::consts::PI;
+use std::path::Path;
+
+use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion, Vec3};
+use nalgebra::{Translation3, Unit};
+
+use crate::hand::{Finger, HandError, Joint};
+
+/// How one finger is taken from the URDF.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UrdfFinger {
+    /// Finger number.
+    pub id: u32,
+    /// Name of the fingertip link (its origin is the fingertip sphere's centre).
+    pub tip_link: String,
+    /// Fingertip radius; `None`: the tip link's sphere collision radius.
+    pub tip_radius: Option<Real>,
+    /// Cap half-angle (rad).
+    pub cap_half_angle: Real,
+    /// Home joint angles; `None`: zero clamped into the limits.
+    pub home: Option<Vec<Real>>,
+}
+
+/// Reads a URDF file and builds the named fingers, with the URDF's root placed at `root` in
+/// the hand frame.
+pub fn fingers_from_file(
+    path: &Path,
+    root: Isometry3,
+    fingers: &[UrdfFinger],
+) -> Result<Vec<Finger>, HandError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| HandError::Urdf(format!("cannot read {}: {e}", path.display())))?;
+    fingers_from_str(&text, root, fingers)
+        .map_err(|e| HandError::Urdf(format!("{}: {e}", path.display())))
+}
+
+/// As [`fingers_from_file`], from URDF text.
+pub fn fingers_from_str(
+    text: &str,
+    root: Isometry3,
+    fingers: &[UrdfFinger],
+) -> Result<Vec<Finger>, HandError> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| HandError::Urdf(e.to_string()))?;
+    fingers
+        .iter()
+        .map(|spec| finger(&robot, root, spec))
+        .collect()
+}
+
+fn pose(p: &urdf_rs::Pose) -> Isometry3 {
+    let [r, pi, y] = p.rpy.0;
+    Isometry3::from_parts(
+        Translation3::new(p.xyz.0[0], p.xyz.0[1], p.xyz.0[2]),
+        UnitQuaternion::from_euler_angles(r, pi, y),
+    )
+}
+
+fn finger(robot: &urdf_rs::Robot, root: Isometry3, spec: &UrdfFinger) -> Result<Finger, HandError> {
+    let bad = |what: String| HandError::Invalid {
+        finger: spec.id,
+        what,
+    };
+    let tip = robot
+        .links
+        .iter()
+        .find(|l| l.name == spec.tip_link)
+        .ok_or_else(|| bad(format!("URDF has no link named {:?}", spec.tip_link)))?;
+    // Walk up from the tip to the root.
+    let mut chain: Vec<&urdf_rs::Joint> = Vec::new();
+    let mut link = spec.tip_link.as_str();
+    while let Some(j) = robot.joints.iter().find(|j| j.child.link == link) {
+        if chain.len() > robot.joints.len() {
+            return Err(bad("the URDF's joints form a cycle".into()));
+        }
+        chain.push(j);
+        link = &j.parent.link;
+    }
+    chain.reverse();
+    let mut joints = Vec::new();
+    // Fixed transform accumulated since the last revolute joint.
+    let mut pending = Isometry3::identity();
+    for j in chain {
+        let origin = pose(&j.origin);
+        match j.joint_type {
+            urdf_rs::JointType::Fixed => pending *= origin,
+            urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                let axis = Vec3::from(j.axis.xyz.0);
+                let axis = Unit::try_new(axis, 1e-12)
+                    .ok_or_else(|| bad(format!("joint {:?} has a zero axis", j.name)))?;
+                let (lower, upper) = if j.joint_type == urdf_rs::JointType::Continuous {
+                    (-PI, PI)
+                } else {
+                    (j.limit.lower, j.limit.upper)
+                };
+                joints.push(Joint {
+                    name: j.name.clone(),
+                    origin: pending * origin,
+                    axis,
+                    lower,
+                    upper,
+                });
+                pending = Isometry3::identity();
+            }
+            ref other => {
+                return Err(bad(format!(
+                    "joint {:?} is {other:?}: only revolute, continuous and fixed joints are supported",
+                    j.name
+                )));
+            }
+        }
+    }
+    if pending.rotation.angle() > 1e-12 && joints.is_empty() {
+        return Err(bad(format!(
+            "no revolute joint between the root and {:?}",
+            spec.tip_link
+        )));
+    }
+    let radius = match spec.tip_radius {
+        Some(r) => r,
+        None => tip
+            .collision
+            .iter()
+            .find_map(|c| match c.geometry {
+                urdf_rs::Geometry::Sphere { radius } => Some(radius),
+                _ => None,
+            })
+            .ok_or_else(|| {
+                bad(format!(
+                    "link {:?} has no sphere collision geometry: give the fingertip radius",
+                    spec.tip_link
+                ))
+            })?,
+    };
+    Finger::new(
+        spec.id,
+        root,
+        joints,
+        pending.translation.vector,
+        radius,
+        spec.cap_half_angle,
+        spec.home.clone(),
+    )
+}

@@ -1,0 +1,288 @@
+//! `icrflow plan CONFIG [--out DIR] [--json]`: the whole scenario offline.
+
+use std::fmt::Write as _;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use icrflow_grasp::math::Real;
+use icrflow_grasp::object::Object;
+use icrflow_grasp::quality::GraspProblem;
+use icrflow_grasp::wrench::WrenchFrame;
+use icrflow_plan::hand::Hand;
+use icrflow_plan::planner::{Plan, Scenario};
+use serde::Serialize;
+
+use crate::config::{Config, ContactSpec};
+
+/// Exit status of a plan that stopped before its goal (files written, `completed: false`).
+pub const EXIT_INCOMPLETE: u8 = 2;
+
+/// What `trajectory.json` holds.
+#[derive(Serialize)]
+struct Trajectory<'a> {
+    config: String,
+    object: String,
+    space: &'static str,
+    friction: Real,
+    cone_edges: usize,
+    fingertip_radius: Vec<(u32, Real)>,
+    #[serde(flatten)]
+    plan: &'a Plan,
+}
+
+/// Everything the planner needs, built from a config.
+pub struct Setup {
+    /// The object.
+    pub object: Object,
+    /// The grasp problem (candidates: the object's section).
+    pub problem: GraspProblem,
+    /// The hand.
+    pub hand: Hand,
+    /// Initial contacts: (finger, candidate, cap angle).
+    pub initial: Vec<(u32, usize, Option<Real>)>,
+}
+
+impl Setup {
+    /// Builds and checks the scenario's parts; errors name the key or finger.
+    pub fn new(config: &Config) -> Result<Self> {
+        let object = config.object.build()?;
+        let g = &config.grasp;
+        let rho = g.rho.unwrap_or_else(|| object.max_radius());
+        let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
+        if object.section.samples.is_empty() {
+            bail!(
+                "object: the hand's plane (z = {:.4} m, through the centre of mass) does not cut it: no contact candidates",
+                object.section.height
+            );
+        }
+        let problem = GraspProblem::new(
+            &object.facets,
+            object.section.samples.clone(),
+            frame,
+            g.model,
+        )?;
+        let hand = config.hand.build()?;
+        let mut initial = Vec::with_capacity(g.contacts.len());
+        for (i, c) in g.contacts.iter().enumerate() {
+            if hand.finger(c.finger).is_none() {
+                bail!(
+                    "grasp.contacts[{i}].finger: finger {} is not in the hand (fingers {:?})",
+                    c.finger,
+                    hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
+                );
+            }
+            let index = match c.at {
+                ContactSpec::Angle(a) => object.section.nearest_angle(a).map(|x| x.0),
+                ContactSpec::Point(p) => problem.candidates().nearest(&p).map(|x| x.0),
+            }
+            .context("the object's section has no samples")?;
+            initial.push((c.finger, index, c.cap_angle));
+        }
+        if hand
+            .fingers
+            .iter()
+            .all(|f| g.contacts.iter().any(|c| c.finger == f.id))
+        {
+            bail!(
+                "grasp.contacts: every finger of the hand ({:?}) is in contact, so none is free to take over when one reaches its limit; leave one out",
+                hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
+            );
+        }
+        Ok(Self {
+            object,
+            problem,
+            hand,
+            initial,
+        })
+    }
+
+    /// The scenario for the planner.
+    pub fn scenario<'a>(&'a self, config: &Config) -> Scenario<'a> {
+        Scenario {
+            problem: &self.problem,
+            hand: &self.hand,
+            centre: self.object.centre_of_mass,
+            angles: Some(&self.object.section.angles),
+            initial: self.initial.clone(),
+            settings: config.plan.clone(),
+        }
+    }
+}
+
+/// Runs the verb; returns the process exit code.
+pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
+    let config = Config::load(path)?;
+    let setup = Setup::new(&config)?;
+    let scenario = setup.scenario(&config);
+    let goal = config.plan.goal;
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(goal.to_degrees().ceil() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "planning {bar:40} {pos:>4}/{len} deg rotated, {elapsed_precise}",
+            )
+            .expect("the template is valid"),
+        );
+        bar
+    });
+    let started = Instant::now();
+    let plan = scenario
+        .plan(&mut |theta| {
+            if let Some(b) = &bar {
+                b.set_position(theta.to_degrees().round() as u64);
+            }
+        })
+        .context("cannot plan")?;
+    let elapsed = started.elapsed();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let dir = out.unwrap_or_else(|| {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "plan".into());
+        PathBuf::from("out").join(stem)
+    });
+    let trajectory = Trajectory {
+        config: path.display().to_string(),
+        object: config.object.describe(),
+        space: config.grasp.space.name(),
+        friction: config.grasp.model.mu(),
+        cone_edges: config.grasp.model.edges(),
+        fingertip_radius: setup
+            .hand
+            .fingers
+            .iter()
+            .map(|f| (f.id, f.tip_radius))
+            .collect(),
+        plan: &plan,
+    };
+    write_outputs(&dir, &trajectory, &plan, &setup.hand)?;
+    let s = &plan.summary;
+    if json {
+        let mut o = std::io::stdout().lock();
+        serde_json::to_writer_pretty(&mut o, s).context("writing JSON")?;
+        writeln!(o)?;
+    } else {
+        let mut o = std::io::stdout().lock();
+        writeln!(o, "config     {}", path.display())?;
+        writeln!(
+            o,
+            "object     {} ({} space, mu = {}, s = {})",
+            config.object.describe(),
+            config.grasp.space.name(),
+            config.grasp.model.mu(),
+            config.grasp.model.edges()
+        )?;
+        writeln!(
+            o,
+            "rotation   {:.1} deg of {:.1} deg{}",
+            s.rotation_deg,
+            s.goal_deg,
+            if s.completed { "" } else { " (stopped early)" }
+        )?;
+        writeln!(
+            o,
+            "steps      {} ({} rolling), {} finger switches",
+            s.steps, s.rolling_steps, s.switches
+        )?;
+        writeln!(
+            o,
+            "quality    minimum alpha* = {:.6} {} alpha = {}",
+            s.min_quality,
+            if s.min_quality >= s.alpha { ">=" } else { "<" },
+            s.alpha
+        )?;
+        writeln!(
+            o,
+            "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
+            s.max_rolling_residual
+        )?;
+        if s.switches > 0 {
+            writeln!(
+                o,
+                "switching  rendezvous regions: {} candidates by the ICR zone rule, {} by brute force ({:.0} % recovered)",
+                s.region_candidates,
+                s.brute_force_candidates,
+                100.0 * s.region_candidates as Real / s.brute_force_candidates.max(1) as Real
+            )?;
+        }
+        if let Some(why) = &s.stop_reason {
+            writeln!(o, "stopped    {why}")?;
+        }
+        writeln!(
+            o,
+            "wrote      {} and {} ({:.0} ms planning)",
+            dir.join("trajectory.csv").display(),
+            dir.join("trajectory.json").display(),
+            elapsed.as_secs_f64() * 1e3
+        )?;
+    }
+    Ok(if s.completed { 0 } else { EXIT_INCOMPLETE })
+}
+
+/// Writes `trajectory.json` and `trajectory.csv` into `dir`, each through a temporary file
+/// renamed into place, so that a failure never leaves a partial file under the final name.
+fn write_outputs(dir: &Path, trajectory: &Trajectory<'_>, plan: &Plan, hand: &Hand) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut json = serde_json::to_string_pretty(trajectory).context("serialising the plan")?;
+    json.push('\n');
+    let csv = csv(plan, hand);
+    for (name, text) in [("trajectory.json", json), ("trajectory.csv", csv)] {
+        let tmp = dir.join(format!(".{name}.tmp"));
+        std::fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
+        std::fs::rename(&tmp, dir.join(name))
+            .with_context(|| format!("cannot write {}", dir.join(name).display()))?;
+    }
+    Ok(())
+}
+
+/// The trajectory as CSV: one row per step, a group of columns per finger (empty cells for
+/// a free finger's contact).
+fn csv(plan: &Plan, hand: &Hand) -> String {
+    let mut out = String::from("step,phase,rotation_deg,quality");
+    for f in &hand.fingers {
+        let id = f.id;
+        let _ = write!(
+            out,
+            ",f{id}_contact,f{id}_x,f{id}_y,f{id}_z,f{id}_angle_deg,f{id}_cap_angle_deg,f{id}_tip_rotation_deg"
+        );
+        for j in 1..=f.dof() {
+            let _ = write!(out, ",f{id}_q{j}_deg");
+        }
+    }
+    out.push('\n');
+    let opt = |x: Option<Real>| x.map_or(String::new(), |v| format!("{v}"));
+    for s in &plan.steps {
+        let _ = write!(
+            out,
+            "{},{},{},{}",
+            s.step,
+            s.phase.name(),
+            s.rotation_deg,
+            s.quality
+        );
+        for f in &s.fingers {
+            let p = f.point.map(|p| p.map(Some)).unwrap_or([None; 3]);
+            let _ = write!(
+                out,
+                ",{},{},{},{},{},{},{}",
+                u8::from(f.contact.is_some()),
+                opt(p[0]),
+                opt(p[1]),
+                opt(p[2]),
+                opt(f.angle_deg),
+                opt(f.cap_angle_deg),
+                f.tip_rotation_deg
+            );
+            for q in &f.joints_deg {
+                let _ = write!(out, ",{q}");
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
