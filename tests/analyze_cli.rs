@@ -1,19 +1,8 @@
 //! `icrflow analyze` end to end: the real binary on the shipped configs and on bad ones.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn icrflow(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .expect("running icrflow")
-}
+use common::{icrflow, root, scratch};
 
 fn json(args: &[&str]) -> serde_json::Value {
     let out = icrflow(args);
@@ -23,13 +12,6 @@ fn json(args: &[&str]) -> serde_json::Value {
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("analyze --json prints one JSON object")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("icrflow-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 #[test]

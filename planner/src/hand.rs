@@ -328,33 +328,120 @@ impl Finger {
             .sqrt()
     }
 
-    /// Inverse kinematics of the fingertip centre by damped least squares, from `q0`, with
-    /// the joints clamped to their limits at every iteration. Converges to `1e-10` m.
+    /// Inverse kinematics of the fingertip centre by damped least squares, from `q0`, within
+    /// the joint limits: joints at a limit that the step would push further out are frozen
+    /// for that step (an active set), and each step is halved until the error decreases.
+    /// Converges to `1e-10` m. A local minimum against a limit is escaped by restarting from
+    /// the middle of the joint ranges and from points between it and `q0`; a target out of
+    /// reach gives [`IkError::NoConvergence`] with the smallest residual found.
     pub fn ik_position(&self, target: &Vec3, q0: &[Real]) -> Result<Vec<Real>, IkError> {
-        const ITERATIONS: usize = 500;
-        const DAMPING: Real = 1e-4;
-        let mut q: Vec<Real> = q0
+        let mid: Vec<Real> = self
+            .joints
             .iter()
-            .zip(&self.joints)
-            .map(|(a, j)| a.clamp(j.lower, j.upper))
+            .map(|j| 0.5 * (j.lower + j.upper))
             .collect();
-        let mut residual = Real::INFINITY;
-        for _ in 0..ITERATIONS {
-            let e = target - self.fk(&q).tip_centre;
-            residual = e.norm();
-            if residual <= 1e-10 {
+        let mut best = match self.dls(target, q0) {
+            Ok(q) => return Ok(q),
+            Err(e) => e,
+        };
+        for t in [1.0, 0.5, 0.25, 0.75] {
+            let seed: Vec<Real> = q0.iter().zip(&mid).map(|(a, m)| a + t * (m - a)).collect();
+            match self.dls(target, &seed) {
+                Ok(q) => return Ok(q),
+                Err(e) => {
+                    let residual = |x: &IkError| match x {
+                        IkError::NoConvergence { residual, .. } => *residual,
+                        _ => Real::INFINITY,
+                    };
+                    if residual(&e) < residual(&best) {
+                        best = e;
+                    }
+                }
+            }
+        }
+        Err(best)
+    }
+
+    /// One damped-least-squares descent from `q0`.
+    fn dls(&self, target: &Vec3, q0: &[Real]) -> Result<Vec<Real>, IkError> {
+        const ITERATIONS: usize = 500;
+        const DAMPING: Real = 1e-3;
+        let n = self.dof();
+        let clamp = |q: &mut Vec<Real>| {
+            for (a, j) in q.iter_mut().zip(&self.joints) {
+                *a = a.clamp(j.lower, j.upper);
+            }
+        };
+        let mut q: Vec<Real> = q0.to_vec();
+        q.resize(n, 0.0);
+        clamp(&mut q);
+        let mut e = target - self.fk(&q).tip_centre;
+        for iteration in 0..ITERATIONS {
+            if e.norm() <= 1e-10 {
                 return Ok(q);
             }
-            let jac = self.jacobian(&q).rows(0, 3).into_owned();
-            let jjt = &jac * jac.transpose() + DMatrix::identity(3, 3) * DAMPING * DAMPING;
-            let Some(chol) = jjt.cholesky() else { break };
-            let dq = jac.transpose() * chol.solve(&DVector::from_column_slice(e.as_slice()));
-            for ((qi, d), j) in q.iter_mut().zip(dq.iter()).zip(&self.joints) {
-                *qi = (*qi + d.clamp(-0.2, 0.2)).clamp(j.lower, j.upper);
+            let full = self.jacobian(&q).rows(0, 3).into_owned();
+            let mut frozen = vec![false; n];
+            let mut dq = DVector::zeros(n);
+            for _ in 0..=n {
+                let mut jac = full.clone();
+                for (c, _) in frozen.iter().enumerate().filter(|(_, f)| **f) {
+                    jac.column_mut(c).fill(0.0);
+                }
+                // Damping shrinks near the solution so the last steps are Gauss-Newton.
+                let lambda = DAMPING * e.norm().min(1.0).sqrt();
+                let jjt = &jac * jac.transpose() + DMatrix::identity(3, 3) * lambda * lambda;
+                let Some(chol) = jjt.cholesky() else { break };
+                dq = jac.transpose() * chol.solve(&DVector::from_column_slice(e.as_slice()));
+                let mut changed = false;
+                for (c, j) in self.joints.iter().enumerate() {
+                    let at_lower = q[c] <= j.lower + 1e-12 && dq[c] < 0.0;
+                    let at_upper = q[c] >= j.upper - 1e-12 && dq[c] > 0.0;
+                    if (at_lower || at_upper) && !frozen[c] {
+                        frozen[c] = true;
+                        changed = true;
+                    }
+                }
+                if !changed {
+                    break;
+                }
+            }
+            // The longest step along dq that stays within the limits, and at most 0.3 rad
+            // for any joint; scaled, not clipped, so it stays a descent direction.
+            let mut step = (0.3 / dq.amax().max(1e-300)).min(1.0);
+            for (c, j) in self.joints.iter().enumerate() {
+                if frozen[c] || dq[c] == 0.0 {
+                    continue;
+                }
+                let room = if dq[c] > 0.0 {
+                    j.upper - q[c]
+                } else {
+                    j.lower - q[c]
+                };
+                step = step.min((room / dq[c]).max(0.0));
+            }
+            let mut improved = false;
+            for _ in 0..20 {
+                let mut trial: Vec<Real> =
+                    q.iter().zip(dq.iter()).map(|(a, d)| a + step * d).collect();
+                clamp(&mut trial);
+                let et = target - self.fk(&trial).tip_centre;
+                if et.norm() < e.norm() {
+                    (q, e) = (trial, et);
+                    improved = true;
+                    break;
+                }
+                step *= 0.5;
+            }
+            if !improved {
+                return Err(IkError::NoConvergence {
+                    residual: e.norm(),
+                    iterations: iteration + 1,
+                });
             }
         }
         Err(IkError::NoConvergence {
-            residual,
+            residual: e.norm(),
             iterations: ITERATIONS,
         })
     }
@@ -399,10 +486,22 @@ impl Finger {
                     } else {
                         (abs[i] - abs[i - 1]) - (p.angles0[i] - p.angles0[i - 1])
                     };
-                    // The branch of the angle nearest the reference pose.
-                    let target = p.signs[i] * rel;
+                    // Of the angle's representatives `target + 2 pi k`, the one inside the
+                    // limits nearest the reference pose (or just the nearest).
+                    let target = wrap(p.signs[i] * rel);
                     let reference = near.get(i).copied().unwrap_or(0.0);
-                    reference + wrap(target - reference)
+                    let j = &self.joints[i];
+                    let key = |a: &Real| {
+                        let outside = *a < j.lower - 1e-12 || *a > j.upper + 1e-12;
+                        (outside, (a - reference).abs())
+                    };
+                    [target - 2.0 * PI, target, target + 2.0 * PI]
+                        .into_iter()
+                        .min_by(|a, b| {
+                            let (ka, kb) = (key(a), key(b));
+                            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+                        })
+                        .expect("three candidates")
                 })
                 .collect();
             match self.limit_violation(&q, 1e-12) {

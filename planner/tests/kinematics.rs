@@ -1,0 +1,180 @@
+//! Forward and inverse kinematics: FK(IK(x)) = x, and the same hand from URDF and from link
+//! lengths.
+
+use std::path::PathBuf;
+
+use icrflow_grasp::math::{Isometry3, Real};
+use icrflow_plan::hand::Finger;
+use icrflow_plan::paper;
+use icrflow_plan::urdf::{UrdfFinger, fingers_from_file};
+use proptest::prelude::*;
+
+fn hands_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/hands")
+}
+
+/// Joint angles inside the limits from unit fractions.
+fn within(f: &Finger, u: &[Real]) -> Vec<Real> {
+    f.joints
+        .iter()
+        .zip(u)
+        .map(|(j, t)| j.lower + t * (j.upper - j.lower))
+        .collect()
+}
+
+fn allegro() -> Vec<Finger> {
+    let tips = ["link_3_tip", "link_7_tip", "link_11_tip", "link_15_tip"];
+    let specs: Vec<UrdfFinger> = tips
+        .iter()
+        .enumerate()
+        .map(|(i, t)| UrdfFinger {
+            id: i as u32 + 1,
+            tip_link: (*t).into(),
+            tip_radius: None,
+            cap_half_angle: 1.5,
+            home: None,
+        })
+        .collect();
+    fingers_from_file(
+        &hands_dir().join("allegro_right.urdf"),
+        Isometry3::identity(),
+        &specs,
+    )
+    .unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    /// Closed-form planar IK: any reachable fingertip pose (x, y, phi) is reached exactly,
+    /// from any starting pose.
+    #[test]
+    fn planar_ik_reaches_every_reachable_pose(
+        finger in 1u32..=4,
+        u in prop::array::uniform3(0.0..1.0f64),
+        v in prop::array::uniform3(0.0..1.0f64),
+    ) {
+        let hand = paper::hand();
+        let f = hand.finger(finger).unwrap();
+        let q = within(f, &u);
+        let (x, y, phi) = f.planar_pose(&q).unwrap();
+        let sol = f.ik_planar(x, y, phi, &within(f, &v)).unwrap();
+        let (x2, y2, phi2) = f.planar_pose(&sol).unwrap();
+        prop_assert!((x - x2).abs() < 1e-12 && (y - y2).abs() < 1e-12);
+        prop_assert!(icrflow_plan::hand::wrap(phi - phi2).abs() < 1e-12);
+        prop_assert!(f.limit_violation(&sol, 0.0).is_none());
+    }
+
+    /// Damped least squares on the Allegro hand's fingers (4 joints, spatial): a reachable
+    /// fingertip centre is reached from a seed within 0.3 rad of a solution.
+    #[test]
+    fn dls_ik_reaches_reachable_targets_on_the_allegro_hand(
+        finger in 0usize..4,
+        u in prop::array::uniform4(0.0..1.0f64),
+        noise in prop::array::uniform4(-0.3..0.3f64),
+    ) {
+        let fingers = allegro();
+        let f = &fingers[finger];
+        let q = within(f, &u);
+        let target = f.fk(&q).tip_centre;
+        let seed: Vec<Real> = q.iter().zip(&noise).map(|(a, n)| a + n).collect();
+        let sol = f.ik_position(&target, &seed).unwrap();
+        prop_assert!((f.fk(&sol).tip_centre - target).norm() < 1e-9);
+        prop_assert!(f.limit_violation(&sol, 0.0).is_none());
+    }
+}
+
+#[test]
+fn urdf_and_link_lengths_describe_the_same_hand() {
+    let built_in = paper::hand();
+    let specs: Vec<UrdfFinger> = (1..=4)
+        .map(|id| UrdfFinger {
+            id,
+            tip_link: format!("f{id}_tip"),
+            tip_radius: None,
+            cap_half_angle: std::f64::consts::FRAC_PI_2,
+            home: None,
+        })
+        .collect();
+    let urdf = fingers_from_file(
+        &hands_dir().join("paper_hand.urdf"),
+        Isometry3::identity(),
+        &specs,
+    )
+    .unwrap();
+    for (a, b) in built_in.fingers.iter().zip(&urdf) {
+        assert_eq!(a.id, b.id);
+        assert_eq!(b.tip_radius, paper::TIP_RADIUS);
+        assert!(b.planar.is_some(), "the URDF finger {} is planar", b.id);
+        for (ja, jb) in a.joints.iter().zip(&b.joints) {
+            assert!((ja.lower - jb.lower).abs() < 1e-12 && (ja.upper - jb.upper).abs() < 1e-12);
+        }
+        for k in 0..200 {
+            let u = [
+                (k as Real * 0.618).fract(),
+                (k as Real * 0.414).fract(),
+                (k as Real * 0.732).fract(),
+            ];
+            let q = within(a, &u);
+            let (pa, pb) = (a.fk(&q), b.fk(&q));
+            assert!((pa.tip_centre - pb.tip_centre).norm() < 1e-12);
+            assert!((pa.cap_axis - pb.cap_axis).norm() < 1e-12);
+            for (x, y) in pa.joints.iter().zip(&pb.joints) {
+                assert!((x - y).norm() < 1e-12);
+            }
+            // The closed form works on the URDF finger too.
+            let (x, y, phi) = b.planar_pose(&q).unwrap();
+            let sol = b.ik_planar(x, y, phi, &q).unwrap();
+            assert!((b.fk(&sol).tip_centre - pb.tip_centre).norm() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn urdf_errors_name_the_problem() {
+    let spec = |tip: &str| UrdfFinger {
+        id: 2,
+        tip_link: tip.into(),
+        tip_radius: None,
+        cap_half_angle: 1.0,
+        home: None,
+    };
+    let path = hands_dir().join("paper_hand.urdf");
+    let e = fingers_from_file(&path, Isometry3::identity(), &[spec("nope")]).unwrap_err();
+    assert!(
+        e.to_string().contains("finger 2") && e.to_string().contains("nope"),
+        "{e}"
+    );
+    // The palm has no sphere to take the fingertip radius from.
+    let e = fingers_from_file(&path, Isometry3::identity(), &[spec("f1_l3")]).unwrap_err();
+    assert!(e.to_string().contains("sphere"), "{e}");
+    let e = icrflow_plan::urdf::fingers_from_str("<robot", Isometry3::identity(), &[spec("x")])
+        .unwrap_err();
+    assert!(e.to_string().starts_with("URDF"), "{e}");
+    let missing = hands_dir().join("missing.urdf");
+    let e = fingers_from_file(&missing, Isometry3::identity(), &[spec("x")]).unwrap_err();
+    assert!(e.to_string().contains("missing.urdf"), "{e}");
+}
+
+#[test]
+fn jacobian_matches_finite_differences() {
+    for f in allegro().iter().chain(paper::hand().fingers.iter()) {
+        let q = within(f, &[0.3, 0.6, 0.2, 0.7]);
+        let jac = f.jacobian(&q);
+        for c in 0..f.dof() {
+            let h = 1e-7;
+            let mut qp = q.clone();
+            qp[c] += h;
+            let d = (f.fk(&qp).tip_centre - f.fk(&q).tip_centre) / h;
+            for r in 0..3 {
+                assert!(
+                    (jac[(r, c)] - d[r]).abs() < 1e-6,
+                    "finger {} joint {c} row {r}: {} vs {}",
+                    f.id,
+                    jac[(r, c)],
+                    d[r]
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,287 @@
+//! The paper's scenario planned end to end, every step checked from scratch.
+
+use std::f64::consts::PI;
+
+use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::object::Object;
+use icrflow_grasp::quality::GraspProblem;
+use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
+use icrflow_plan::hand::{Hand, wrap};
+use icrflow_plan::paper;
+use icrflow_plan::planner::{Phase, Plan, PlanError, Scenario, Settings, Step};
+
+const ALPHA: Real = 0.1;
+
+fn sphere_problem(mu: Real) -> (Object, GraspProblem) {
+    let o = Object::sphere(paper::OBJECT_RADIUS, 72, 72).unwrap();
+    let frame = WrenchFrame::new(o.centre_of_mass, o.max_radius(), Space::Planar).unwrap();
+    let p = GraspProblem::new(
+        &o.facets,
+        o.section.samples.clone(),
+        frame,
+        ContactModel::new(mu, 8).unwrap(),
+    )
+    .unwrap();
+    (o, p)
+}
+
+fn settings(alpha: Real) -> Settings {
+    Settings {
+        alpha,
+        goal: 2.0 * PI,
+        step: 5f64.to_radians(),
+        cap_margin: 5f64.to_radians(),
+        min_manipulability: 1e-4,
+        max_steps: 10_000,
+        attach_resolution: 2f64.to_radians(),
+    }
+}
+
+fn scenario<'a>(
+    o: &'a Object,
+    p: &'a GraspProblem,
+    hand: &'a Hand,
+    contacts: &[(u32, Real)],
+    alpha: Real,
+) -> Scenario<'a> {
+    let at = |deg: Real| o.section.nearest_angle(deg.to_radians()).unwrap().0;
+    Scenario {
+        problem: p,
+        hand,
+        centre: o.centre_of_mass,
+        angles: Some(&o.section.angles),
+        initial: contacts.iter().map(|&(f, a)| (f, at(a), None)).collect(),
+        settings: settings(alpha),
+    }
+}
+
+const PAPER_CONTACTS: [(u32, Real); 3] = [(1, 30.0), (2, -30.0), (4, 140.0)];
+
+fn contacts_of(step: &Step) -> Vec<usize> {
+    step.fingers.iter().filter_map(|f| f.contact).collect()
+}
+
+fn paper_plan() -> (Object, GraspProblem, Hand, Plan) {
+    let (o, p) = sphere_problem(0.3);
+    let hand = paper::hand();
+    let plan = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA)
+        .plan(&mut |_| {})
+        .unwrap();
+    (o, p, hand, plan)
+}
+
+#[test]
+fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
+    let (o, p, hand, plan) = paper_plan();
+    let s = &plan.summary;
+    assert!(s.completed, "stopped: {:?}", s.stop_reason);
+    assert!(s.rotation_deg >= 360.0 - 1e-6, "{}", s.rotation_deg);
+    assert!(s.switches >= 3, "{} switches", s.switches);
+    assert_eq!(s.steps, plan.steps.len());
+    println!(
+        "paper scenario: {:.1} deg, {} steps, {} switches, min quality {:.6}",
+        s.rotation_deg, s.steps, s.switches, s.min_quality
+    );
+    let r_f = paper::TIP_RADIUS;
+    let r_o = paper::OBJECT_RADIUS;
+    let mut min_quality = Real::INFINITY;
+    let mut rotated = 0.0;
+    let mut worst_rolling: Real = 0.0;
+    for (i, step) in plan.steps.iter().enumerate() {
+        assert_eq!(step.step, i);
+        // The real quality of the grasp in force, recomputed from its contacts.
+        let e = p.evaluate(&contacts_of(step)).unwrap();
+        assert!(e.force_closure(), "step {i} is not force closure");
+        assert!(
+            e.quality >= ALPHA * (1.0 - 1e-9),
+            "step {i}: quality {} < alpha",
+            e.quality
+        );
+        assert!((e.quality - step.quality).abs() <= 1e-12 * e.quality);
+        min_quality = min_quality.min(e.quality);
+        let theta = step.rotation_deg.to_radians();
+        for f in &step.fingers {
+            let finger = hand.finger(f.finger).unwrap();
+            let q: Vec<Real> = f.joints_deg.iter().map(|d| d.to_radians()).collect();
+            // Joint limits.
+            for (a, j) in q.iter().zip(&finger.joints) {
+                assert!(
+                    *a >= j.lower - 1e-12 && *a <= j.upper + 1e-12,
+                    "step {i} finger {}: joint outside its limits",
+                    f.finger
+                );
+            }
+            let Some(c) = f.contact else { continue };
+            // The fingertip touches the object where the plan says.
+            let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
+            let pw = rot * (p.candidates().points[c] - o.centre_of_mass);
+            let nw = rot * p.candidates().normals[c];
+            let tip = finger.fk(&q).tip_centre;
+            assert!(
+                (tip - (pw + r_f * nw)).norm() < 1e-9,
+                "step {i} finger {}: fingertip off the contact",
+                f.finger
+            );
+        }
+        if i == 0 {
+            continue;
+        }
+        let prev = &plan.steps[i - 1];
+        let turned = step.rotation_deg - prev.rotation_deg;
+        match step.phase {
+            Phase::Rolling => {
+                assert!(turned > 0.0);
+                rotated += turned;
+                // Rolling without slipping, for every finger in contact before and after:
+                // r_f dgamma = -r_o dtheta_body, with gamma recomputed from the joints.
+                for (a, b) in prev.fingers.iter().zip(&step.fingers) {
+                    let (Some(ca), Some(cb)) = (a.contact, b.contact) else {
+                        continue;
+                    };
+                    let finger = hand.finger(a.finger).unwrap();
+                    let gamma = |c: usize, rot_deg: Real, joints: &[Real]| {
+                        let q: Vec<Real> = joints.iter().map(|d| d.to_radians()).collect();
+                        let axis = finger.fk(&q).cap_axis;
+                        let body = o.section.angles[c];
+                        let inward = body + rot_deg.to_radians() + PI;
+                        wrap(inward - axis.y.atan2(axis.x))
+                    };
+                    let dg = wrap(
+                        gamma(cb, step.rotation_deg, &b.joints_deg)
+                            - gamma(ca, prev.rotation_deg, &a.joints_deg),
+                    );
+                    let db = wrap(o.section.angles[cb] - o.section.angles[ca]);
+                    let residual = (r_f * dg + r_o * db).abs();
+                    worst_rolling = worst_rolling.max(residual);
+                    // The paper's relation for a fingertip that stays in place.
+                    if (db + turned.to_radians()).abs() < 1e-9 {
+                        let dphi =
+                            wrap(b.tip_rotation_deg.to_radians() - a.tip_rotation_deg.to_radians());
+                        assert!(
+                            (dphi + (r_o / r_f) * turned.to_radians()).abs() < 1e-9,
+                            "step {i}: fingertip turned {dphi} for {turned} deg"
+                        );
+                    }
+                }
+            }
+            Phase::Attach => {
+                assert_eq!(turned, 0.0);
+                assert_eq!(contacts_of(step).len(), contacts_of(prev).len() + 1);
+            }
+            Phase::Detach => {
+                assert_eq!(turned, 0.0);
+                assert_eq!(prev.phase, Phase::Attach);
+                assert_eq!(contacts_of(step).len(), contacts_of(prev).len() - 1);
+            }
+            Phase::Start => panic!("a second start"),
+        }
+    }
+    assert!(worst_rolling < 1e-9, "rolling residual {worst_rolling}");
+    assert!(s.max_rolling_residual < 1e-9);
+    assert!((rotated - s.rotation_deg).abs() < 1e-9);
+    assert!((min_quality - s.min_quality).abs() <= 1e-12 * min_quality);
+}
+
+#[test]
+fn every_switch_is_checked_against_brute_force() {
+    let (_, p, _, plan) = paper_plan();
+    let mut region = 0;
+    let mut brute = 0;
+    for (i, step) in plan.steps.iter().enumerate() {
+        let Some(sw) = &step.switch else { continue };
+        let before = &plan.steps[i - 1];
+        let detach = &plan.steps[i + 1];
+        assert_eq!(step.phase, Phase::Attach);
+        // The remaining contacts: those of the detach step but the new one.
+        let released = before
+            .fingers
+            .iter()
+            .find(|f| f.finger == sw.released)
+            .unwrap();
+        assert!(released.contact.is_some());
+        assert!(
+            detach
+                .fingers
+                .iter()
+                .any(|f| f.finger == sw.released && f.contact.is_none())
+        );
+        let remaining: Vec<usize> = before
+            .fingers
+            .iter()
+            .filter(|f| f.finger != sw.released)
+            .filter_map(|f| f.contact)
+            .collect();
+        // The exact region, recomputed here: every candidate whose grasp with the remaining
+        // contacts keeps the margin.
+        let mut exact = Vec::new();
+        for q in 0..p.candidates().points.len() {
+            if remaining.contains(&q) {
+                continue;
+            }
+            let mut g = remaining.clone();
+            g.push(q);
+            let e = p.evaluate(&g).unwrap();
+            if e.force_closure() && e.quality >= ALPHA * (1.0 - 1e-9) {
+                exact.push(q);
+            }
+        }
+        assert_eq!(
+            sw.brute_force, exact,
+            "step {i}: brute-force region differs"
+        );
+        // The ICR rule's region never holds a point the brute force rejects.
+        for q in &sw.region {
+            assert!(exact.contains(q), "step {i}: region point {q} is not safe");
+        }
+        assert!(exact.contains(&sw.rendezvous));
+        region += sw.region.len();
+        brute += sw.brute_force.len();
+    }
+    assert!(brute > 0);
+    println!(
+        "rendezvous regions: {region} candidates by the zone rule, {brute} by brute force ({:.0} %)",
+        100.0 * region as Real / brute as Real
+    );
+}
+
+#[test]
+fn planning_is_deterministic() {
+    let (_, _, _, a) = paper_plan();
+    let (_, _, _, b) = paper_plan();
+    assert_eq!(
+        serde_json::to_string(&a).unwrap(),
+        serde_json::to_string(&b).unwrap()
+    );
+}
+
+#[test]
+fn bad_scenarios_are_refused_with_the_finger_named() {
+    let hand = paper::hand();
+    // The paper's own friction: not force closure.
+    let (o, p) = sphere_problem(0.03);
+    let e = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA)
+        .plan(&mut |_| {})
+        .unwrap_err();
+    assert!(matches!(e, PlanError::NotForceClosure { .. }), "{e}");
+    let (o, p) = sphere_problem(0.3);
+    // A margin above the grasp's quality.
+    let e = scenario(&o, &p, &hand, &PAPER_CONTACTS, 0.5)
+        .plan(&mut |_| {})
+        .unwrap_err();
+    assert!(matches!(e, PlanError::BelowMargin { .. }), "{e}");
+    // Finger 1 cannot reach the far side of the object.
+    let far = [(1, 210.0), (2, -30.0), (4, 140.0)];
+    let e = scenario(&o, &p, &hand, &far, 0.0)
+        .plan(&mut |_| {})
+        .unwrap_err();
+    assert!(matches!(e, PlanError::Unreachable { finger: 1, .. }), "{e}");
+    assert!(e.to_string().contains("finger 1"), "{e}");
+    // A finger the hand does not have.
+    let e = scenario(&o, &p, &hand, &[(1, 30.0), (7, -30.0), (4, 140.0)], ALPHA)
+        .plan(&mut |_| {})
+        .unwrap_err();
+    assert!(
+        matches!(e, PlanError::UnknownFinger { finger: 7, .. }),
+        "{e}"
+    );
+}

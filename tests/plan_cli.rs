@@ -1,0 +1,214 @@
+//! `icrflow plan` end to end: the real binary on the shipped scenarios and on bad ones.
+
+mod common;
+
+use std::path::Path;
+
+use common::{icrflow, root, scratch};
+
+fn plan_json(config: &str, out: &Path) -> serde_json::Value {
+    let o = icrflow(&["plan", config, "--json", "--out", out.to_str().unwrap()]);
+    assert!(
+        o.status.success(),
+        "{config}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).expect("plan --json prints one JSON object")
+}
+
+#[test]
+fn paper_sphere_plan_writes_a_deterministic_trajectory() {
+    let dir = scratch("plan-paper");
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    let s = plan_json("config/paper_sphere.toml", &a);
+    assert_eq!(s["completed"], true);
+    assert!(s["rotation_deg"].as_f64().unwrap() >= 360.0 - 1e-6);
+    assert!(s["switches"].as_u64().unwrap() >= 3);
+    assert!(s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap());
+    assert!(s["max_rolling_residual"].as_f64().unwrap() < 1e-9);
+    let steps = s["steps"].as_u64().unwrap() as usize;
+    // trajectory.json: the same summary and one entry per step with the documented keys.
+    let text = std::fs::read_to_string(a.join("trajectory.json")).unwrap();
+    let t: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(t["summary"], s);
+    let list = t["steps"].as_array().unwrap();
+    assert_eq!(list.len(), steps);
+    for key in ["step", "phase", "rotation_deg", "quality", "fingers"] {
+        assert!(list[1].get(key).is_some(), "step lacks {key}");
+    }
+    for key in [
+        "finger",
+        "contact",
+        "point",
+        "angle_deg",
+        "cap_angle_deg",
+        "tip_rotation_deg",
+        "joints_deg",
+    ] {
+        assert!(
+            list[1]["fingers"][0].get(key).is_some(),
+            "finger lacks {key}"
+        );
+    }
+    let phases: Vec<&str> = list.iter().map(|x| x["phase"].as_str().unwrap()).collect();
+    assert!(
+        phases.contains(&"rolling") && phases.contains(&"attach") && phases.contains(&"detach")
+    );
+    // trajectory.csv: a header and one row per step, every row as wide as the header.
+    let csv = std::fs::read_to_string(a.join("trajectory.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), steps + 1);
+    let width = rows[0].split(',').count();
+    assert!(rows.iter().all(|r| r.split(',').count() == width));
+    assert!(rows[0].starts_with("step,phase,rotation_deg,quality,f1_contact"));
+    // A second run gives byte-identical files.
+    plan_json("config/paper_sphere.toml", &b);
+    for f in ["trajectory.json", "trajectory.csv"] {
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs between two runs"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn spatial_ellipsoid_mesh_plan_keeps_the_margin() {
+    let dir = scratch("plan-ellipsoid");
+    let s = plan_json("config/ellipsoid_spatial.toml", &dir);
+    assert_eq!(s["completed"], true, "{s}");
+    assert!(s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap());
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("trajectory.json")).unwrap())
+            .unwrap();
+    assert_eq!(t["space"], "spatial");
+    for step in t["steps"].as_array().unwrap() {
+        assert!(step["quality"].as_f64().unwrap() >= 0.15 * (1.0 - 1e-9));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn urdf_hand_plans_the_same_as_the_built_in_hand() {
+    let dir = scratch("plan-urdf");
+    let base = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let mut urdf = base.clone();
+    let file = root().join("config/hands/paper_hand.urdf");
+    urdf.push_str(&format!("\n[hand]\nurdf = {:?}\n", file.to_str().unwrap()));
+    for f in 1..=4 {
+        urdf.push_str(&format!(
+            "[[hand.fingers]]\nfinger = {f}\ntip_link = \"f{f}_tip\"\nhome_deg = [0.0, 90.0, 90.0]\n"
+        ));
+    }
+    let config = dir.join("urdf.toml");
+    std::fs::write(&config, urdf).unwrap();
+    let a = plan_json("config/paper_sphere.toml", &dir.join("a"));
+    let b = plan_json(config.to_str().unwrap(), &dir.join("b"));
+    assert_eq!(a["completed"], true);
+    for key in ["rotation_deg", "switches", "steps", "min_quality"] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_scenarios_fail_naming_the_finger_and_write_nothing() {
+    let dir = scratch("plan-bad");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let hand = |limits: &str, radius: &str| {
+        let mut h = format!("\n[hand]\nfingertip_radius = {radius}\n");
+        for (f, angle) in [(1, 45.0), (2, -45.0), (3, -135.0), (4, 135.0)] {
+            let a: f64 = f64::to_radians(angle);
+            let l = if f == 2 {
+                limits
+            } else {
+                "[[-90.0, 90.0], [-120.0, 120.0], [-120.0, 120.0]]"
+            };
+            h.push_str(&format!(
+                "[[hand.fingers]]\nfinger = {f}\nbase = [{}, {}]\nbase_yaw_deg = {}\nlinks = [0.06, 0.045, 0.025]\nlimits_deg = {l}\nhome_deg = [0.0, 90.0, 90.0]\n",
+                0.15 * a.cos(),
+                0.15 * a.sin(),
+                angle + 180.0
+            ));
+        }
+        h
+    };
+    let good_limits = "[[-90.0, 90.0], [-120.0, 120.0], [-120.0, 120.0]]";
+    let cases: Vec<(&str, String, &[&str])> = vec![
+        (
+            "not_fc",
+            good.replace("friction = 0.3", "friction = 0.03"),
+            &["not force closure"],
+        ),
+        (
+            "below",
+            good.replace("alpha = 0.1", "alpha = 0.5"),
+            &["below the margin alpha = 0.5"],
+        ),
+        (
+            "unreachable",
+            good.replace("angle_deg = 30.0", "angle_deg = 210.0"),
+            &["finger 1", "cannot reach"],
+        ),
+        (
+            "no_free_finger",
+            format!("{good}\n[[grasp.contacts]]\nfinger = 3\nangle_deg = 225.0\n")
+                .replace("[plan]", "[plan]\n"),
+            &["grasp.contacts", "none is free"],
+        ),
+        (
+            "limits",
+            format!(
+                "{good}{}",
+                hand("[[-90.0, 90.0], [120.0, -120.0], [-120.0, 120.0]]", "0.025")
+            ),
+            &["hand.fingers[1].limits_deg[1]", "finger 2"],
+        ),
+        (
+            "radius",
+            format!("{good}{}", hand(good_limits, "-0.025")),
+            &["hand.fingertip_radius"],
+        ),
+        (
+            "home_outside",
+            format!("{good}{}", hand(good_limits, "0.025")).replacen(
+                "home_deg = [0.0, 90.0, 90.0]",
+                "home_deg = [0.0, 150.0, 90.0]",
+                1,
+            ),
+            &["finger 1", "home angle of joint 2"],
+        ),
+        (
+            "unknown_finger",
+            good.replace("finger = 4", "finger = 9"),
+            &["finger 9", "not in the hand"],
+        ),
+        (
+            "step",
+            good.replace("step_deg = 5.0", "step_deg = -5.0"),
+            &["plan.step_deg"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let config = dir.join(format!("{name}.toml"));
+        std::fs::write(&config, text).unwrap();
+        let out = dir.join(format!("out-{name}"));
+        let o = icrflow(&[
+            "plan",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{name}: {n:?} not in {err}");
+        }
+        assert!(
+            !out.join("trajectory.json").exists() && !out.join("trajectory.csv").exists(),
+            "{name}: files written"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
