@@ -55,7 +55,8 @@ fn dot(a: &[Real], b: &[Real]) -> Real {
 }
 
 /// What a rolling step found.
-enum Roll {
+#[derive(Debug, Clone, PartialEq)]
+pub enum Roll {
     /// Every finger moved; the new contacts and their quality.
     Moved(Vec<Contact>, Real),
     /// Contact `.0` cannot move, for reason `.1`: a switch may help.
@@ -296,11 +297,15 @@ pub struct Plan {
 
 /// A finger in contact.
 #[derive(Debug, Clone, PartialEq)]
-struct Contact {
-    finger: u32,
-    candidate: usize,
-    gamma: Real,
-    q: Vec<Real>,
+pub struct Contact {
+    /// Finger number.
+    pub finger: u32,
+    /// Candidate index of the contact point.
+    pub candidate: usize,
+    /// Cap angle gamma (rad).
+    pub gamma: Real,
+    /// Joint angles (rad).
+    pub q: Vec<Real>,
 }
 
 /// Why a finger cannot take a step.
@@ -426,6 +431,27 @@ impl Scenario<'_> {
         self.centre + r * (self.problem.candidates().points[c] - self.centre)
     }
 
+    /// The candidate nearest to `target`, found by walking the neighbourhood graph from
+    /// `from` to ever nearer neighbours (a local search: it touches only the points on the
+    /// way).
+    fn walk(&self, from: usize, target: &Vec3) -> usize {
+        let cands = self.problem.candidates();
+        let dist = |i: usize| (cands.points[i] - target).norm_squared();
+        let mut at = from;
+        loop {
+            let next = cands
+                .adjacency
+                .neighbours(at)
+                .iter()
+                .map(|&m| m as usize)
+                .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+            match next {
+                Some(n) if dist(n) < dist(at) => at = n,
+                _ => return at,
+            }
+        }
+    }
+
     /// The candidate among `members` nearest to `target`.
     fn nearest(&self, members: impl Iterator<Item = usize>, target: &Vec3) -> Option<usize> {
         let pts = &self.problem.candidates().points;
@@ -447,14 +473,9 @@ impl Scenario<'_> {
         mut theta: Real,
         limit: usize,
     ) -> usize {
-        let n = self.problem.candidates().points.len();
         for k in 0..limit {
             let target = self.behind(c, self.settings.step);
-            let near = self.problem.candidates().adjacency.neighbours(c);
-            let next = self
-                .nearest(near.iter().map(|&m| m as usize).chain([c]), &target)
-                .unwrap_or(c)
-                .min(n - 1);
+            let next = self.walk(c, &target);
             let g = gamma - self.arc(c, next) / finger.tip_radius;
             theta += self.settings.step;
             match self.place(finger, next, theta, g, &q, true) {
@@ -467,39 +488,15 @@ impl Scenario<'_> {
         limit
     }
 
-    /// The best way for `finger` to touch `c` with the object at `theta`: the cap angle
-    /// with the most rolling room; `(gamma, q, room)`.
-    fn best_attach(
+    /// Every way `finger` can touch `c` with the object at `theta`, starting from its home
+    /// pose: the cap angles on the attach grid that are reachable, with the joint angles and
+    /// the rolling room (steps) of each.
+    fn attach_options(
         &self,
         finger: &Finger,
         c: usize,
         theta: Real,
-        near: &[Real],
-    ) -> Option<(Real, Vec<Real>, usize)> {
-        let s = &self.settings;
-        let span = finger.cap_half_angle - s.cap_margin;
-        let count = (2.0 * span / s.attach_resolution).floor() as usize;
-        let limit = ((self.settings.goal / s.step).ceil() as usize).clamp(1, 2000);
-        let mut best: Option<(Real, Vec<Real>, usize)> = None;
-        for i in 0..=count {
-            let gamma = -span + i as Real * s.attach_resolution;
-            let Ok(q) = self.place(finger, c, theta, gamma, near, false) else {
-                continue;
-            };
-            let room = self.room(finger, c, gamma, q.clone(), theta, limit);
-            if best.as_ref().is_none_or(|b| room > b.2) {
-                best = Some((gamma, q, room));
-            }
-        }
-        best
-    }
-
-    /// Every way finger `id` can touch candidate `c` with the object at `theta`: the cap
-    /// angles on the attach grid that are reachable, each with its rolling room (steps).
-    pub fn reach(&self, id: u32, c: usize, theta: Real) -> Vec<(Real, usize)> {
-        let Some(finger) = self.hand.finger(id) else {
-            return Vec::new();
-        };
+    ) -> Vec<(Real, Vec<Real>, usize)> {
         let s = &self.settings;
         let span = finger.cap_half_angle - s.cap_margin;
         let count = (2.0 * span / s.attach_resolution).floor() as usize;
@@ -510,9 +507,34 @@ impl Scenario<'_> {
                 let q = self
                     .place(finger, c, theta, gamma, &finger.home, false)
                     .ok()?;
-                Some((gamma, self.room(finger, c, gamma, q, theta, limit)))
+                let room = self.room(finger, c, gamma, q.clone(), theta, limit);
+                Some((gamma, q, room))
             })
             .collect()
+    }
+
+    /// The best way for `finger` to touch `c` with the object at `theta`: the cap angle
+    /// with the most rolling room (the first such on the grid); `(gamma, q, room)`.
+    fn best_attach(
+        &self,
+        finger: &Finger,
+        c: usize,
+        theta: Real,
+    ) -> Option<(Real, Vec<Real>, usize)> {
+        self.attach_options(finger, c, theta)
+            .into_iter()
+            .reduce(|best, o| if o.2 > best.2 { o } else { best })
+    }
+
+    /// Every way finger `id` can touch candidate `c` with the object at `theta`: the
+    /// reachable cap angles on the attach grid, each with its rolling room (steps).
+    pub fn reach(&self, id: u32, c: usize, theta: Real) -> Vec<(Real, usize)> {
+        self.hand.finger(id).map_or_else(Vec::new, |f| {
+            self.attach_options(f, c, theta)
+                .into_iter()
+                .map(|(g, _, room)| (g, room))
+                .collect()
+        })
     }
 
     fn check(&self) -> Result<(), PlanError> {
@@ -694,14 +716,13 @@ impl Scenario<'_> {
         Ok((region, brute))
     }
 
-    /// Plans the scenario. `progress` is called after every step with the rotation done
-    /// (rad).
-    pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+    /// The initial grasp, checked (force closure, quality >= alpha, every finger placed,
+    /// no fingertips overlapping): its contacts and quality.
+    pub fn start(&self) -> Result<(Vec<Contact>, Real), PlanError> {
         self.check()?;
-        let s = self.settings.clone();
-        let alpha = s.alpha;
+        let alpha = self.settings.alpha;
         let floor = alpha * (1.0 - QUALITY_SLACK);
-        let mut theta = 0.0;
+        let theta = 0.0;
         // The initial grasp.
         let idx: Vec<usize> = self.initial.iter().map(|c| c.1).collect();
         let e = self.problem.evaluate(&idx)?;
@@ -735,7 +756,7 @@ impl Scenario<'_> {
                     (gamma, q)
                 }
                 None => self
-                    .best_attach(f, c, theta, &f.home)
+                    .best_attach(f, c, theta)
                     .map(|(g, q, _)| (g, q))
                     .ok_or_else(|| {
                         unreachable(match self.place(f, c, theta, 0.0, &f.home, false) {
@@ -754,8 +775,18 @@ impl Scenario<'_> {
         if let Some(e) = self.overlap(&contacts) {
             return Err(e);
         }
-        let mut steps = vec![self.record(0, Phase::Start, theta, e.quality, &contacts)];
-        let mut min_quality = e.quality;
+        Ok((contacts, e.quality))
+    }
+
+    /// Plans the scenario. `progress` is called after every step with the rotation done
+    /// (rad).
+    pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+        let s = self.settings.clone();
+        let alpha = s.alpha;
+        let mut theta = 0.0;
+        let (mut contacts, quality) = self.start()?;
+        let mut steps = vec![self.record(0, Phase::Start, theta, quality, &contacts)];
+        let mut min_quality = quality;
         let mut switches = 0;
         let mut stop_reason = None;
         // Switches since the last rolling step, and the finger the last switch attached.
@@ -853,9 +884,9 @@ impl Scenario<'_> {
         Ok(Plan { summary, steps })
     }
 
-    /// One rolling step of every contact: the new contacts and their quality, or the index
-    /// of the first finger that cannot move and why.
-    fn roll(&self, contacts: &[Contact], theta: Real, step: Real) -> Result<Roll, PlanError> {
+    /// One rolling step of every contact, the object turning from `theta` by `step`: the new
+    /// contacts and their quality, or the first finger that cannot move and why.
+    pub fn roll(&self, contacts: &[Contact], theta: Real, step: Real) -> Result<Roll, PlanError> {
         let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
         let eval = self.problem.evaluate(&idx)?;
         let regions = match self.problem.icrs(&idx, &eval, self.settings.alpha) {
@@ -928,7 +959,7 @@ impl Scenario<'_> {
         let mut best: Option<(usize, Real, u32, usize, Real, Vec<Real>)> = None;
         for f in &free {
             for &c in &brute {
-                let Some((gamma, q, room)) = self.best_attach(f, c, theta, &f.home) else {
+                let Some((gamma, q, room)) = self.best_attach(f, c, theta) else {
                     continue;
                 };
                 let mut trial = contacts.to_vec();
