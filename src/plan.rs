@@ -202,12 +202,16 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
             s.max_rolling_residual
         )?;
         if s.switches > 0 {
+            let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
             writeln!(
                 o,
-                "switching  rendezvous regions: {} candidates by the ICR zone rule, {} by brute force ({:.0} % recovered)",
-                s.region_candidates,
+                "switching  rendezvous candidates over all switches: {} exact (brute force, used), {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
                 s.brute_force_candidates,
-                100.0 * s.region_candidates as Real / s.brute_force_candidates.max(1) as Real
+                s.lp_region_candidates,
+                pct(s.lp_region_candidates),
+                s.lp_region_unsafe,
+                s.icr_region_candidates,
+                pct(s.icr_region_candidates)
             )?;
         }
         if let Some(why) = &s.stop_reason {

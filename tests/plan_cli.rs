@@ -26,6 +26,9 @@ fn paper_sphere_plan_writes_a_deterministic_trajectory() {
     assert!(s["switches"].as_u64().unwrap() >= 3);
     assert!(s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap());
     assert!(s["max_rolling_residual"].as_f64().unwrap() < 1e-9);
+    // The eq. (8) LP region never holds a point the brute force rejects.
+    assert_eq!(s["lp_region_unsafe"], 0);
+    assert!(s["lp_region_candidates"].as_u64().unwrap() > 0);
     let steps = s["steps"].as_u64().unwrap() as usize;
     // trajectory.json: the same summary and one entry per step with the documented keys.
     let text = std::fs::read_to_string(a.join("trajectory.json")).unwrap();
@@ -79,6 +82,8 @@ fn spatial_ellipsoid_mesh_plan_keeps_the_margin() {
     let s = plan_json("config/ellipsoid_spatial.toml", &dir);
     assert_eq!(s["completed"], true, "{s}");
     assert!(s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap());
+    assert!(s["switches"].as_u64().unwrap() >= 3);
+    assert_eq!(s["lp_region_unsafe"], 0);
     let t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("trajectory.json")).unwrap())
             .unwrap();

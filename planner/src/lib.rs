@@ -12,10 +12,12 @@
 //! | [`urdf`] | hands from URDF files |
 //! | [`paper`] | the paper's four-finger planar hand |
 //! | [`planner`] | rolling, finger switching, the trajectory and its summary |
+//! | [`rendezvous`] | rendezvous regions for a switch: exact (brute force), ICR zone rule, eq. (8) LP |
 
 #![warn(missing_docs)]
 
 pub mod hand;
 pub mod paper;
 pub mod planner;
+pub mod rendezvous;
 pub mod urdf;

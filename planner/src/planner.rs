@@ -29,13 +29,10 @@
 //!
 //! # Finger switching
 //! When a finger `k` cannot roll on, a free finger takes over. Its rendezvous region is the
-//! set of candidates `q` that can replace `k`'s contact keeping the margin: the zone rule of
-//! the ICRs (every search zone of contact `k` holds a wrench of `q`; see
-//! `icrflow_grasp::icr`), applied to every candidate, not only those connected to `k`'s
-//! contact. The exact region, the candidates whose grasp with the remaining contacts has
-//! quality >= alpha, is computed by brute force as the check; the rule guarantees the first
-//! is inside the second, and both are recorded. The rendezvous point is the region's
-//! candidate that the free finger reaches (inverse kinematics within limits, the cap, the
+//! set of candidates `q` whose grasp with the remaining contacts keeps the margin: computed
+//! exactly by brute force, beside the ICR zone rule and the paper's eq. (8) hyperplanes
+//! (LP, clarabel), all recorded ([`crate::rendezvous`]). The rendezvous point is the exact
+//! region's candidate that the free finger reaches (inverse kinematics within limits, the cap, the
 //! mobility threshold, fingertips not overlapping) with the most rolling room ahead, i.e.
 //! the most steps it could roll before its own limits; ties go to the candidate farther ahead
 //! along the rolling direction. Then: attach (the grasp with one more contact is verified),
@@ -49,10 +46,6 @@ use icrflow_grasp::quality::{GraspError, GraspProblem};
 use serde::Serialize;
 
 use crate::hand::{Finger, Hand, IkError, wrap};
-
-fn dot(a: &[Real], b: &[Real]) -> Real {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
 
 /// What a rolling step found.
 #[derive(Debug, Clone, PartialEq)]
@@ -226,9 +219,12 @@ pub struct Switch {
     pub attached: u32,
     /// Why the released finger stopped.
     pub reason: String,
-    /// The rendezvous region by the zone rule (candidate indices, ascending).
-    pub region: Vec<usize>,
-    /// The exact region by brute force (candidate indices, ascending).
+    /// The rendezvous region by the ICR zone rule (candidate indices, ascending).
+    pub icr_region: Vec<usize>,
+    /// The rendezvous region by the eq. (8) hyperplanes (candidate indices, ascending).
+    pub lp_region: Vec<usize>,
+    /// The exact region by brute force, from which the rendezvous point is chosen
+    /// (candidate indices, ascending).
     pub brute_force: Vec<usize>,
     /// The chosen rendezvous candidate.
     pub rendezvous: usize,
@@ -280,8 +276,12 @@ pub struct Summary {
     /// Largest rolling-relation residual `|r_f dgamma + s|` (m), from forward kinematics of
     /// the planned joint angles.
     pub max_rolling_residual: Real,
-    /// Rendezvous candidates found by the zone rule, summed over the switches.
-    pub region_candidates: usize,
+    /// Rendezvous candidates found by the ICR zone rule, summed over the switches.
+    pub icr_region_candidates: usize,
+    /// Rendezvous candidates found by the eq. (8) LP hyperplanes, summed over the switches.
+    pub lp_region_candidates: usize,
+    /// Rendezvous candidates of the LP region that brute force rejects (should be 0).
+    pub lp_region_unsafe: usize,
     /// Rendezvous candidates found by brute force, summed over the switches.
     pub brute_force_candidates: usize,
 }
@@ -665,57 +665,6 @@ impl Scenario<'_> {
         Ok((if e.force_closure() { e.quality } else { 0.0 }, e.epsilon))
     }
 
-    /// The rendezvous region of the contact at `k` in the grasp `contacts` (zone rule,
-    /// every candidate tested) and the exact region by brute force.
-    fn rendezvous_regions(
-        &self,
-        contacts: &[Contact],
-        k: usize,
-    ) -> Result<(Vec<usize>, Vec<usize>), GraspError> {
-        let p = self.problem;
-        let alpha = self.settings.alpha;
-        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
-        let eval = p.evaluate(&idx)?;
-        let n = p.candidates().points.len();
-        let occupied = |q: usize| idx.iter().enumerate().any(|(i, &c)| i != k && c == q);
-        let mut region = Vec::new();
-        if let Some(hull) = eval.hull.as_ref().filter(|_| eval.force_closure()) {
-            let (d, s) = (p.dim(), p.model().edges());
-            let mut support = vec![0.0; hull.facet_count()];
-            p.support_function(hull.normals(), &mut support);
-            let vertex_facets = hull.vertex_facets(idx.len() * s);
-            let zones: Vec<&Vec<u32>> = vertex_facets[k * s..(k + 1) * s]
-                .iter()
-                .filter(|f| !f.is_empty())
-                .collect();
-            for q in (0..n).filter(|&q| !occupied(q)) {
-                let w = p.candidate_wrenches(q);
-                let ok = zones.iter().all(|facets| {
-                    (0..s).any(|j| {
-                        facets.iter().all(|&f| {
-                            let f = f as usize;
-                            dot(hull.normal(f), &w[j * d..(j + 1) * d])
-                                >= alpha * support[f] - eval.tolerance
-                        })
-                    })
-                });
-                if ok {
-                    region.push(q);
-                }
-            }
-        }
-        let mut brute = Vec::new();
-        let mut trial = idx.clone();
-        for q in (0..n).filter(|&q| !occupied(q)) {
-            trial[k] = q;
-            let e = p.evaluate(&trial)?;
-            if e.force_closure() && e.quality >= alpha * (1.0 - QUALITY_SLACK) {
-                brute.push(q);
-            }
-        }
-        Ok((region, brute))
-    }
-
     /// The initial grasp, checked (force closure, quality >= alpha, every finger placed,
     /// no fingertips overlapping): its contacts and quality.
     pub fn start(&self) -> Result<(Vec<Contact>, Real), PlanError> {
@@ -859,12 +808,18 @@ impl Scenario<'_> {
         }
         let completed = stop_reason.is_none();
         let rolling_steps = steps.iter().filter(|s| s.phase == Phase::Rolling).count();
-        let (region_candidates, brute_force_candidates) = steps
-            .iter()
-            .filter_map(|s| s.switch.as_ref())
-            .fold((0, 0), |(a, b), sw| {
-                (a + sw.region.len(), b + sw.brute_force.len())
-            });
+        let switch_list = || steps.iter().filter_map(|s| s.switch.as_ref());
+        let icr_region_candidates = switch_list().map(|s| s.icr_region.len()).sum();
+        let lp_region_candidates = switch_list().map(|s| s.lp_region.len()).sum();
+        let brute_force_candidates = switch_list().map(|s| s.brute_force.len()).sum();
+        let lp_region_unsafe = switch_list()
+            .map(|s| {
+                s.lp_region
+                    .iter()
+                    .filter(|q| s.brute_force.binary_search(q).is_err())
+                    .count()
+            })
+            .sum();
         let summary = Summary {
             completed,
             stop_reason,
@@ -878,7 +833,9 @@ impl Scenario<'_> {
             max_rolling_residual: rolling_residuals(self, &steps)
                 .into_iter()
                 .fold(0.0, Real::max),
-            region_candidates,
+            icr_region_candidates,
+            lp_region_candidates,
+            lp_region_unsafe,
             brute_force_candidates,
         };
         Ok(Plan { summary, steps })
@@ -949,7 +906,9 @@ impl Scenario<'_> {
                 "finger {released} cannot roll on ({why}) and no free finger can take over"
             )));
         }
-        let (region, brute) = self.rendezvous_regions(contacts, k)?;
+        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
+        let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
+        let brute = &regions.exact;
         let angle = |c: usize| {
             let p = self.problem.candidates().points[c] - self.centre;
             p.y.atan2(p.x)
@@ -958,7 +917,7 @@ impl Scenario<'_> {
         // (room, ahead, finger, candidate, gamma, q)
         let mut best: Option<(usize, Real, u32, usize, Real, Vec<Real>)> = None;
         for f in &free {
-            for &c in &brute {
+            for &c in brute {
                 let Some((gamma, q, room)) = self.best_attach(f, c, theta) else {
                     continue;
                 };
@@ -1011,8 +970,9 @@ impl Scenario<'_> {
             released,
             attached: id,
             reason: why.to_string(),
-            region,
-            brute_force: brute,
+            icr_region: regions.icr.clone(),
+            lp_region: regions.lp.clone(),
+            brute_force: regions.exact.clone(),
             rendezvous: c,
             rendezvous_angle_deg: self.angles.map(|a| a[c].to_degrees()),
             room_steps: room,

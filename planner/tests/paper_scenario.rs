@@ -185,8 +185,7 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
 #[test]
 fn every_switch_is_checked_against_brute_force() {
     let (_, p, _, plan) = paper_plan();
-    let mut region = 0;
-    let mut brute = 0;
+    let (mut icr, mut lp, mut brute) = (0, 0, 0);
     for (i, step) in plan.steps.iter().enumerate() {
         let Some(sw) = &step.switch else { continue };
         let before = &plan.steps[i - 1];
@@ -229,18 +228,34 @@ fn every_switch_is_checked_against_brute_force() {
             sw.brute_force, exact,
             "step {i}: brute-force region differs"
         );
-        // The ICR rule's region never holds a point the brute force rejects.
-        for q in &sw.region {
-            assert!(exact.contains(q), "step {i}: region point {q} is not safe");
+        // Neither the ICR rule's region nor the eq. (8) LP region holds a point the brute
+        // force rejects.
+        for q in &sw.icr_region {
+            assert!(
+                exact.contains(q),
+                "step {i}: ICR region point {q} is not safe"
+            );
+        }
+        for q in &sw.lp_region {
+            assert!(
+                exact.contains(q),
+                "step {i}: LP region point {q} is not safe"
+            );
         }
         assert!(exact.contains(&sw.rendezvous));
-        region += sw.region.len();
+        // The rendezvous keeps the margin with the remaining contacts (recomputed).
+        let mut g = remaining.clone();
+        g.push(sw.rendezvous);
+        assert!(p.evaluate(&g).unwrap().quality >= ALPHA * (1.0 - 1e-9));
+        icr += sw.icr_region.len();
+        lp += sw.lp_region.len();
         brute += sw.brute_force.len();
     }
     assert!(brute > 0);
     println!(
-        "rendezvous regions: {region} candidates by the zone rule, {brute} by brute force ({:.0} %)",
-        100.0 * region as Real / brute as Real
+        "rendezvous regions: {brute} candidates by brute force, {lp} by the eq. 8 LP ({:.0} %), {icr} by the ICR zone rule ({:.0} %)",
+        100.0 * lp as Real / brute as Real,
+        100.0 * icr as Real / brute as Real
     );
 }
 
