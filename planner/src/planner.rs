@@ -33,9 +33,10 @@
 //! exactly by brute force, beside the ICR zone rule and the paper's eq. (8) hyperplanes
 //! (LP, clarabel), all recorded ([`crate::rendezvous`]). The rendezvous point is the exact
 //! region's candidate that the free finger reaches (inverse kinematics within limits, the cap, the
-//! mobility threshold, fingertips not overlapping) with the most rolling room ahead, i.e.
-//! the most steps it could roll before its own limits; ties go to the candidate farther ahead
-//! along the rolling direction. Then: attach (the grasp with one more contact is verified),
+//! mobility threshold, fingertips not overlapping), ahead of the released contact along the
+//! rolling direction (within half a turn counter-clockwise of it) when any such is reachable,
+//! with the most rolling room, i.e. the most steps it could roll before its own limits; ties
+//! go to the candidate farther ahead. Then: attach (the grasp with one more contact is verified),
 //! detach finger `k` (the remaining grasp is verified), and `k` becomes a free finger.
 
 use std::f64::consts::PI;
@@ -232,6 +233,9 @@ pub struct Switch {
     pub rendezvous_angle_deg: Option<Real>,
     /// Rolling steps the attached finger could make from there alone.
     pub room_steps: usize,
+    /// How far the rendezvous point is ahead of the released contact along the rolling
+    /// direction (deg, counter-clockwise about the object's centre, in [0, 360)).
+    pub ahead_deg: Real,
 }
 
 /// One step of the trajectory.
@@ -316,6 +320,11 @@ enum Blocked {
     Mobility { value: Real },
     Jump { joint: usize, degrees: Real },
 }
+
+/// ICR members tried, nearest the target first, for a finger's next contact. One: trying
+/// farther members lets the contacts drift from where the fingers' rolling room was planned,
+/// which ends in overlapping fingertips and stranded fingers on the shipped scenarios.
+const NEXT_CONTACT_TRIES: usize = 1;
 
 /// Largest joint motion accepted in one rolling step (rad): more means the inverse
 /// kinematics jumped to the other elbow branch, which the finger cannot do in contact.
@@ -450,16 +459,6 @@ impl Scenario<'_> {
                 _ => return at,
             }
         }
-    }
-
-    /// The candidate among `members` nearest to `target`.
-    fn nearest(&self, members: impl Iterator<Item = usize>, target: &Vec3) -> Option<usize> {
-        let pts = &self.problem.candidates().points;
-        members.min_by(|&a, &b| {
-            (pts[a] - target)
-                .norm_squared()
-                .total_cmp(&(pts[b] - target).norm_squared())
-        })
     }
 
     /// Steps finger `finger` could roll alone from `(c, gamma, q)`, up to `limit`, keeping
@@ -857,18 +856,41 @@ impl Scenario<'_> {
         for (i, (c, region)) in contacts.iter().zip(&regions).enumerate() {
             let f = self.finger(c.finger);
             let target = self.behind(c.candidate, step);
-            let n = self
-                .nearest(region.members.iter().map(|&m| m as usize), &target)
-                .unwrap_or(c.candidate);
-            let gamma = c.gamma - self.arc(c.candidate, n) / f.tip_radius;
-            match self.place(f, n, theta + step, gamma, &c.q, true) {
-                Ok(q) => next.push(Contact {
-                    finger: c.finger,
-                    candidate: n,
-                    gamma,
-                    q,
-                }),
-                Err(b) => return Ok(Roll::Blocked(i, b.to_string())),
+            // The ICR members nearest the target, tried in order: the first the finger can
+            // reach by rolling is the next contact.
+            let pts = &self.problem.candidates().points;
+            let mut order: Vec<usize> = region.members.iter().map(|&m| m as usize).collect();
+            order.sort_by(|&a, &b| {
+                (pts[a] - target)
+                    .norm_squared()
+                    .total_cmp(&(pts[b] - target).norm_squared())
+                    .then(a.cmp(&b))
+            });
+            let mut first_block = None;
+            let mut placed = None;
+            for &n in order.iter().take(NEXT_CONTACT_TRIES) {
+                let gamma = c.gamma - self.arc(c.candidate, n) / f.tip_radius;
+                match self.place(f, n, theta + step, gamma, &c.q, true) {
+                    Ok(q) => {
+                        placed = Some(Contact {
+                            finger: c.finger,
+                            candidate: n,
+                            gamma,
+                            q,
+                        });
+                        break;
+                    }
+                    Err(b) => {
+                        first_block.get_or_insert(b);
+                    }
+                }
+            }
+            match (placed, first_block) {
+                (Some(contact), _) => next.push(contact),
+                (None, Some(b)) => return Ok(Roll::Blocked(i, b.to_string())),
+                (None, None) => {
+                    return Ok(Roll::Blocked(i, "its ICR is empty".into()));
+                }
             }
         }
         if let Some(e) = self.overlap(&next) {
@@ -914,8 +936,8 @@ impl Scenario<'_> {
             p.y.atan2(p.x)
         };
         let here = angle(contacts[k].candidate);
-        // (room, ahead, finger, candidate, gamma, q)
-        let mut best: Option<(usize, Real, u32, usize, Real, Vec<Real>)> = None;
+        // Every reachable option: (room, ahead, finger, candidate, gamma, q).
+        let mut options: Vec<(usize, Real, u32, usize, Real, Vec<Real>)> = Vec::new();
         for f in &free {
             for &c in brute {
                 let Some((gamma, q, room)) = self.best_attach(f, c, theta) else {
@@ -932,40 +954,75 @@ impl Scenario<'_> {
                     continue;
                 }
                 let ahead = wrap(angle(c) - here).rem_euclid(2.0 * PI);
-                let better = best
-                    .as_ref()
-                    .is_none_or(|b| room > b.0 || (room == b.0 && ahead > b.1 + 1e-12));
-                if better {
-                    best = Some((room, ahead, f.id, c, gamma, q));
-                }
+                options.push((room, ahead, f.id, c, gamma, q));
             }
         }
-        let Some((room, _, id, c, gamma, q)) = best else {
+        // Ahead of the released contact along the rolling direction first, then the most
+        // rolling room, then the farthest ahead (then the lowest finger and candidate, so the
+        // order is total and the plan reproducible).
+        options.sort_by(|x, y| {
+            let ahead = |a: Real| a > 0.0 && a < PI;
+            ahead(y.1)
+                .cmp(&ahead(x.1))
+                .then(y.0.cmp(&x.0))
+                .then(y.1.total_cmp(&x.1))
+                .then(x.2.cmp(&y.2))
+                .then(x.3.cmp(&y.3))
+        });
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        let mut rejected = Vec::new();
+        let mut chosen = None;
+        for (room, ahead, id, c, gamma, q) in options {
+            let mut attach = contacts.to_vec();
+            attach.push(Contact {
+                finger: id,
+                candidate: c,
+                gamma,
+                q,
+            });
+            let (q_attach, _) = self.quality(&attach)?;
+            let mut detach = attach.clone();
+            detach.remove(k);
+            let (q_detach, _) = self.quality(&detach)?;
+            if q_attach < floor || q_detach < floor {
+                return Ok(Err(format!(
+                    "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                    self.describe(c),
+                    self.settings.alpha
+                )));
+            }
+            // One step of lookahead: the attached finger must be able to roll on with the
+            // grasp it joins (its rolling room was estimated alone).
+            let step = self.settings.step.min(self.settings.goal - theta);
+            if step > 1e-12 {
+                let new = detach.len() - 1;
+                match self.roll(&detach, theta, step)? {
+                    Roll::Blocked(j, why) if j == new => {
+                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
+                        continue;
+                    }
+                    Roll::Stuck(why) => {
+                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
+                        continue;
+                    }
+                    _ => {}
+                }
+            }
+            chosen = Some((room, ahead, id, c, attach, detach, q_attach, q_detach));
+            break;
+        }
+        let Some((room, ahead, id, c, attach, detach, q_attach, q_detach)) = chosen else {
             return Ok(Err(format!(
-                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?})",
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it{}",
                 brute.len(),
-                free.iter().map(|f| f.id).collect::<Vec<_>>()
+                free.iter().map(|f| f.id).collect::<Vec<_>>(),
+                if rejected.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (tried {})", rejected.join("; "))
+                }
             )));
         };
-        let mut attach = contacts.to_vec();
-        attach.push(Contact {
-            finger: id,
-            candidate: c,
-            gamma,
-            q,
-        });
-        let (q_attach, _) = self.quality(&attach)?;
-        let mut detach = attach.clone();
-        detach.remove(k);
-        let (q_detach, _) = self.quality(&detach)?;
-        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
-        if q_attach < floor || q_detach < floor {
-            return Ok(Err(format!(
-                "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {}",
-                self.describe(c),
-                self.settings.alpha
-            )));
-        }
         let info = Switch {
             released,
             attached: id,
@@ -976,6 +1033,7 @@ impl Scenario<'_> {
             rendezvous: c,
             rendezvous_angle_deg: self.angles.map(|a| a[c].to_degrees()),
             room_steps: room,
+            ahead_deg: ahead.to_degrees(),
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
