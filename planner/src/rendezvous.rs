@@ -17,8 +17,10 @@
 //!   as printed is invariant under scaling `(h, d)`; we fix the scale by `h . a_f = 1`
 //!   (`a_f` the facet's outward unit normal, so the hyperplane is the facet *pivoted* about
 //!   the remaining contacts' wrenches) and, instead of the degenerate `max d`, pivot as far as
-//!   the OWS allows: maximise `h . omega + d` for the vertex `omega` of contact `k` that the
-//!   facet holds. A facet with no wrench of a remaining contact keeps its zone-rule
+//!   the OWS allows away from contact `k`: maximise `t` with `h . w + d >= t` for every wrench
+//!   `w` of contact `k` on the facet (a max-min over them: pivoting for one vertex alone
+//!   recovers less, 28 % against 70 % of the exact region on random planar grasps in our
+//!   prototype). A facet with no wrench of a remaining contact keeps its zone-rule
 //!   hyperplane. The OWS constraints are added by cutting planes: solve with the few
 //!   violated ones, scan every object wrench for the most violated, repeat.
 //!
@@ -94,13 +96,12 @@ pub fn regions(
     problem.support_function(hull.normals(), &mut support);
     let vertex_facets = hull.vertex_facets(contacts.len() * s);
     let own = k * s..(k + 1) * s;
+    let wrench = |v: usize| &eval.wrenches[v * d..(v + 1) * d];
+    // The pivoted hyperplane of each facet, computed once.
+    let mut pivots: Vec<Option<Half>> = vec![None; hull.facet_count()];
     let mut zones: Vec<Vec<Half>> = Vec::new();
     let mut pivoted: Vec<Vec<Half>> = Vec::new();
-    for (j, facets) in vertex_facets[own.clone()].iter().enumerate() {
-        if facets.is_empty() {
-            continue;
-        }
-        let omega = &eval.wrenches[(k * s + j) * d..(k * s + j + 1) * d];
+    for facets in vertex_facets[own.clone()].iter().filter(|f| !f.is_empty()) {
         let mut zone = Vec::with_capacity(facets.len());
         let mut piv = Vec::with_capacity(facets.len());
         for &f in facets {
@@ -109,31 +110,31 @@ pub fn regions(
                 h: hull.normal(f).to_vec(),
                 c: alpha * support[f],
             };
-            let remaining: Vec<&[Real]> = hull
-                .facet_vertices(f)
-                .iter()
-                .map(|&v| v as usize)
-                .filter(|v| !own.contains(v))
-                .map(|v| &eval.wrenches[v * d..(v + 1) * d])
-                .collect();
-            let half = if remaining.is_empty() {
-                parallel.clone()
-            } else {
-                match pivot(
-                    problem,
-                    hull,
-                    f,
-                    omega,
-                    &remaining,
-                    alpha,
-                    &mut out.lp_solves,
-                ) {
-                    Some(h) => h,
-                    None => parallel.clone(),
-                }
-            };
+            if pivots[f].is_none() {
+                let (mine, remaining): (Vec<usize>, Vec<usize>) = hull
+                    .facet_vertices(f)
+                    .iter()
+                    .map(|&v| v as usize)
+                    .partition(|v| own.contains(v));
+                let mine: Vec<&[Real]> = mine.into_iter().map(wrench).collect();
+                let remaining: Vec<&[Real]> = remaining.into_iter().map(wrench).collect();
+                pivots[f] = Some(if remaining.is_empty() {
+                    parallel.clone()
+                } else {
+                    pivot(
+                        problem,
+                        hull,
+                        f,
+                        &mine,
+                        &remaining,
+                        alpha,
+                        &mut out.lp_solves,
+                    )
+                    .unwrap_or_else(|| parallel.clone())
+                });
+            }
+            piv.push(pivots[f].clone().expect("computed above"));
             zone.push(parallel);
-            piv.push(half);
         }
         zones.push(zone);
         pivoted.push(piv);
@@ -159,13 +160,14 @@ pub fn regions(
     Ok(out)
 }
 
-/// The eq. (8) hyperplane of facet `f`: pivoted about the remaining contacts' wrenches on it
-/// until it touches the alpha-scaled OWS. `None` if the LP fails or is unbounded.
+/// The eq. (8) hyperplane of facet `f`: pivoted about the remaining contacts' wrenches on it,
+/// away from contact `k`'s wrenches `mine` on it, until it touches the alpha-scaled OWS.
+/// `None` if the LP fails or is unbounded.
 fn pivot(
     problem: &GraspProblem,
     hull: &Hull,
     f: usize,
-    omega: &[Real],
+    mine: &[&[Real]],
     remaining: &[&[Real]],
     alpha: Real,
     solves: &mut usize,
@@ -192,27 +194,33 @@ fn pivot(
         .build()
         .ok()?;
     for _ in 0..ROUNDS {
-        // Variables x = [h_1..h_d, c] (c = -d of eq. 8). Minimise c - h . omega.
-        let nv = d + 1;
+        // Variables x = [h_1..h_d, c, t] (c = -d of eq. 8). Maximise t.
+        let nv = d + 2;
         let mut rows: Vec<Vec<Real>> = Vec::new();
         let mut b = Vec::new();
         // Zero cone: h . r - c = 0 for the remaining wrenches; h . a_f = 1.
         for r in remaining {
             let mut row: Vec<Real> = r.to_vec();
-            row.push(-1.0);
+            row.extend([-1.0, 0.0]);
             rows.push(row);
             b.push(0.0);
         }
         let mut row = a.to_vec();
-        row.push(0.0);
+        row.extend([0.0, 0.0]);
         rows.push(row);
         b.push(1.0);
         let zeros = rows.len();
-        // Nonnegative cone (s = b - A x >= 0): alpha h . o_i - c <= 0; -c <= 0;
-        // -BOUND <= h_j <= BOUND.
+        // Nonnegative cone (s = b - A x >= 0): alpha h . o_i - c <= 0; t - h . w + c <= 0
+        // for k's wrenches w on the facet; -c <= 0; -BOUND <= h_j <= BOUND.
         for &i in &active {
             let mut row: Vec<Real> = problem.ows_wrench(i).iter().map(|x| alpha * x).collect();
-            row.push(-1.0);
+            row.extend([-1.0, 0.0]);
+            rows.push(row);
+            b.push(0.0);
+        }
+        for w in mine {
+            let mut row: Vec<Real> = w.iter().map(|x| -x).collect();
+            row.extend([1.0, 1.0]);
             rows.push(row);
             b.push(0.0);
         }
@@ -245,8 +253,8 @@ fn pivot(
         }
         let amat = CscMatrix::new(total, nv, colptr, rowval, nzval);
         let p = CscMatrix::new(nv, nv, vec![0; nv + 1], Vec::new(), Vec::new());
-        let mut q: Vec<Real> = omega.iter().map(|x| -x).collect();
-        q.push(1.0);
+        let mut q = vec![0.0; nv];
+        q[d + 1] = -1.0;
         let cones = [
             SupportedConeT::ZeroConeT(zeros),
             SupportedConeT::NonnegativeConeT(total - zeros),
