@@ -47,8 +47,7 @@ fn check(p: &GraspProblem, cases: usize, seed: u64) -> (usize, usize, usize) {
         tries += 1;
         assert!(tries < 100 * cases, "too few force-closure grasps");
         let contacts = [rng.below(n), rng.below(n), rng.below(n)];
-        if contacts[0] == contacts[1] || contacts[1] == contacts[2] || contacts[0] == contacts[2]
-        {
+        if contacts[0] == contacts[1] || contacts[1] == contacts[2] || contacts[0] == contacts[2] {
             continue;
         }
         let e = p.evaluate(&contacts).unwrap();

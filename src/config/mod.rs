@@ -693,4 +693,49 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
         );
         assert!(err(&GOOD.replace("radius", "radios")).contains("radios"));
     }
+
+    /// The same hand written with link lengths in TOML and as a URDF gives the same forward
+    /// kinematics (the paper hand, whose URDF is `config/hands/paper_hand.urdf`).
+    #[test]
+    fn toml_and_urdf_hands_agree() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+        let mut links = String::from("[hand]\nfingertip_radius = 0.025\n");
+        let mut urdf = String::from("[hand]\nurdf = \"hands/paper_hand.urdf\"\n");
+        for (f, angle) in [(1, 45.0_f64), (2, -45.0), (3, -135.0), (4, 135.0)] {
+            let a = angle.to_radians();
+            links.push_str(&format!(
+                "[[hand.fingers]]\nfinger = {f}\nbase = [{}, {}]\nbase_yaw_deg = {}\nlinks = [0.06, 0.045, 0.025]\nlimits_deg = [[-90.0, 90.0], [-120.0, 120.0], [-120.0, 120.0]]\n",
+                0.15 * a.cos(),
+                0.15 * a.sin(),
+                angle + 180.0
+            ));
+            urdf.push_str(&format!(
+                "[[hand.fingers]]\nfinger = {f}\ntip_link = \"f{f}_tip\"\n"
+            ));
+        }
+        let build = |hand: &str| {
+            Config::parse(&format!("{GOOD}{hand}"), &dir.join("x.toml"))
+                .unwrap()
+                .hand
+                .build()
+                .unwrap()
+        };
+        let (a, b) = (build(&links), build(&urdf));
+        assert_eq!(a.fingers.len(), 4);
+        for (fa, fb) in a.fingers.iter().zip(&b.fingers) {
+            assert_eq!(fa.tip_radius, fb.tip_radius);
+            for k in 0..50 {
+                let q: Vec<Real> = (0..3)
+                    .map(|j| {
+                        let t = ((k * 3 + j) as Real * 0.618_034).fract();
+                        let joint = &fa.joints[j];
+                        joint.lower + t * (joint.upper - joint.lower)
+                    })
+                    .collect();
+                let (pa, pb) = (fa.fk(&q), fb.fk(&q));
+                assert!((pa.tip_centre - pb.tip_centre).norm() < 1e-12);
+                assert!((pa.cap_axis - pb.cap_axis).norm() < 1e-12);
+            }
+        }
+    }
 }
