@@ -1,0 +1,552 @@
+//! # icrflow-interfaces: the pipeline's messages
+//!
+//! The messages the pipeline's processes exchange over iceoryx2 (DESIGN.md section 2):
+//! `#[repr(C)]`, self-contained (no pointers, fixed capacities), [`ZeroCopySend`] with explicit
+//! type names that carry the schema version, each starting with the common [`Header`]. Large
+//! payloads (hull facets, ICR regions) travel as iceoryx2 dynamic slices behind a fixed user
+//! header ([`WrenchSpaceHeader`] + `[Facet]`, [`PlanStepHeader`] + `[u32]`). Topic names are
+//! in [`topics`].
+//!
+//! Conventions: SI units, radians; times are nanoseconds since the Unix epoch
+//! ([`now_ns`]), comparable across the processes of one machine (and, with synchronised
+//! clocks, across machines); arrays are indexed by finger slot (`0..finger_count`), each slot
+//! naming its finger number.
+
+#![warn(missing_docs)]
+// The ZeroCopySend derive expands to `unsafe impl`: the one place this crate has unsafe code
+// (the derive checks `#[repr(C)]` and that every field is ZeroCopySend).
+#![allow(unsafe_code)]
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Version of the message schema. A node refuses messages with another version, and the type
+/// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Largest number of fingers a message carries.
+pub const MAX_FINGERS: usize = 8;
+/// Largest number of joints per finger a message carries.
+pub const MAX_JOINTS: usize = 8;
+/// Bytes of a node name in [`NodeHealth`].
+pub const NAME_BYTES: usize = 32;
+/// Bytes of a free-text message in [`NodeHealth`] and [`HandCommand`].
+pub const TEXT_BYTES: usize = 128;
+
+/// The wall-clock time in nanoseconds since the Unix epoch (0 if the clock is before it).
+pub fn now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v1`).
+pub fn type_name<T: ZeroCopySend>() -> &'static str {
+    // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
+    // layout); calling it only reads a static string.
+    unsafe { <T as ZeroCopySend>::type_name() }
+}
+
+/// What kind of message a header belongs to (a second check beside the type name).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Kind {
+    /// [`JointState`].
+    JointState = 1,
+    /// [`ObjectPose`].
+    ObjectPose = 2,
+    /// [`GraspState`].
+    GraspState = 3,
+    /// [`WrenchSpaceHeader`].
+    WrenchSpace = 4,
+    /// [`PlanStepHeader`].
+    PlanStep = 5,
+    /// [`HandCommand`].
+    HandCommand = 6,
+    /// [`NodeHealth`].
+    NodeHealth = 7,
+}
+
+/// The header every message starts with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("icrflow.Header.v1")]
+#[repr(C)]
+pub struct Header {
+    /// [`SCHEMA_VERSION`] of the sender.
+    pub schema: u32,
+    /// [`Kind`] as `u32`.
+    pub kind: u32,
+    /// Sequence number of this message from its publisher, from 1.
+    pub sequence: u64,
+    /// When the sender produced it ([`now_ns`]).
+    pub source_time_ns: u64,
+    /// Sequence number of the input message it was computed from (0: none).
+    pub input_sequence: u64,
+    /// Source time of the plant measurement at the start of the chain that led to this
+    /// message (end-to-end latency = now - origin).
+    pub origin_time_ns: u64,
+}
+
+/// Why a header is refused.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HeaderError {
+    /// Another schema version.
+    #[error("schema version {got}, expected {expected}")]
+    Schema {
+        /// The message's version.
+        got: u32,
+        /// Ours.
+        expected: u32,
+    },
+    /// Another kind of message than the topic carries.
+    #[error("message kind {got}, expected {expected}")]
+    Kind {
+        /// The message's kind.
+        got: u32,
+        /// The topic's.
+        expected: u32,
+    },
+    /// Sequence 0, or not above the last one accepted.
+    #[error("sequence {got} is not after {last}")]
+    OutOfOrder {
+        /// The message's sequence.
+        got: u64,
+        /// The last accepted.
+        last: u64,
+    },
+    /// Older than the receiver accepts.
+    #[error("stale: {age_ms:.1} ms old, limit {limit_ms:.1} ms")]
+    Stale {
+        /// Age (ms).
+        age_ms: f64,
+        /// Limit (ms).
+        limit_ms: f64,
+    },
+}
+
+impl Header {
+    /// A header for a new message.
+    pub fn new(kind: Kind, sequence: u64, input_sequence: u64, origin_time_ns: u64) -> Self {
+        Self {
+            schema: SCHEMA_VERSION,
+            kind: kind as u32,
+            sequence,
+            source_time_ns: now_ns(),
+            input_sequence,
+            origin_time_ns,
+        }
+    }
+
+    /// Checks the schema version and kind.
+    pub fn check(&self, kind: Kind) -> Result<(), HeaderError> {
+        if self.schema != SCHEMA_VERSION {
+            return Err(HeaderError::Schema {
+                got: self.schema,
+                expected: SCHEMA_VERSION,
+            });
+        }
+        if self.kind != kind as u32 {
+            return Err(HeaderError::Kind {
+                got: self.kind,
+                expected: kind as u32,
+            });
+        }
+        Ok(())
+    }
+
+    /// Checks schema, kind, order after `last` (the last accepted sequence) and age against
+    /// `max_age_ns` at `now_ns`.
+    pub fn check_fresh(
+        &self,
+        kind: Kind,
+        last: u64,
+        now_ns: u64,
+        max_age_ns: u64,
+    ) -> Result<(), HeaderError> {
+        self.check(kind)?;
+        if self.sequence == 0 || self.sequence <= last {
+            return Err(HeaderError::OutOfOrder {
+                got: self.sequence,
+                last,
+            });
+        }
+        let age = now_ns.saturating_sub(self.source_time_ns);
+        if age > max_age_ns {
+            return Err(HeaderError::Stale {
+                age_ms: age as f64 * 1e-6,
+                limit_ms: max_age_ns as f64 * 1e-6,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Joint encoder readings of the hand.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.JointState.v1")]
+#[repr(C)]
+pub struct JointState {
+    /// Header ([`Kind::JointState`]).
+    pub header: Header,
+    /// Fingers in use.
+    pub finger_count: u32,
+    /// Padding (zero).
+    pub reserved: u32,
+    /// Finger number of each slot.
+    pub finger_ids: [u32; MAX_FINGERS],
+    /// Joints of each finger.
+    pub joint_counts: [u32; MAX_FINGERS],
+    /// Joint angles (rad).
+    pub positions: [[f64; MAX_JOINTS]; MAX_FINGERS],
+}
+
+/// An object-pose measurement (e.g. from vision): noisy, delayed, lower rate.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.ObjectPose.v1")]
+#[repr(C)]
+pub struct ObjectPose {
+    /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
+    pub header: Header,
+    /// When the measured scene was captured ([`now_ns`]); earlier than the header's time by
+    /// the measurement's latency.
+    pub captured_time_ns: u64,
+    /// Object centre of mass in the hand frame (m).
+    pub position: [f64; 3],
+    /// Object orientation, unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+}
+
+/// One finger's contact in a [`GraspState`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.FingerContact.v1")]
+#[repr(C)]
+pub struct FingerContact {
+    /// Finger number.
+    pub finger: u32,
+    /// 1 in contact, 0 not.
+    pub in_contact: u32,
+    /// Candidate index of the contact point (when in contact).
+    pub candidate: u32,
+    /// Padding (zero).
+    pub reserved: u32,
+    /// Body-frame contact point (m).
+    pub point: [f64; 3],
+    /// Body-frame outward normal.
+    pub normal: [f64; 3],
+    /// Distance between the fingertip (forward kinematics) and the object surface (m).
+    pub residual: f64,
+}
+
+/// The estimated object pose and contact state.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.GraspState.v1")]
+#[repr(C)]
+pub struct GraspState {
+    /// Header ([`Kind::GraspState`]).
+    pub header: Header,
+    /// Object centre of mass in the hand frame (m).
+    pub position: [f64; 3],
+    /// Object orientation `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+    /// Object rotation about the vertical axis since the start (rad, unwrapped).
+    pub rotation: f64,
+    /// Root-mean-square fit residual of the fingertips on the object (m).
+    pub residual: f64,
+    /// Fingers in use.
+    pub finger_count: u32,
+    /// Padding (zero).
+    pub reserved: u32,
+    /// Each finger's contact.
+    pub fingers: [FingerContact; MAX_FINGERS],
+}
+
+/// User header of the wrench-space topic; the payload is a slice of [`Facet`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.WrenchSpaceHeader.v1")]
+#[repr(C)]
+pub struct WrenchSpaceHeader {
+    /// Header ([`Kind::WrenchSpace`]).
+    pub header: Header,
+    /// 1 if force closure.
+    pub force_closure: u32,
+    /// Wrench-space dimension (3 planar, 6 spatial).
+    pub dim: u32,
+    /// The quality alpha* (0 unless force closure).
+    pub quality: f64,
+    /// Ferrari-Canny epsilon.
+    pub epsilon: f64,
+    /// The margin alpha the pipeline keeps.
+    pub alpha: f64,
+}
+
+/// One facet `normal . w <= offset` of the grasp wrench space's hull.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.Facet.v1")]
+#[repr(C)]
+pub struct Facet {
+    /// Unit outward normal (the first `dim` components).
+    pub normal: [f64; 6],
+    /// Offset.
+    pub offset: f64,
+}
+
+/// Planner phases in [`PlanStepHeader::phase`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum PlanPhase {
+    /// The initial grasp.
+    Start = 0,
+    /// Rolling.
+    Rolling = 1,
+    /// A free finger attaches.
+    Attach = 2,
+    /// The finger at its limit detaches.
+    Detach = 3,
+    /// The goal is reached; hold.
+    Done = 4,
+}
+
+/// One finger's target in a [`PlanStepHeader`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.FingerTarget.v1")]
+#[repr(C)]
+pub struct FingerTarget {
+    /// Finger number.
+    pub finger: u32,
+    /// 1 in contact, 0 free.
+    pub in_contact: u32,
+    /// Candidate index of the target contact.
+    pub candidate: u32,
+    /// Joints used in `joints`.
+    pub joint_count: u32,
+    /// Body-frame target contact point (m).
+    pub point: [f64; 3],
+    /// Cap angle of the contact on the fingertip (rad).
+    pub cap_angle: f64,
+    /// Joint targets (rad).
+    pub joints: [f64; MAX_JOINTS],
+}
+
+/// User header of the plan-step topic; the payload is the ICR regions, candidate indices of
+/// every finger in slot order (`region_lengths` long each).
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("icrflow.PlanStepHeader.v1")]
+#[repr(C)]
+pub struct PlanStepHeader {
+    /// Header ([`Kind::PlanStep`]).
+    pub header: Header,
+    /// [`PlanPhase`] as `u32`.
+    pub phase: u32,
+    /// Fingers in use.
+    pub finger_count: u32,
+    /// Planned step number.
+    pub step: u64,
+    /// Target object rotation (rad).
+    pub rotation: f64,
+    /// Quality alpha* of the planned grasp.
+    pub quality: f64,
+    /// Each finger's target.
+    pub targets: [FingerTarget; MAX_FINGERS],
+    /// Length of each finger's region in the payload.
+    pub region_lengths: [u32; MAX_FINGERS],
+}
+
+/// Hand command modes in [`HandCommand::mode`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum CommandMode {
+    /// Track the joint and force targets.
+    Track = 0,
+    /// Hold the last safe grasp (see `reason`).
+    Hold = 1,
+}
+
+/// A command to the hand.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("icrflow.HandCommand.v1")]
+#[repr(C)]
+pub struct HandCommand {
+    /// Header ([`Kind::HandCommand`]).
+    pub header: Header,
+    /// [`CommandMode`] as `u32`.
+    pub mode: u32,
+    /// Fingers in use.
+    pub finger_count: u32,
+    /// Finger number of each slot.
+    pub finger_ids: [u32; MAX_FINGERS],
+    /// Joint targets (rad).
+    pub joint_targets: [[f64; MAX_JOINTS]; MAX_FINGERS],
+    /// Fingertip force targets in the hand frame (N); zero for a free finger.
+    pub forces: [[f64; 3]; MAX_FINGERS],
+    /// Why the hand holds (UTF-8, zero-padded; empty when tracking).
+    pub reason: [u8; TEXT_BYTES],
+}
+
+impl Default for HandCommand {
+    fn default() -> Self {
+        Self {
+            header: Header::default(),
+            mode: CommandMode::Hold as u32,
+            finger_count: 0,
+            finger_ids: [0; MAX_FINGERS],
+            joint_targets: [[0.0; MAX_JOINTS]; MAX_FINGERS],
+            forces: [[0.0; 3]; MAX_FINGERS],
+            reason: [0; TEXT_BYTES],
+        }
+    }
+}
+
+/// Node states in [`NodeHealth::state`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum NodeState {
+    /// Starting up.
+    Starting = 0,
+    /// Working normally.
+    Running = 1,
+    /// Working, but refusing some input (see `message`).
+    Degraded = 2,
+    /// Shutting down.
+    Stopping = 3,
+}
+
+/// A node's periodic health report.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("icrflow.NodeHealth.v1")]
+#[repr(C)]
+pub struct NodeHealth {
+    /// Header ([`Kind::NodeHealth`]).
+    pub header: Header,
+    /// Node name (UTF-8, zero-padded).
+    pub node: [u8; NAME_BYTES],
+    /// [`NodeState`] as `u32`.
+    pub state: u32,
+    /// Process id.
+    pub pid: u32,
+    /// Messages processed since start.
+    pub processed: u64,
+    /// Messages refused since start.
+    pub refused: u64,
+    /// Last problem (UTF-8, zero-padded).
+    pub message: [u8; TEXT_BYTES],
+}
+
+impl Default for NodeHealth {
+    fn default() -> Self {
+        Self {
+            header: Header::default(),
+            node: [0; NAME_BYTES],
+            state: NodeState::Starting as u32,
+            pid: 0,
+            processed: 0,
+            refused: 0,
+            message: [0; TEXT_BYTES],
+        }
+    }
+}
+
+/// Copies `text` into a zero-padded fixed buffer, cut at a character boundary.
+pub fn write_text<const N: usize>(out: &mut [u8; N], text: &str) {
+    *out = [0; N];
+    let mut end = text.len().min(N);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    out[..end].copy_from_slice(&text.as_bytes()[..end]);
+}
+
+/// The text of a zero-padded buffer (lossy on invalid UTF-8).
+pub fn read_text(buf: &[u8]) -> String {
+    let end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
+    String::from_utf8_lossy(&buf[..end]).into_owned()
+}
+
+/// Topic (iceoryx2 service) names, one place for all. Each is prefixed by the rig name:
+/// `icrflow/<rig>/<topic>`, the same key expression the Zenoh bridge uses.
+pub mod topics {
+    /// Joint encoder readings ([`crate::JointState`]).
+    pub const JOINT_STATE: &str = "joint_state";
+    /// Object-pose measurements ([`crate::ObjectPose`]).
+    pub const OBJECT_POSE: &str = "object_pose";
+    /// Estimated grasp state ([`crate::GraspState`]).
+    pub const GRASP_STATE: &str = "grasp_state";
+    /// Wrench space ([`crate::WrenchSpaceHeader`] + facets).
+    pub const WRENCH_SPACE: &str = "wrench_space";
+    /// Plan steps ([`crate::PlanStepHeader`] + regions).
+    pub const PLAN_STEP: &str = "plan_step";
+    /// Hand commands ([`crate::HandCommand`]).
+    pub const HAND_COMMAND: &str = "hand_command";
+    /// Node health ([`crate::NodeHealth`]).
+    pub const NODE_HEALTH: &str = "node_health";
+    /// Every topic.
+    pub const ALL: [&str; 7] = [
+        JOINT_STATE,
+        OBJECT_POSE,
+        GRASP_STATE,
+        WRENCH_SPACE,
+        PLAN_STEP,
+        HAND_COMMAND,
+        NODE_HEALTH,
+    ];
+
+    /// The full service name of `topic` on rig `rig`.
+    pub fn service(rig: &str, topic: &str) -> String {
+        format!("icrflow/{rig}/{topic}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_checks_schema_kind_order_and_age() {
+        let h = Header::new(Kind::JointState, 5, 0, 0);
+        assert!(h.check(Kind::JointState).is_ok());
+        assert!(matches!(
+            h.check(Kind::GraspState),
+            Err(HeaderError::Kind { .. })
+        ));
+        let mut old = h;
+        old.schema = SCHEMA_VERSION + 1;
+        assert!(matches!(
+            old.check(Kind::JointState),
+            Err(HeaderError::Schema { .. })
+        ));
+        let now = h.source_time_ns;
+        assert!(h.check_fresh(Kind::JointState, 4, now, 1_000_000).is_ok());
+        assert!(matches!(
+            h.check_fresh(Kind::JointState, 5, now, 1_000_000),
+            Err(HeaderError::OutOfOrder { .. })
+        ));
+        assert!(matches!(
+            h.check_fresh(Kind::JointState, 4, now + 2_000_000, 1_000_000),
+            Err(HeaderError::Stale { .. })
+        ));
+    }
+
+    #[test]
+    fn text_round_trips_and_cuts_at_a_character_boundary() {
+        let mut buf = [0u8; 8];
+        write_text(&mut buf, "held: né");
+        assert_eq!(read_text(&buf), "held: n");
+        write_text(&mut buf, "ok");
+        assert_eq!(read_text(&buf), "ok");
+    }
+
+    #[test]
+    fn type_names_carry_the_schema_version() {
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v1");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v1");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v1");
+        assert_eq!(SCHEMA_VERSION, 1);
+    }
+
+    #[test]
+    fn layouts_are_padding_free_where_it_matters() {
+        // Fixed sizes: a change here is a schema change (bump SCHEMA_VERSION and the names).
+        assert_eq!(std::mem::size_of::<Header>(), 40);
+        assert_eq!(std::mem::size_of::<Facet>(), 56);
+        assert_eq!(std::mem::size_of::<FingerContact>(), 72);
+    }
+}

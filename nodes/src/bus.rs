@@ -1,0 +1,377 @@
+//! The local bus: iceoryx2 publish-subscribe topics, each paired with an event service of the
+//! same name so that a receiving node sleeps in a WaitSet until a sender notifies it (no busy
+//! polling; only listeners can be attached to a WaitSet in iceoryx2 0.10).
+//!
+//! Isolation: every run uses its own iceoryx2 *prefix* (the name prefix of its shared-memory
+//! objects) and *root* directory (its service, node and socket files), so two runs, or a test
+//! beside a real run, never see each other ([`BusConfig`]). Topic services are
+//! `icrflow/<rig>/<topic>`.
+
+use std::fmt::Debug;
+use std::path::PathBuf;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::builder::publish_subscribe::{
+    PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
+};
+use icrflow_interfaces::topics;
+
+/// Environment variable carrying the run's iceoryx2 prefix to a node process.
+pub const ENV_PREFIX: &str = "ICRFLOW_IOX_PREFIX";
+/// Environment variable carrying the run's iceoryx2 root directory.
+pub const ENV_ROOT: &str = "ICRFLOW_IOX_ROOT";
+/// Environment variable carrying the rig name.
+pub const ENV_RIG: &str = "ICRFLOW_RIG";
+
+/// Messages a subscriber keeps queued (the oldest is overwritten beyond that).
+const BUFFER: usize = 8;
+
+/// Why the bus failed, with the topic or node named.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BusError {
+    /// The run's settings are unusable.
+    #[error("bus settings: {0}")]
+    Settings(String),
+    /// The iceoryx2 node could not be created.
+    #[error("cannot create iceoryx2 node {name:?}: {reason}")]
+    Node {
+        /// Node name.
+        name: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// The topic exists with another message type, user header or schema version.
+    #[error(
+        "topic {topic} carries another message type or schema version than this node's {expected}: refusing to connect"
+    )]
+    Mismatch {
+        /// The service name.
+        topic: String,
+        /// This node's type name.
+        expected: String,
+    },
+    /// Another failure on a topic.
+    #[error("topic {topic}: {reason}")]
+    Topic {
+        /// The service name.
+        topic: String,
+        /// What failed.
+        reason: String,
+    },
+}
+
+/// Where a run's iceoryx2 resources live.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BusConfig {
+    /// Rig name (part of every topic name).
+    pub rig: String,
+    /// iceoryx2 prefix of the run's shared-memory objects.
+    pub prefix: String,
+    /// iceoryx2 root directory of the run's files.
+    pub root: PathBuf,
+}
+
+impl BusConfig {
+    /// A configuration; the prefix must be a short file-name-safe string and the root an
+    /// absolute directory.
+    pub fn new(rig: &str, prefix: &str, root: PathBuf) -> Result<Self, BusError> {
+        let safe = |s: &str| {
+            !s.is_empty()
+                && s.len() <= 48
+                && s.bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+        };
+        if !safe(rig) {
+            return Err(BusError::Settings(format!(
+                "rig name {rig:?}: use 1 to 48 letters, digits, '_' or '-'"
+            )));
+        }
+        if !safe(prefix) {
+            return Err(BusError::Settings(format!(
+                "iceoryx2 prefix {prefix:?}: use 1 to 48 letters, digits, '_' or '-'"
+            )));
+        }
+        if !root.is_absolute() {
+            return Err(BusError::Settings(format!(
+                "iceoryx2 root {} must be an absolute path",
+                root.display()
+            )));
+        }
+        Ok(Self {
+            rig: rig.into(),
+            prefix: prefix.into(),
+            root,
+        })
+    }
+
+    /// The configuration a supervisor passed in the environment ([`ENV_RIG`], [`ENV_PREFIX`],
+    /// [`ENV_ROOT`]).
+    pub fn from_env() -> Result<Self, BusError> {
+        let get = |k: &str| {
+            std::env::var(k).map_err(|_| {
+                BusError::Settings(format!(
+                    "{k} is not set: nodes are started by `icrflow run`, which sets it"
+                ))
+            })
+        };
+        Self::new(
+            &get(ENV_RIG)?,
+            &get(ENV_PREFIX)?,
+            PathBuf::from(get(ENV_ROOT)?),
+        )
+    }
+
+    /// The environment that hands this configuration to a child process.
+    pub fn env(&self) -> [(&'static str, String); 3] {
+        [
+            (ENV_RIG, self.rig.clone()),
+            (ENV_PREFIX, self.prefix.clone()),
+            (ENV_ROOT, self.root.display().to_string()),
+        ]
+    }
+
+    /// The iceoryx2 configuration: this run's prefix and root, defaults otherwise.
+    pub fn iceoryx(&self) -> Result<Config, BusError> {
+        let mut c = Config::default();
+        c.global.prefix = FileName::new(self.prefix.as_bytes())
+            .map_err(|e| BusError::Settings(format!("prefix {:?}: {e:?}", self.prefix)))?;
+        let mut root = self.root.display().to_string();
+        if !root.ends_with('/') {
+            root.push('/');
+        }
+        let path = Path::new(root.as_bytes())
+            .map_err(|e| BusError::Settings(format!("root {root:?}: {e:?}")))?;
+        c.global.set_root_path(&path);
+        Ok(c)
+    }
+
+    /// The service name of `topic` on this rig.
+    pub fn service(&self, topic: &str) -> String {
+        topics::service(&self.rig, topic)
+    }
+}
+
+/// A node's connection to the bus.
+pub struct Bus {
+    node: Node<ipc::Service>,
+    config: BusConfig,
+}
+
+/// A publisher with the notifier that wakes the topic's subscribers.
+pub struct Pub<T: Debug + ZeroCopySend + 'static> {
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Notifier<ipc::Service>,
+    topic: String,
+}
+
+/// A subscriber with the listener a WaitSet waits on.
+pub struct Sub<T: Debug + ZeroCopySend + 'static> {
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Listener<ipc::Service>,
+    topic: String,
+}
+
+fn open_error(topic: &str, expected: &str, e: PublishSubscribeOpenOrCreateError) -> BusError {
+    match e {
+        PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(
+            PublishSubscribeOpenError::IncompatibleTypes,
+        ) => BusError::Mismatch {
+            topic: topic.into(),
+            expected: expected.into(),
+        },
+        other => BusError::Topic {
+            topic: topic.into(),
+            reason: format!("{other:?}"),
+        },
+    }
+}
+
+fn topic_error(topic: &str, what: &str, e: impl Debug) -> BusError {
+    BusError::Topic {
+        topic: topic.into(),
+        reason: format!("{what}: {e:?}"),
+    }
+}
+
+impl Bus {
+    /// Creates this process's iceoryx2 node `name` on the run's bus.
+    pub fn new(name: &str, config: &BusConfig) -> Result<Self, BusError> {
+        let node_error = |reason: String| BusError::Node {
+            name: name.into(),
+            reason,
+        };
+        let node_name: NodeName = name
+            .try_into()
+            .map_err(|e| node_error(format!("bad name: {e:?}")))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .config(&config.iceoryx()?)
+            .create::<ipc::Service>()
+            .map_err(|e| node_error(format!("{e:?}")))?;
+        Ok(Self {
+            node,
+            config: config.clone(),
+        })
+    }
+
+    /// The iceoryx2 node.
+    pub fn node(&self) -> &Node<ipc::Service> {
+        &self.node
+    }
+
+    /// The bus configuration.
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+
+    fn event(
+        &self,
+        topic: &str,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
+        let name: ServiceName = topic
+            .try_into()
+            .map_err(|e| topic_error(topic, "bad name", e))?;
+        self.node
+            .service_builder(&name)
+            .event()
+            .max_notifiers(8)
+            .max_listeners(16)
+            .open_or_create()
+            .map_err(|e| topic_error(topic, "event service", e))
+    }
+
+    fn pubsub<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>,
+        BusError,
+    > {
+        let name: ServiceName = topic
+            .try_into()
+            .map_err(|e| topic_error(topic, "bad name", e))?;
+        let expected = icrflow_interfaces::type_name::<T>();
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<T>()
+            .history_size(1)
+            .subscriber_max_buffer_size(BUFFER)
+            .max_publishers(4)
+            .max_subscribers(16)
+            .max_nodes(32)
+            .open_or_create()
+            .map_err(|e| open_error(topic, expected, e))
+    }
+
+    /// A publisher on `topic` (a name from [`topics`]).
+    pub fn publisher<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<Pub<T>, BusError> {
+        let full = self.config.service(topic);
+        let publisher = self
+            .pubsub::<T>(&full)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| topic_error(&full, "publisher", e))?;
+        let notifier = self
+            .event(&full)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| topic_error(&full, "notifier", e))?;
+        Ok(Pub {
+            publisher,
+            notifier,
+            topic: full,
+        })
+    }
+
+    /// A subscriber on `topic` (a name from [`topics`]).
+    pub fn subscriber<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<Sub<T>, BusError> {
+        let full = self.config.service(topic);
+        let subscriber = self
+            .pubsub::<T>(&full)?
+            .subscriber_builder()
+            .buffer_size(BUFFER)
+            .create()
+            .map_err(|e| topic_error(&full, "subscriber", e))?;
+        let listener = self
+            .event(&full)?
+            .listener_builder()
+            .create()
+            .map_err(|e| topic_error(&full, "listener", e))?;
+        Ok(Sub {
+            subscriber,
+            listener,
+            topic: full,
+        })
+    }
+}
+
+impl<T: Debug + ZeroCopySend + 'static> Pub<T> {
+    /// Writes `value` into a loaned sample, sends it and wakes the subscribers. Returns the
+    /// number of subscribers that received it.
+    pub fn send(&self, value: T) -> Result<usize, BusError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| topic_error(&self.topic, "loan", e))?;
+        let receivers = sample
+            .write_payload(value)
+            .send()
+            .map_err(|e| topic_error(&self.topic, "send", e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| topic_error(&self.topic, "notify", e))?;
+        Ok(receivers)
+    }
+
+    /// The service name.
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
+    /// The listener to attach to a WaitSet.
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// Consumes the pending wake-ups and calls `f` on every queued message, oldest first.
+    pub fn drain(&self, mut f: impl FnMut(&T)) -> Result<usize, BusError> {
+        self.listener
+            .try_wait(|_| {})
+            .map_err(|e| topic_error(&self.topic, "listener", e))?;
+        let mut n = 0;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| topic_error(&self.topic, "receive", e))?
+        {
+            f(sample.payload());
+            n += 1;
+        }
+        Ok(n)
+    }
+
+    /// The newest queued message, if any (older ones are dropped), consuming wake-ups.
+    pub fn latest(&self) -> Result<Option<T>, BusError> {
+        let mut last = None;
+        self.drain(|m| last = Some(*m))?;
+        Ok(last)
+    }
+
+    /// The service name.
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+}

@@ -1,0 +1,114 @@
+//! The bus over real iceoryx2 services, in an isolated prefix and root: delivery with a
+//! WaitSet wake-up, refusal of a mismatched message type, and no resources left behind.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use iceoryx2::prelude::*;
+use icrflow_interfaces::{HandCommand, Header, JointState, Kind, topics};
+use icrflow_nodes::bus::{Bus, BusConfig, BusError};
+
+fn isolated(tag: &str) -> BusConfig {
+    let id = format!("icrt_{tag}_{}_", std::process::id());
+    let root = PathBuf::from(format!("/tmp/icrflow-test-{tag}-{}", std::process::id()));
+    BusConfig::new("test", &id, root).unwrap()
+}
+
+/// Files of this run left in /dev/shm (but the one global counter iceoryx2 keeps by design)
+/// and under its root.
+fn leftovers(c: &BusConfig) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        if n.starts_with(&c.prefix) && !n.ends_with("global_mgmt") {
+            out.push(n);
+        }
+    }
+    fn walk(p: &std::path::Path, out: &mut Vec<String>) {
+        if let Ok(rd) = std::fs::read_dir(p) {
+            for e in rd.flatten() {
+                let path = e.path();
+                if path.is_dir() {
+                    walk(&path, out);
+                } else {
+                    out.push(path.display().to_string());
+                }
+            }
+        }
+    }
+    walk(&c.root, &mut out);
+    out
+}
+
+fn remove(c: &BusConfig) {
+    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
+        if e.file_name().to_string_lossy().starts_with(&c.prefix) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+    let _ = std::fs::remove_dir_all(&c.root);
+}
+
+#[test]
+fn a_message_wakes_the_subscriber_and_arrives_intact() {
+    let c = isolated("deliver");
+    {
+        let a = Bus::new("sender", &c).unwrap();
+        let b = Bus::new("receiver", &c).unwrap();
+        let sub = b.subscriber::<JointState>(topics::JOINT_STATE).unwrap();
+        let publisher = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let mut m = JointState {
+            header: Header::new(Kind::JointState, 1, 0, 0),
+            finger_count: 2,
+            ..Default::default()
+        };
+        m.positions[1][2] = 0.25;
+        assert_eq!(publisher.send(m).unwrap(), 1);
+        let ws = WaitSetBuilder::new().create::<ipc::Service>().unwrap();
+        let guard = ws.attach_notification(sub.listener()).unwrap();
+        let mut got = None;
+        ws.wait_and_process_once_with_timeout(
+            |id| {
+                if id.has_event_from(&guard) {
+                    got = sub.latest().unwrap();
+                }
+                CallbackProgression::Stop
+            },
+            Duration::from_secs(5),
+        )
+        .unwrap();
+        drop(guard);
+        let got = got.expect("the WaitSet woke with the message");
+        assert_eq!(got, m);
+        assert!(got.header.check(Kind::JointState).is_ok());
+    }
+    assert_eq!(leftovers(&c), Vec::<String>::new());
+    remove(&c);
+}
+
+#[test]
+fn a_mismatched_message_type_is_refused_by_name() {
+    let c = isolated("mismatch");
+    {
+        let a = Bus::new("sender", &c).unwrap();
+        let _p = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let b = Bus::new("wrong", &c).unwrap();
+        let e = match b.subscriber::<HandCommand>(topics::JOINT_STATE) {
+            Err(e) => e,
+            Ok(_) => panic!("a HandCommand subscriber connected to the joint-state topic"),
+        };
+        assert!(matches!(e, BusError::Mismatch { .. }), "{e}");
+        let text = e.to_string();
+        assert!(text.contains("icrflow/test/joint_state"), "{text}");
+        assert!(text.contains("icrflow.HandCommand.v1"), "{text}");
+    }
+    remove(&c);
+}
+
+#[test]
+fn bad_settings_are_named() {
+    assert!(BusConfig::new("rig one", "p", PathBuf::from("/tmp/x")).is_err());
+    assert!(BusConfig::new("rig", "p/x", PathBuf::from("/tmp/x")).is_err());
+    let e = BusConfig::new("rig", "p", PathBuf::from("relative")).unwrap_err();
+    assert!(e.to_string().contains("absolute"), "{e}");
+}
