@@ -8,6 +8,7 @@
 //!
 //! | module | what |
 //! |---|---|
+//! | [`forces`] | fingertip forces balancing the grasp inside the exact friction cones (SOCP, clarabel) |
 //! | [`hand`] | fingers as revolute chains: forward kinematics, closed-form planar and damped-least-squares inverse kinematics, limits, manipulability |
 //! | [`urdf`] | hands from URDF files |
 //! | [`paper`] | the paper's four-finger planar hand |
@@ -16,6 +17,7 @@
 
 #![warn(missing_docs)]
 
+pub mod forces;
 pub mod hand;
 pub mod paper;
 pub mod planner;

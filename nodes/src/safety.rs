@@ -1,0 +1,311 @@
+//! The hand command node's safety gate (issue #4, "Safety"): a command is computed only from
+//! inputs that are present, of our schema and kind, in order, fresh, finite and, for the
+//! grasp's wrench space, force closure with quality >= alpha. Otherwise the node holds the
+//! last safe grasp and reports the [`Hold`] reason.
+
+use icrflow_interfaces::{
+    GraspState, Header, HeaderError, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
+    WrenchSpaceHeader,
+};
+
+/// Why the hand holds.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Hold {
+    /// No message of this input has been accepted yet.
+    #[error("no {0} yet")]
+    Missing(&'static str),
+    /// A message was refused by its header.
+    #[error("{topic}: {error}")]
+    Header {
+        /// The input.
+        topic: &'static str,
+        /// Why.
+        error: HeaderError,
+    },
+    /// The last accepted message is too old now.
+    #[error("{topic} is stale: {age_ms:.1} ms old, limit {limit_ms:.1} ms")]
+    Stale {
+        /// The input.
+        topic: &'static str,
+        /// Its age (ms).
+        age_ms: f64,
+        /// The limit (ms).
+        limit_ms: f64,
+    },
+    /// A value is not finite or out of range.
+    #[error("{topic}: invalid {what}")]
+    Invalid {
+        /// The input.
+        topic: &'static str,
+        /// What is wrong.
+        what: String,
+    },
+    /// The grasp is not force closure.
+    #[error("the grasp is not force closure")]
+    NotForceClosure,
+    /// The grasp's quality is below the margin.
+    #[error("quality alpha* = {quality:.4} below the margin alpha = {alpha}")]
+    BelowMargin {
+        /// The quality.
+        quality: f64,
+        /// The margin.
+        alpha: f64,
+    },
+}
+
+/// Accepted inputs and their order.
+#[derive(Debug, Clone)]
+pub struct Gate {
+    max_age_ns: u64,
+    alpha: f64,
+    plan: Option<PlanStepHeader>,
+    grasp: Option<GraspState>,
+    wrench: Option<WrenchSpaceHeader>,
+    last: [u64; 3],
+}
+
+fn finite(values: &[f64]) -> bool {
+    values.iter().all(|x| x.is_finite())
+}
+
+impl Gate {
+    /// A gate accepting inputs up to `max_age_ns` old, with margin `alpha`.
+    pub fn new(max_age_ns: u64, alpha: f64) -> Self {
+        Self {
+            max_age_ns,
+            alpha,
+            plan: None,
+            grasp: None,
+            wrench: None,
+            last: [0; 3],
+        }
+    }
+
+    fn header(
+        &self,
+        topic: &'static str,
+        h: &Header,
+        kind: Kind,
+        slot: usize,
+        now: u64,
+    ) -> Result<(), Hold> {
+        h.check_fresh(kind, self.last[slot], now, self.max_age_ns)
+            .map_err(|error| Hold::Header { topic, error })
+    }
+
+    /// Offers a plan step; accepted if valid.
+    pub fn offer_plan(&mut self, m: &PlanStepHeader, now: u64) -> Result<(), Hold> {
+        const T: &str = "plan step";
+        self.header(T, &m.header, Kind::PlanStep, 0, now)?;
+        let invalid = |what: String| Hold::Invalid { topic: T, what };
+        if m.finger_count as usize > MAX_FINGERS {
+            return Err(invalid(format!("finger count {}", m.finger_count)));
+        }
+        if m.phase > PlanPhase::Done as u32 {
+            return Err(invalid(format!("phase {}", m.phase)));
+        }
+        if !finite(&[m.rotation, m.quality]) {
+            return Err(invalid("rotation or quality (not finite)".into()));
+        }
+        for t in &m.targets[..m.finger_count as usize] {
+            if t.joint_count as usize > MAX_JOINTS {
+                return Err(invalid(format!(
+                    "joint count {} of finger {}",
+                    t.joint_count, t.finger
+                )));
+            }
+            if !finite(&t.joints[..t.joint_count as usize]) || !finite(&t.point) {
+                return Err(invalid(format!(
+                    "target of finger {} (not finite)",
+                    t.finger
+                )));
+            }
+        }
+        self.last[0] = m.header.sequence;
+        self.plan = Some(*m);
+        Ok(())
+    }
+
+    /// Offers a grasp state; accepted if valid.
+    pub fn offer_grasp(&mut self, m: &GraspState, now: u64) -> Result<(), Hold> {
+        const T: &str = "grasp state";
+        self.header(T, &m.header, Kind::GraspState, 1, now)?;
+        let invalid = |what: String| Hold::Invalid { topic: T, what };
+        if m.finger_count as usize > MAX_FINGERS {
+            return Err(invalid(format!("finger count {}", m.finger_count)));
+        }
+        if !finite(&m.position) || !finite(&m.orientation) || !finite(&[m.rotation, m.residual]) {
+            return Err(invalid("object pose (not finite)".into()));
+        }
+        for f in &m.fingers[..m.finger_count as usize] {
+            if !finite(&f.point) || !finite(&f.normal) || !f.residual.is_finite() {
+                return Err(invalid(format!(
+                    "contact of finger {} (not finite)",
+                    f.finger
+                )));
+            }
+        }
+        self.last[1] = m.header.sequence;
+        self.grasp = Some(*m);
+        Ok(())
+    }
+
+    /// Offers a wrench-space summary; accepted if valid (force closure and quality are judged
+    /// by [`Gate::decide`], so that a bad grasp holds the hand rather than being ignored).
+    pub fn offer_wrench(&mut self, m: &WrenchSpaceHeader, now: u64) -> Result<(), Hold> {
+        const T: &str = "wrench space";
+        self.header(T, &m.header, Kind::WrenchSpace, 2, now)?;
+        if !finite(&[m.quality, m.epsilon, m.alpha]) {
+            return Err(Hold::Invalid {
+                topic: T,
+                what: "quality (not finite)".into(),
+            });
+        }
+        self.last[2] = m.header.sequence;
+        self.wrench = Some(*m);
+        Ok(())
+    }
+
+    /// Whether a command may be computed now: every input accepted, still fresh, and the
+    /// grasp force closure with quality >= alpha. Returns the plan step to follow.
+    pub fn decide(&self, now: u64) -> Result<&PlanStepHeader, Hold> {
+        let plan = self.plan.as_ref().ok_or(Hold::Missing("plan step"))?;
+        let grasp = self.grasp.as_ref().ok_or(Hold::Missing("grasp state"))?;
+        let wrench = self.wrench.as_ref().ok_or(Hold::Missing("wrench space"))?;
+        for (topic, h) in [
+            ("plan step", &plan.header),
+            ("grasp state", &grasp.header),
+            ("wrench space", &wrench.header),
+        ] {
+            let age = now.saturating_sub(h.source_time_ns);
+            if age > self.max_age_ns {
+                return Err(Hold::Stale {
+                    topic,
+                    age_ms: age as f64 * 1e-6,
+                    limit_ms: self.max_age_ns as f64 * 1e-6,
+                });
+            }
+        }
+        if wrench.force_closure != 1 {
+            return Err(Hold::NotForceClosure);
+        }
+        if wrench.quality < self.alpha * (1.0 - 1e-9) {
+            return Err(Hold::BelowMargin {
+                quality: wrench.quality,
+                alpha: self.alpha,
+            });
+        }
+        Ok(plan)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use icrflow_interfaces::{SCHEMA_VERSION, now_ns};
+
+    fn inputs(seq: u64) -> (PlanStepHeader, GraspState, WrenchSpaceHeader) {
+        let plan = PlanStepHeader {
+            header: Header::new(Kind::PlanStep, seq, 0, 0),
+            phase: PlanPhase::Rolling as u32,
+            finger_count: 1,
+            ..Default::default()
+        };
+        let grasp = GraspState {
+            header: Header::new(Kind::GraspState, seq, 0, 0),
+            orientation: [1.0, 0.0, 0.0, 0.0],
+            finger_count: 1,
+            ..Default::default()
+        };
+        let wrench = WrenchSpaceHeader {
+            header: Header::new(Kind::WrenchSpace, seq, 0, 0),
+            force_closure: 1,
+            dim: 3,
+            quality: 0.2,
+            epsilon: 0.1,
+            alpha: 0.1,
+        };
+        (plan, grasp, wrench)
+    }
+
+    const AGE: u64 = 200_000_000;
+
+    #[test]
+    fn good_inputs_are_followed() {
+        let mut g = Gate::new(AGE, 0.1);
+        let (p, s, w) = inputs(1);
+        assert_eq!(g.decide(now_ns()), Err(Hold::Missing("plan step")));
+        g.offer_plan(&p, now_ns()).unwrap();
+        g.offer_grasp(&s, now_ns()).unwrap();
+        g.offer_wrench(&w, now_ns()).unwrap();
+        assert!(g.decide(now_ns()).is_ok());
+    }
+
+    #[test]
+    fn every_kind_of_bad_input_holds_with_its_reason() {
+        let now = now_ns();
+        let mut g = Gate::new(AGE, 0.1);
+        let (p, s, w) = inputs(5);
+        g.offer_plan(&p, now).unwrap();
+        g.offer_grasp(&s, now).unwrap();
+        g.offer_wrench(&w, now).unwrap();
+        // Out of order and repeated.
+        let (old, _, _) = inputs(4);
+        assert!(matches!(
+            g.offer_plan(&old, now),
+            Err(Hold::Header {
+                error: HeaderError::OutOfOrder { .. },
+                ..
+            })
+        ));
+        // Another schema version.
+        let (mut v2, _, _) = inputs(6);
+        v2.header.schema = SCHEMA_VERSION + 1;
+        assert!(matches!(
+            g.offer_plan(&v2, now),
+            Err(Hold::Header {
+                error: HeaderError::Schema { .. },
+                ..
+            })
+        ));
+        // NaN in a target.
+        let (mut nan, _, _) = inputs(7);
+        nan.targets[0].joint_count = 3;
+        nan.targets[0].joints[1] = f64::NAN;
+        assert!(matches!(g.offer_plan(&nan, now), Err(Hold::Invalid { .. })));
+        // NaN in the object pose.
+        let (_, mut bad, _) = inputs(8);
+        bad.position[0] = f64::INFINITY;
+        assert!(matches!(
+            g.offer_grasp(&bad, now),
+            Err(Hold::Invalid { .. })
+        ));
+        // Stale on arrival.
+        let (_, _, mut late) = inputs(9);
+        late.header.source_time_ns = now - 2 * AGE;
+        assert!(matches!(
+            g.offer_wrench(&late, now),
+            Err(Hold::Header {
+                error: HeaderError::Stale { .. },
+                ..
+            })
+        ));
+        // The refused messages changed nothing: still following the good inputs.
+        assert!(g.decide(now).is_ok());
+        // Quality below alpha, then not force closure.
+        let (_, _, mut low) = inputs(10);
+        low.quality = 0.05;
+        g.offer_wrench(&low, now).unwrap();
+        assert!(matches!(g.decide(now), Err(Hold::BelowMargin { .. })));
+        let (_, _, mut open) = inputs(11);
+        open.force_closure = 0;
+        g.offer_wrench(&open, now).unwrap();
+        assert_eq!(g.decide(now), Err(Hold::NotForceClosure));
+        // Inputs that stop coming go stale: a crashed planner holds the hand.
+        let (_, _, w) = inputs(12);
+        g.offer_wrench(&w, now).unwrap();
+        assert!(g.decide(now).is_ok());
+        assert!(matches!(g.decide(now + 2 * AGE), Err(Hold::Stale { .. })));
+    }
+}
