@@ -58,7 +58,7 @@ pub fn balance(
     if n == 0 {
         return Err(ForceError::Input("no contacts".into()));
     }
-    if !(mu.is_finite() && mu >= 0.0) || !(min_normal.is_finite() && min_normal >= 0.0) {
+    if !(mu.is_finite() && mu >= 0.0 && min_normal.is_finite() && min_normal >= 0.0) {
         return Err(ForceError::Input(format!(
             "friction {mu} and minimum normal force {min_normal} must be finite and >= 0"
         )));
