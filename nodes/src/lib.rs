@@ -9,3 +9,4 @@
 
 pub mod bus;
 pub mod safety;
+pub mod supervise;
