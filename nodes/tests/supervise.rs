@@ -95,13 +95,14 @@ fn a_killed_node_is_restarted_and_shutdown_escalates_to_sigkill() {
     let new_pid = s.pid("steady").unwrap();
     assert_ne!(new_pid, pid);
     // SIGTERM stops `steady`; `stubborn` ignores it and is killed after the grace period.
+    let stubborn = s.pid("stubborn").unwrap();
     let started = Instant::now();
     let killed = s.shutdown(Duration::from_millis(300));
     assert_eq!(killed, vec!["stubborn".to_string()]);
     assert!(started.elapsed() >= Duration::from_millis(300));
     assert!(s.pid("steady").is_none() && s.pid("stubborn").is_none());
-    // Both processes are gone.
-    for p in [new_pid] {
+    // Both processes are gone (reaped, so not even zombies).
+    for p in [new_pid, stubborn] {
         assert!(!std::path::Path::new(&format!("/proc/{p}")).exists());
     }
 }
