@@ -25,6 +25,13 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Check CONFIG and every file it names (mesh, URDF), build the object and the hand, and
+    /// check the initial grasp (force closure, quality >= alpha, every finger reaching its
+    /// contact). Exit status 1 with the first problem named; nothing is started or written.
+    Validate {
+        /// Config file (TOML; see config/README.md).
+        config: PathBuf,
+    },
     /// Plan the in-hand rolling scenario in CONFIG offline: roll within the ICRs, switch
     /// fingers at their limits, until the object has turned by plan.rotation_deg. Writes
     /// trajectory.csv and trajectory.json and prints a summary. Exit status 2: the planner

@@ -14,6 +14,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
         cli::Command::Plan { config, out, json } => plan::run(&config, out, json),
+        cli::Command::Validate { config } => plan::validate(&config).map(|()| 0),
     };
     match result {
         Ok(code) => ExitCode::from(code),

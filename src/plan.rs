@@ -111,6 +111,43 @@ impl Setup {
     }
 }
 
+/// `icrflow validate CONFIG`: everything `plan` and `run` check before starting.
+pub fn validate(path: &Path) -> Result<()> {
+    let config = Config::load(path)?;
+    let setup = Setup::new(&config)?;
+    let (contacts, quality) = setup.scenario(&config).start().context("cannot start")?;
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "config     {} is valid", path.display())?;
+    writeln!(
+        o,
+        "object     {} ({} facets, {} candidates in the hand's plane)",
+        config.object.describe(),
+        setup.object.facets.len(),
+        setup.problem.candidates().points.len()
+    )?;
+    for w in &setup.object.warnings {
+        writeln!(o, "warning    {w}")?;
+    }
+    writeln!(
+        o,
+        "hand       {} fingers ({})",
+        setup.hand.fingers.len(),
+        match &config.hand {
+            crate::config::HandSpec::Paper => "the paper's hand".to_string(),
+            crate::config::HandSpec::Links { .. } => "link lengths".to_string(),
+            crate::config::HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
+        }
+    )?;
+    writeln!(
+        o,
+        "grasp      {} contacts (fingers {:?}), force closure, alpha* = {quality:.6} >= alpha = {}",
+        contacts.len(),
+        contacts.iter().map(|c| c.finger).collect::<Vec<_>>(),
+        config.grasp.alpha
+    )?;
+    Ok(())
+}
+
 /// Runs the verb; returns the process exit code.
 pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
     let config = Config::load(path)?;

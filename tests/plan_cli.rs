@@ -217,3 +217,39 @@ fn bad_scenarios_fail_naming_the_finger_and_write_nothing() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn validate_accepts_the_shipped_scenarios_and_names_the_first_problem() {
+    for config in ["config/paper_sphere.toml", "config/ellipsoid_spatial.toml"] {
+        let o = icrflow(&["validate", config]);
+        assert!(
+            o.status.success(),
+            "{config}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stdout).contains("is valid"));
+    }
+    let o = icrflow(&["validate", "config/paper_sphere_mu003.toml"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not force closure"));
+    let dir = scratch("validate");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    for (name, text, needle) in [
+        ("key", good.replace("step_deg", "stepdeg"), "stepdeg"),
+        (
+            "urdf",
+            format!(
+                "{good}\n[hand]\nurdf = \"missing.urdf\"\n[[hand.fingers]]\nfinger = 1\ntip_link = \"x\"\n"
+            ),
+            "hand.urdf",
+        ),
+    ] {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let o = icrflow(&["validate", path.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{name}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{name}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
