@@ -11,7 +11,7 @@ use icrflow_grasp::quality::{Closure, GraspProblem};
 use icrflow_grasp::wrench::{Space, WrenchFrame};
 use serde::Serialize;
 
-use crate::config::{Config, ContactSpec};
+use icrflow_scenario::{Config, ContactSpec};
 
 /// The JSON report (and the data behind the text one).
 #[derive(Debug, Serialize)]

@@ -2,7 +2,6 @@
 
 mod analyze;
 mod cli;
-mod config;
 mod plan;
 
 use std::process::ExitCode;

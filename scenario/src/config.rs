@@ -2,8 +2,6 @@
 //! ([`raw`]), then this validated, typed config, whose [`Config::load`] is the only way in.
 //! Every error names the offending key. The keys are documented in `config/README.md`.
 
-mod raw;
-
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -16,7 +14,7 @@ use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::planner::Settings;
 use icrflow_plan::urdf::UrdfFinger;
 
-use raw::{RawConfig, RawContact, RawHand, RawObject, RawPlan};
+use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPlan};
 
 /// Default number of friction-cone edges.
 pub const DEFAULT_CONE_EDGES: usize = 8;
@@ -698,7 +696,7 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
     /// kinematics (the paper hand, whose URDF is `config/hands/paper_hand.urdf`).
     #[test]
     fn toml_and_urdf_hands_agree() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
         let mut links = String::from("[hand]\nfingertip_radius = 0.025\n");
         let mut urdf = String::from("[hand]\nurdf = \"hands/paper_hand.urdf\"\n");
         for (f, angle) in [(1, 45.0_f64), (2, -45.0), (3, -135.0), (4, 135.0)] {
