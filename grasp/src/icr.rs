@@ -19,7 +19,7 @@
 
 use std::collections::VecDeque;
 
-use crate::hull::{Hull, dot};
+use crate::hull::Hull;
 use crate::math::Real;
 use crate::quality::{Evaluation, GraspProblem};
 use crate::support::SupportScratch;
@@ -76,6 +76,82 @@ struct Zone {
     edge: usize,
     /// Facets whose half-spaces `H_f+` intersect to the zone.
     facets: Vec<u32>,
+    /// Their normals in blocks of [`LANES`] facets, coordinate-major within a block
+    /// (`normals[(block * dim + k) * LANES + lane]`), so that a wrench is tested against
+    /// several facets at once; the last block is padded with zero normals.
+    normals: Vec<Real>,
+    /// Their sure limits (`Limits::sure`) in the same blocks, padded with `-inf`.
+    sure: Vec<Real>,
+}
+
+/// Facets tested together.
+const LANES: usize = 4;
+
+impl Zone {
+    fn new(edge: usize, facets: &[u32], hull: &Hull, sure: &[Real]) -> Self {
+        let d = hull.dim();
+        let blocks = facets.len().div_ceil(LANES);
+        let mut normals = vec![0.0; blocks * d * LANES];
+        let mut limits = vec![Real::NEG_INFINITY; blocks * LANES];
+        for (t, &f) in facets.iter().enumerate() {
+            let (block, lane) = (t / LANES, t % LANES);
+            for (k, &x) in hull.normal(f as usize).iter().enumerate() {
+                normals[(block * d + k) * LANES + lane] = x;
+            }
+            limits[t] = sure[f as usize];
+        }
+        Self {
+            edge,
+            facets: facets.to_vec(),
+            normals,
+            sure: limits,
+        }
+    }
+
+    /// Whether `w` is in the zone: `a_f . w >= alpha h_f - tol` for each of its facets, by
+    /// the sure limit where it suffices, else by `limits`. Stops at the first failure.
+    fn holds(&self, w: &[Real], problem: &GraspProblem, hull: &Hull, limits: &mut Limits) -> bool {
+        let d = w.len();
+        for (block, (normals, sure)) in self
+            .normals
+            .chunks_exact(d * LANES)
+            .zip(self.sure.chunks_exact(LANES))
+            .enumerate()
+        {
+            let v = lane_dots(normals, w);
+            for lane in 0..LANES {
+                if v[lane] >= sure[lane] {
+                    continue;
+                }
+                let f = self.facets[block * LANES + lane] as usize;
+                if !limits.passes(problem, f, hull.normal(f), v[lane]) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
+/// `a_l . w` for the [`LANES`] normals of a block (coordinate-major), each rounded exactly as
+/// [`crate::hull::dot`] rounds it (same products, same order of the sums).
+#[inline(always)]
+fn lane_dots(normals: &[Real], w: &[Real]) -> [Real; LANES] {
+    let p = |k: usize| -> [Real; LANES] {
+        let a = &normals[k * LANES..(k + 1) * LANES];
+        std::array::from_fn(|l| a[l] * w[k])
+    };
+    match w.len() {
+        6 => {
+            let (p0, p1, p2, p3, p4, p5) = (p(0), p(1), p(2), p(3), p(4), p(5));
+            std::array::from_fn(|l| (p0[l] + p1[l]) + (p2[l] + p3[l]) + (p4[l] + p5[l]))
+        }
+        3 => {
+            let (p0, p1, p2) = (p(0), p(1), p(2));
+            std::array::from_fn(|l| p0[l] + p1[l] + p2[l])
+        }
+        d => std::array::from_fn(|l| (0..d).map(|k| normals[k * LANES + l] * w[k]).sum::<Real>()),
+    }
 }
 
 impl GraspProblem {
@@ -110,7 +186,8 @@ impl GraspProblem {
         }
         // Membership: a_f . w >= alpha h_f - tol. The exact OWS support h_f is computed only
         // for the facets where it matters: alpha* <= b_f / h_f gives h_f <= b_f / alpha*, so a
-        // wrench with a_f . w >= alpha b_f / alpha* - tol passes without it.
+        // wrench with a_f . w >= alpha b_f / alpha* - tol passes without it; elsewhere the
+        // support is computed only as far as the test needs (`Limits::passes`).
         let mut limits = Limits {
             sure: hull
                 .offsets()
@@ -118,6 +195,7 @@ impl GraspProblem {
                 .map(|b| alpha * (b / eval.quality) - eval.tolerance)
                 .collect(),
             exact: vec![Real::NAN; hull.facet_count()],
+            upper: vec![Real::INFINITY; hull.facet_count()],
             alpha,
             tolerance: eval.tolerance,
             scratch: SupportScratch::default(),
@@ -130,10 +208,7 @@ impl GraspProblem {
                 .iter()
                 .enumerate()
                 .filter(|(_, f)| !f.is_empty())
-                .map(|(edge, facets)| Zone {
-                    edge,
-                    facets: facets.clone(),
-                })
+                .map(|(edge, facets)| Zone::new(edge, facets, hull, &limits.sure))
                 .collect();
             let mut members = Vec::new();
             let mut queue = VecDeque::from([contact]);
@@ -168,40 +243,86 @@ impl GraspProblem {
         let d = self.dim();
         let wrenches = self.candidate_wrenches(q);
         let s = wrenches.len() / d;
-        let mut inside = |j: usize, facets: &[u32]| {
-            let w = &wrenches[j * d..(j + 1) * d];
-            facets.iter().all(|&f| {
-                let f = f as usize;
-                let a = hull.normal(f);
-                let v = dot(a, w);
-                v >= limits.sure[f] || v >= limits.exact(self, f, a)
-            })
-        };
-        zones.iter().all(|z| {
-            inside(z.edge, &z.facets) || (0..s).any(|j| j != z.edge && inside(j, &z.facets))
-        })
+        let mut inside =
+            |j: usize, z: &Zone| z.holds(&wrenches[j * d..(j + 1) * d], self, hull, limits);
+        zones
+            .iter()
+            .all(|z| inside(z.edge, z) || (0..s).any(|j| j != z.edge && inside(j, z)))
     }
 }
 
-/// Membership limits per facet: a sufficient one from alpha*, the exact one on demand.
+/// Membership limits per facet: a sufficient one from alpha*, and the exact test
+/// `a_f . w >= alpha h_f - tol` decided with as little of the OWS support as it needs.
 struct Limits {
     /// `alpha b_f / alpha* - tol >= alpha h_f - tol`.
     sure: Vec<Real>,
-    /// `alpha h_f - tol`, NaN until computed.
+    /// `alpha h_f - tol`, NaN until the exact support `h_f` is computed.
     exact: Vec<Real>,
+    /// A proven upper bound on `h_f` (`+inf` until one is known).
+    upper: Vec<Real>,
     alpha: Real,
     tolerance: Real,
     scratch: SupportScratch,
 }
 
 impl Limits {
-    fn exact(&mut self, problem: &GraspProblem, f: usize, a: &[Real]) -> Real {
-        if self.exact[f].is_nan() {
-            let h = problem.support_tree().support_warm(a, &mut self.scratch);
-            self.exact[f] = self.alpha * h - self.tolerance;
+    /// Whether `v >= alpha h_f - tol` (with exactly that floating-point evaluation).
+    ///
+    /// The test is monotone in `h_f`: it holds exactly when `h_f <= t`, `t` the largest double
+    /// that passes. So `h_f` is only needed up to the answer: a bound `h_f <= t` proven by a
+    /// pruned tree search (cheap when `h_f` is well below `t`) settles a pass, and a point
+    /// above `t` makes the search continue to the exact `h_f`, kept for later tests.
+    fn passes(&mut self, problem: &GraspProblem, f: usize, a: &[Real], v: Real) -> bool {
+        if !self.exact[f].is_nan() {
+            return v >= self.exact[f];
         }
-        self.exact[f]
+        let (alpha, tol) = (self.alpha, self.tolerance);
+        let pass = |h: Real| alpha * h - tol <= v;
+        let Some(t) = largest_passing(pass, (v + tol) / alpha) else {
+            let h = problem.support_tree().support_warm(a, &mut self.scratch);
+            self.exact[f] = alpha * h - tol;
+            return v >= self.exact[f];
+        };
+        if t >= self.upper[f] {
+            return true;
+        }
+        match problem
+            .support_tree()
+            .support_above(a, t, &mut self.scratch.stack)
+        {
+            None => {
+                self.upper[f] = t;
+                true
+            }
+            Some(h) => {
+                self.exact[f] = alpha * h - tol;
+                v >= self.exact[f]
+            }
+        }
     }
+}
+
+/// The largest finite double `t` with `pass(t)`, searched from the estimate `t0` by steps of
+/// one ulp, for a monotone (non-increasing in `t`) test; `None` when the estimate is not
+/// within a few ulps (or not finite), and the caller decides by the exact value instead.
+fn largest_passing(pass: impl Fn(Real) -> bool, t0: Real) -> Option<Real> {
+    if !t0.is_finite() {
+        return None;
+    }
+    let mut t = t0;
+    for _ in 0..8 {
+        if pass(t) {
+            let up = t.next_up();
+            if up.is_finite() && pass(up) {
+                t = up;
+            } else {
+                return Some(t);
+            }
+        } else {
+            t = t.next_down();
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -236,6 +357,22 @@ mod tests {
             }
         }
         assert!(worst >= alpha - 1e-9, "worst pick has quality {worst}");
+    }
+
+    #[test]
+    fn largest_passing_finds_the_boundary_double() {
+        let (alpha, tol, v) = (0.3, 1e-12, 0.123456789);
+        let pass = |h: Real| alpha * h - tol <= v;
+        for t0 in [(v + tol) / alpha, ((v + tol) / alpha).next_up().next_up()] {
+            let t = largest_passing(pass, t0).unwrap();
+            assert!(pass(t) && !pass(t.next_up()));
+        }
+        assert_eq!(largest_passing(pass, Real::INFINITY), None);
+        assert_eq!(
+            largest_passing(pass, 1.0),
+            None,
+            "too far from the boundary"
+        );
     }
 
     #[test]

@@ -50,7 +50,7 @@ const WARM: usize = 16;
 /// Scratch space for support queries: the search stack and the warm-start points.
 #[derive(Debug, Clone, Default)]
 pub struct SupportScratch {
-    stack: Vec<(Real, u32)>,
+    pub(crate) stack: Vec<(Real, u32)>,
     warm: Vec<u32>,
 }
 
@@ -166,6 +166,21 @@ impl SupportTree {
     /// The exact support `max_k a . o_k` of direction `a`.
     pub fn support(&self, a: &[Real], stack: &mut Vec<(Real, u32)>) -> Real {
         self.search(a, Real::NEG_INFINITY, stack).0
+    }
+
+    /// The exact support of direction `a` if it exceeds `threshold`, `None` if no point's
+    /// `a . o_k` does (a decision that prunes every node whose bound is at most `threshold`,
+    /// so it is cheap when the support is well below it).
+    pub fn support_above(
+        &self,
+        a: &[Real],
+        threshold: Real,
+        stack: &mut Vec<(Real, u32)>,
+    ) -> Option<Real> {
+        match self.search(a, threshold, stack) {
+            (h, Some(_)) => Some(h),
+            (_, None) => None,
+        }
     }
 
     /// The exact support of every row-major direction in `dirs`, into `out`, with warm starts
@@ -446,6 +461,21 @@ mod tests {
             for a in points(50, dim, 11).chunks_exact(dim) {
                 assert_eq!(tree.support(a, &mut stack), brute(&pts, dim, a));
             }
+        }
+    }
+
+    #[test]
+    fn support_above_decides_and_is_exact_above() {
+        let dim = 6;
+        let pts = points(3000, dim, 19);
+        let tree = SupportTree::new(&pts, dim, |_| &[]);
+        let mut stack = Vec::new();
+        for a in points(50, dim, 23).chunks_exact(dim) {
+            let h = brute(&pts, dim, a);
+            assert_eq!(tree.support_above(a, h, &mut stack), None);
+            assert_eq!(tree.support_above(a, h + 0.1, &mut stack), None);
+            assert_eq!(tree.support_above(a, h.next_down(), &mut stack), Some(h));
+            assert_eq!(tree.support_above(a, h - 0.1, &mut stack), Some(h));
         }
     }
 

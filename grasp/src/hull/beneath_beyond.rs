@@ -112,6 +112,20 @@ pub fn hull(
     ),
     String,
 > {
+    let (normals, offsets, facet_offsets, facet_indices) = hull_compressed(points, dim)?;
+    let lists = facet_offsets
+        .windows(2)
+        .map(|w| facet_indices[w[0] as usize..w[1] as usize].to_vec())
+        .collect();
+    Ok((normals, offsets, lists))
+}
+
+/// Normals (`F x dim`), offsets, and the facet lists in compressed form: the list of facet
+/// `f` is `indices[offsets[f]..offsets[f + 1]]`, ascending.
+pub(crate) type Compressed = (Vec<f64>, Vec<f64>, Vec<u32>, Vec<u32>);
+
+/// [`hull`] with the facet lists in compressed form.
+pub(crate) fn hull_compressed(points: &[f64], dim: usize) -> Result<Compressed, String> {
     if !(2..=8).contains(&dim) {
         return Err(format!("dimension {dim} is not in 2..=8"));
     }
@@ -138,12 +152,10 @@ pub fn hull(
     }
 }
 
-type Output = (Vec<f64>, Vec<f64>, Vec<Vec<u32>>);
-
 /// Normals, offsets and the set of input points on each facet.
 type Facets<S> = (Vec<f64>, Vec<f64>, Vec<S>);
 
-fn by_dim<S: Set>(points: &[f64], dim: usize) -> Result<Output, String> {
+fn by_dim<S: Set>(points: &[f64], dim: usize) -> Result<Compressed, String> {
     let (normals, offsets, sets) = match dim {
         2 => Builder::<2, S>::run(points),
         3 => Builder::<3, S>::run(points),
@@ -154,15 +166,15 @@ fn by_dim<S: Set>(points: &[f64], dim: usize) -> Result<Output, String> {
         8 => Builder::<8, S>::run(points),
         _ => Err(format!("dimension {dim} is not in 2..=8")),
     }?;
-    let lists = sets
-        .into_iter()
-        .map(|set| {
-            let mut list = Vec::with_capacity(set.count() as usize);
-            list.extend(Members(set).map(|i| i as u32));
-            list
-        })
-        .collect();
-    Ok((normals, offsets, lists))
+    let total: u32 = sets.iter().map(|s| s.count()).sum();
+    let mut facet_offsets = Vec::with_capacity(sets.len() + 1);
+    let mut facet_indices = Vec::with_capacity(total as usize);
+    facet_offsets.push(0);
+    for set in sets {
+        facet_indices.extend(Members(set).map(|i| i as u32));
+        facet_offsets.push(facet_indices.len() as u32);
+    }
+    Ok((normals, offsets, facet_offsets, facet_indices))
 }
 
 /// A set of point indices as a bit set.

@@ -89,8 +89,14 @@ impl Hull {
     /// Qhull for the inputs it declines.
     pub fn new(points: &[Real], dim: usize) -> Result<Self, HullError> {
         check(points, dim)?;
-        match beneath_beyond::hull(points, dim) {
-            Ok((normals, offsets, facets)) => Ok(Self::from_parts(dim, normals, offsets, facets)),
+        match beneath_beyond::hull_compressed(points, dim) {
+            Ok((normals, offsets, facet_offsets, facet_indices)) => Ok(Self::from_compressed(
+                dim,
+                normals,
+                offsets,
+                facet_offsets,
+                facet_indices,
+            )),
             Err(_) => qhull::hull(points, dim),
         }
     }
@@ -172,26 +178,39 @@ impl Hull {
             facet_indices.extend_from_slice(&f);
             facet_offsets.push(facet_indices.len() as u32);
         }
+        Self::from_compressed(dim, normals, offsets, facet_offsets, facet_indices)
+    }
+
+    /// The hull from its facets, with ascending facet lists in compressed form (the list of
+    /// facet `f` is `facet_indices[facet_offsets[f]..facet_offsets[f + 1]]`).
+    fn from_compressed(
+        dim: usize,
+        normals: Vec<Real>,
+        offsets: Vec<Real>,
+        facet_offsets: Vec<u32>,
+        facet_indices: Vec<u32>,
+    ) -> Self {
         // A point on facets is a vertex (an extreme point) when the normals of its facets span
         // the space: its normal cone is full-dimensional. This leaves out points that lie on
         // the boundary without being extreme (inside a facet, on an edge between two vertices).
+        // Greedy Gram-Schmidt per point over its facets in ascending order, stopping at a
+        // basis; a normal counts when its residual exceeds 1e-10.
         let count = facet_indices
             .iter()
             .map(|&i| i as usize + 1)
             .max()
             .unwrap_or(0);
-        let vertices = incident_facets(&facet_offsets, &facet_indices, count)
+        let mut bases = vec![Basis::default(); count];
+        for (f, a) in normals.chunks_exact(dim).enumerate() {
+            let range = facet_offsets[f] as usize..facet_offsets[f + 1] as usize;
+            for &i in &facet_indices[range] {
+                bases[i as usize].add(a, dim);
+            }
+        }
+        let vertices = bases
             .iter()
             .enumerate()
-            .filter(|(_, facets)| {
-                facets.len() >= dim
-                    && spans(
-                        dim,
-                        facets
-                            .iter()
-                            .map(|&f| &normals[f as usize * dim..(f as usize + 1) * dim]),
-                    )
-            })
+            .filter(|(_, b)| b.rank == dim)
             .map(|(i, _)| i as u32)
             .collect();
         Self {
@@ -205,15 +224,24 @@ impl Hull {
     }
 }
 
-/// Whether the unit vectors span R^dim (`dim` <= 8): greedy Gram-Schmidt in fixed arrays,
-/// stopping as soon as a basis is found, a vector counting when its residual exceeds 1e-10.
-fn spans<'a>(dim: usize, vectors: impl Iterator<Item = &'a [Real]>) -> bool {
-    let mut basis = [[0.0; 8]; 8];
-    let mut rank = 0;
-    for v in vectors {
+/// An orthonormal basis (up to 8 dimensions) grown by greedy Gram-Schmidt.
+#[derive(Clone, Copy, Default)]
+struct Basis {
+    vectors: [[Real; 8]; 8],
+    rank: usize,
+}
+
+impl Basis {
+    /// Adds the unit vector `v` (`dim` <= 8 coordinates) when its residual after projection
+    /// exceeds 1e-10; nothing once the basis spans R^dim.
+    #[inline]
+    fn add(&mut self, v: &[Real], dim: usize) {
+        if self.rank == dim {
+            return;
+        }
         let mut r = [0.0; 8];
         r[..dim].copy_from_slice(&v[..dim]);
-        for e in &basis[..rank] {
+        for e in &self.vectors[..self.rank] {
             let c = dot(&r[..dim], &e[..dim]);
             for k in 0..dim {
                 r[k] -= c * e[k];
@@ -221,16 +249,12 @@ fn spans<'a>(dim: usize, vectors: impl Iterator<Item = &'a [Real]>) -> bool {
         }
         let norm = dot(&r[..dim], &r[..dim]).sqrt();
         if norm > 1e-10 {
-            for k in 0..dim {
-                basis[rank][k] = r[k] / norm;
+            for (b, x) in self.vectors[self.rank][..dim].iter_mut().zip(&r) {
+                *b = x / norm;
             }
-            rank += 1;
-            if rank == dim {
-                return true;
-            }
+            self.rank += 1;
         }
     }
-    false
 }
 
 /// For each input point, the facets whose lists hold it.
@@ -302,31 +326,34 @@ pub fn affine_rank(points: &[Real], dim: usize) -> usize {
         return 0;
     }
     let tol = 1e-10 * scale;
-    let mut basis: Vec<Vec<Real>> = Vec::with_capacity(dim);
+    let mut rank = 0;
+    let mut e = vec![0.0; dim];
     // Greedy: repeatedly add the point whose residual after projection is largest.
-    let mut residuals: Vec<Vec<Real>> = points
+    let mut residuals: Vec<Real> = points
         .chunks_exact(dim)
-        .map(|p| p.iter().zip(origin).map(|(x, o)| x - o).collect())
+        .flat_map(|p| p.iter().zip(origin).map(|(x, o)| x - o))
         .collect();
-    while basis.len() < dim {
+    while rank < dim {
         let (best, norm) = residuals
-            .iter()
+            .chunks_exact(dim)
             .enumerate()
             .map(|(i, r)| (i, dot(r, r).sqrt()))
             .fold((0, 0.0), |acc, x| if x.1 > acc.1 { x } else { acc });
         if norm <= tol {
             break;
         }
-        let e: Vec<Real> = residuals[best].iter().map(|x| x / norm).collect();
-        for r in &mut residuals {
+        for (ek, x) in e.iter_mut().zip(&residuals[best * dim..(best + 1) * dim]) {
+            *ek = x / norm;
+        }
+        for r in residuals.chunks_exact_mut(dim) {
             let c = dot(r, &e);
             for (ri, ei) in r.iter_mut().zip(&e) {
                 *ri -= c * ei;
             }
         }
-        basis.push(e);
+        rank += 1;
     }
-    basis.len()
+    rank
 }
 
 #[cfg(test)]
