@@ -25,6 +25,19 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Run the pipeline on CONFIG: every node its own process on a private iceoryx2 bus,
+    /// supervised, closed loop on the simulated hand, until the goal rotation (or Ctrl-C with
+    /// --live); prints a summary. Exit status 2: the goal was not reached.
+    Run {
+        /// Config file (TOML; see config/README.md).
+        config: PathBuf,
+        /// Keep running after the goal, until Ctrl-C.
+        #[arg(long)]
+        live: bool,
+        /// Also write the summary as JSON to this file.
+        #[arg(long)]
+        summary_json: Option<PathBuf>,
+    },
     /// Check CONFIG and every file it names (mesh, URDF), build the object and the hand, and
     /// check the initial grasp (force closure, quality >= alpha, every finger reaching its
     /// contact). Exit status 1 with the first problem named; nothing is started or written.

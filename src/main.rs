@@ -3,6 +3,7 @@
 mod analyze;
 mod cli;
 mod plan;
+mod run;
 
 use std::process::ExitCode;
 
@@ -14,6 +15,11 @@ fn main() -> ExitCode {
         cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
         cli::Command::Plan { config, out, json } => plan::run(&config, out, json),
         cli::Command::Validate { config } => plan::validate(&config).map(|()| 0),
+        cli::Command::Run {
+            config,
+            live,
+            summary_json,
+        } => run::run(&config, live, summary_json),
     };
     match result {
         Ok(code) => ExitCode::from(code),

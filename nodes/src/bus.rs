@@ -169,6 +169,26 @@ pub struct Pub<T: Debug + ZeroCopySend + 'static> {
     topic: String,
 }
 
+/// A publisher of a fixed user header plus a dynamic slice (for large payloads).
+pub struct SlicePub<
+    H: Debug + ZeroCopySend + Default + 'static,
+    T: Debug + ZeroCopySend + Copy + 'static,
+> {
+    publisher: Publisher<ipc::Service, [T], H>,
+    notifier: Notifier<ipc::Service>,
+    topic: String,
+}
+
+/// A subscriber of a user header plus a dynamic slice.
+pub struct SliceSub<
+    H: Debug + ZeroCopySend + Copy + 'static,
+    T: Debug + ZeroCopySend + Copy + 'static,
+> {
+    subscriber: Subscriber<ipc::Service, [T], H>,
+    listener: Listener<ipc::Service>,
+    topic: String,
+}
+
 /// A subscriber with the listener a WaitSet waits on.
 pub struct Sub<T: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<ipc::Service, T, ()>,
@@ -261,7 +281,7 @@ impl Bus {
             .publish_subscribe::<T>()
             .history_size(1)
             .subscriber_max_buffer_size(BUFFER)
-            .max_publishers(4)
+            .max_publishers(16)
             .max_subscribers(16)
             .max_nodes(32)
             .open_or_create()
@@ -287,6 +307,89 @@ impl Bus {
         Ok(Pub {
             publisher,
             notifier,
+            topic: full,
+        })
+    }
+
+    fn slice_service<H: Debug + ZeroCopySend + 'static, T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [T], H>,
+        BusError,
+    > {
+        let name: ServiceName = topic
+            .try_into()
+            .map_err(|e| topic_error(topic, "bad name", e))?;
+        let expected = format!(
+            "{} + [{}]",
+            icrflow_interfaces::type_name::<H>(),
+            icrflow_interfaces::type_name::<T>()
+        );
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<[T]>()
+            .user_header::<H>()
+            .history_size(1)
+            .subscriber_max_buffer_size(BUFFER)
+            .max_publishers(16)
+            .max_subscribers(16)
+            .max_nodes(32)
+            .open_or_create()
+            .map_err(|e| open_error(topic, &expected, e))
+    }
+
+    /// A publisher of header `H` plus up to `max_len` items `T` (more are refused) on `topic`.
+    pub fn slice_publisher<
+        H: Debug + ZeroCopySend + Default + 'static,
+        T: Debug + ZeroCopySend + Copy + 'static,
+    >(
+        &self,
+        topic: &str,
+        max_len: usize,
+    ) -> Result<SlicePub<H, T>, BusError> {
+        let full = self.config.service(topic);
+        let publisher = self
+            .slice_service::<H, T>(&full)?
+            .publisher_builder()
+            .initial_max_slice_len(max_len.max(1))
+            .create()
+            .map_err(|e| topic_error(&full, "publisher", e))?;
+        let notifier = self
+            .event(&full)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| topic_error(&full, "notifier", e))?;
+        Ok(SlicePub {
+            publisher,
+            notifier,
+            topic: full,
+        })
+    }
+
+    /// A subscriber of header `H` plus items `T` on `topic`.
+    pub fn slice_subscriber<
+        H: Debug + ZeroCopySend + Copy + 'static,
+        T: Debug + ZeroCopySend + Copy + 'static,
+    >(
+        &self,
+        topic: &str,
+    ) -> Result<SliceSub<H, T>, BusError> {
+        let full = self.config.service(topic);
+        let subscriber = self
+            .slice_service::<H, T>(&full)?
+            .subscriber_builder()
+            .buffer_size(BUFFER)
+            .create()
+            .map_err(|e| topic_error(&full, "subscriber", e))?;
+        let listener = self
+            .event(&full)?
+            .listener_builder()
+            .create()
+            .map_err(|e| topic_error(&full, "listener", e))?;
+        Ok(SliceSub {
+            subscriber,
+            listener,
             topic: full,
         })
     }
@@ -373,5 +476,54 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
     /// The service name.
     pub fn topic(&self) -> &str {
         &self.topic
+    }
+}
+
+impl<H: Debug + ZeroCopySend + Default + 'static, T: Debug + ZeroCopySend + Copy + 'static>
+    SlicePub<H, T>
+{
+    /// Sends `header` and a copy of `items` in one loaned sample and wakes the subscribers.
+    pub fn send(&self, header: H, items: &[T]) -> Result<usize, BusError> {
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(items.len())
+            .map_err(|e| topic_error(&self.topic, "loan", e))?;
+        *sample.user_header_mut() = header;
+        let receivers = sample
+            .write_from_slice(items)
+            .send()
+            .map_err(|e| topic_error(&self.topic, "send", e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| topic_error(&self.topic, "notify", e))?;
+        Ok(receivers)
+    }
+}
+
+impl<H: Debug + ZeroCopySend + Copy + 'static, T: Debug + ZeroCopySend + Copy + 'static>
+    SliceSub<H, T>
+{
+    /// The listener to attach to a WaitSet.
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// The newest queued message, if any: its header, with its items copied into `items`
+    /// (cleared first; its capacity is reused). Consumes wake-ups and older messages.
+    pub fn latest(&self, items: &mut Vec<T>) -> Result<Option<H>, BusError> {
+        self.listener
+            .try_wait(|_| {})
+            .map_err(|e| topic_error(&self.topic, "listener", e))?;
+        let mut header = None;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| topic_error(&self.topic, "receive", e))?
+        {
+            header = Some(*sample.user_header());
+            items.clear();
+            items.extend_from_slice(sample.payload());
+        }
+        Ok(header)
     }
 }

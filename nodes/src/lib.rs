@@ -8,5 +8,12 @@
 #![warn(missing_docs)]
 
 pub mod bus;
+pub mod command;
+pub mod estimator;
+pub mod planner;
+pub mod plant;
+pub mod rolling;
+pub mod runtime;
 pub mod safety;
 pub mod supervise;
+pub mod wrench;

@@ -14,7 +14,7 @@ use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::planner::Settings;
 use icrflow_plan::urdf::UrdfFinger;
 
-use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPlan};
+use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan};
 
 /// Default number of friction-cone edges.
 pub const DEFAULT_CONE_EDGES: usize = 8;
@@ -247,6 +247,33 @@ pub struct Config {
     pub hand: HandSpec,
     /// Planner settings (alpha from `[grasp]`).
     pub plan: Settings,
+    /// Pipeline settings.
+    pub pipeline: PipelineSpec,
+}
+
+/// The validated `[pipeline]` section: rates, noise and limits of `icrflow run`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineSpec {
+    /// Rig name: the topics are `icrflow/<rig>/<topic>`.
+    pub rig: String,
+    /// The plant's and the loop's rate (Hz).
+    pub rate_hz: Real,
+    /// The plant's joint speed limit (rad/s).
+    pub joint_speed: Real,
+    /// Standard deviation of the joint encoders' noise (rad).
+    pub joint_noise: Real,
+    /// Rate of the object-pose measurements (Hz).
+    pub pose_rate_hz: Real,
+    /// Standard deviation of their rotation noise (rad).
+    pub pose_noise: Real,
+    /// Their latency (s).
+    pub pose_latency: Real,
+    /// Oldest input the hand command node acts on (s).
+    pub max_input_age: Real,
+    /// Smallest fingertip normal force commanded (N).
+    pub min_normal_force: Real,
+    /// Seed of the simulated noise.
+    pub seed: u64,
 }
 
 impl Config {
@@ -268,12 +295,14 @@ impl Config {
             Some(h) => hand_spec(h, base)?,
         };
         let plan = plan_spec(raw.plan, grasp.alpha)?;
+        let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         Ok(Self {
             path: path.to_path_buf(),
             object: object_spec(raw.object, base)?,
             grasp,
             hand,
             plan,
+            pipeline,
         })
     }
 }
@@ -588,6 +617,44 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
             })
         }
     }
+}
+
+fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
+    let rig = raw.rig.unwrap_or_else(|| "sim".into());
+    if rig.is_empty()
+        || rig.len() > 48
+        || !rig
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+    {
+        bail!("pipeline.rig: use 1 to 48 letters, digits, '_' or '-', got {rig:?}");
+    }
+    let nonneg = |key: &str, v: Option<Real>, default: Real| -> Result<Real> {
+        let x = v.unwrap_or(default);
+        if !x.is_finite() || x < 0.0 {
+            bail!("{key}: must be a finite number >= 0, got {x}");
+        }
+        Ok(x)
+    };
+    Ok(PipelineSpec {
+        rig,
+        rate_hz: positive("pipeline.rate_hz", raw.rate_hz.unwrap_or(500.0))?,
+        joint_speed: positive(
+            "pipeline.joint_speed_deg_s",
+            raw.joint_speed_deg_s.unwrap_or(360.0),
+        )?
+        .to_radians(),
+        joint_noise: nonneg("pipeline.joint_noise_deg", raw.joint_noise_deg, 0.02)?.to_radians(),
+        pose_rate_hz: positive("pipeline.pose_rate_hz", raw.pose_rate_hz.unwrap_or(30.0))?,
+        pose_noise: nonneg("pipeline.pose_noise_deg", raw.pose_noise_deg, 0.2)?.to_radians(),
+        pose_latency: nonneg("pipeline.pose_latency_ms", raw.pose_latency_ms, 30.0)? * 1e-3,
+        max_input_age: positive(
+            "pipeline.max_input_age_ms",
+            raw.max_input_age_ms.unwrap_or(200.0),
+        )? * 1e-3,
+        min_normal_force: nonneg("pipeline.min_normal_force", raw.min_normal_force, 1.0)?,
+        seed: raw.seed.unwrap_or(1),
+    })
 }
 
 /// Planner defaults.

@@ -12,6 +12,23 @@ pub struct RawConfig {
     pub grasp: RawGrasp,
     pub hand: Option<RawHand>,
     pub plan: Option<RawPlan>,
+    pub pipeline: Option<RawPipeline>,
+}
+
+/// `[pipeline]`: the processes of `icrflow run`.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RawPipeline {
+    pub rig: Option<String>,
+    pub rate_hz: Option<f64>,
+    pub joint_speed_deg_s: Option<f64>,
+    pub joint_noise_deg: Option<f64>,
+    pub pose_rate_hz: Option<f64>,
+    pub pose_noise_deg: Option<f64>,
+    pub pose_latency_ms: Option<f64>,
+    pub max_input_age_ms: Option<f64>,
+    pub min_normal_force: Option<f64>,
+    pub seed: Option<u64>,
 }
 
 /// `[object]`: the shape is chosen by `shape`.

@@ -1,0 +1,230 @@
+//! The ICR planner node (`icrflow-planner`): plans the scenario (the same deterministic
+//! algorithm as `icrflow plan`: rolling within ICRs, finger switching) and leads the hand
+//! through it step by step, closed loop: a step is published as the target until the
+//! estimated grasp has reached it (the object's rotation within [`ROTATION_TOLERANCE`] of the
+//! target, and the same fingers in contact), then the next. Each published step carries its
+//! grasp's ICRs. After the last step it publishes `Done`. Restarted after a crash, it plans
+//! again and resumes at the first step not yet reached by the estimated state.
+
+use std::time::Duration;
+
+use anyhow::{Context as _, Result};
+use iceoryx2::prelude::*;
+use icrflow_interfaces::{
+    FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, NodeState, PlanPhase,
+    PlanStepHeader, topics,
+};
+use icrflow_plan::planner::{Phase, Step};
+
+use crate::runtime::{Context, Health, Sequence};
+
+/// How close the estimated rotation must come to a step's target (rad).
+pub const ROTATION_TOLERANCE: f64 = 0.3 * std::f64::consts::PI / 180.0;
+/// Period of re-publishing the current target, so that it never goes stale (s).
+pub const REPUBLISH: f64 = 0.02;
+/// Largest object rotation between two published targets of a rolling step (rad): the step is
+/// cut into sub-targets whose fingertip poses are interpolated along the rolling motion (centre
+/// and cap angle) and solved by inverse kinematics, so that the hand follows the planned
+/// rolling rather than a straight line in joint space that would lift the fingertips.
+pub const SUBSTEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
+/// The plan's steps cut into sub-targets (see [`SUBSTEP`]); attach and detach steps stay whole.
+fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
+    let mut out = Vec::with_capacity(steps.len() * 12);
+    for (k, step) in steps.iter().enumerate() {
+        if k == 0 || step.phase != Phase::Rolling {
+            out.push(step.clone());
+            continue;
+        }
+        let prev = &steps[k - 1];
+        let turn = (step.rotation_deg - prev.rotation_deg).to_radians();
+        let n = (turn.abs() / SUBSTEP).ceil().max(1.0) as usize;
+        let mut near: Vec<Vec<f64>> = prev
+            .fingers
+            .iter()
+            .map(|f| f.joints_deg.iter().map(|d| d.to_radians()).collect())
+            .collect();
+        for i in 1..=n {
+            let s = i as f64 / n as f64;
+            let mut t = step.clone();
+            t.rotation_deg = prev.rotation_deg + s * (step.rotation_deg - prev.rotation_deg);
+            if i < n {
+                for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
+                    let (Some(_), Some(_), Some(f)) = (a.contact, b.contact, hand.finger(a.finger))
+                    else {
+                        continue;
+                    };
+                    let qa: Vec<f64> = a.joints_deg.iter().map(|d| d.to_radians()).collect();
+                    let qb: Vec<f64> = b.joints_deg.iter().map(|d| d.to_radians()).collect();
+                    let (Some((xa, ya, pa)), Some((xb, yb, pb))) =
+                        (f.planar_pose(&qa), f.planar_pose(&qb))
+                    else {
+                        continue;
+                    };
+                    let phi = pa + s * icrflow_plan::hand::wrap(pb - pa);
+                    if let Ok(q) =
+                        f.ik_planar(xa + s * (xb - xa), ya + s * (yb - ya), phi, &near[slot])
+                    {
+                        t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+                        near[slot] = q;
+                    }
+                }
+            }
+            out.push(t);
+        }
+    }
+    out
+}
+
+fn phase(p: Phase) -> PlanPhase {
+    match p {
+        Phase::Start => PlanPhase::Start,
+        Phase::Rolling => PlanPhase::Rolling,
+        Phase::Attach => PlanPhase::Attach,
+        Phase::Detach => PlanPhase::Detach,
+    }
+}
+
+fn fingers_in_contact(step: &Step) -> Vec<u32> {
+    step.fingers
+        .iter()
+        .filter(|f| f.contact.is_some())
+        .map(|f| f.finger)
+        .collect()
+}
+
+fn reached(step: &Step, g: &GraspState) -> bool {
+    let touching: Vec<u32> = g
+        .fingers
+        .iter()
+        .take(g.finger_count as usize)
+        .filter(|f| f.in_contact == 1)
+        .map(|f| f.finger)
+        .collect();
+    (g.rotation - step.rotation_deg.to_radians()).abs() <= ROTATION_TOLERANCE
+        && touching == fingers_in_contact(step)
+}
+
+/// Runs the planner node.
+pub fn run(ctx: &Context) -> Result<()> {
+    let scenario = ctx.setup.scenario(&ctx.config);
+    let plan = scenario.plan(&mut |_| {}).context("planning")?;
+    let steps = &targets(&plan.steps, &ctx.setup.hand);
+    let problem = &ctx.setup.problem;
+    let alpha = ctx.config.grasp.alpha;
+    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
+    let out = ctx
+        .bus
+        .slice_publisher::<PlanStepHeader, u32>(topics::PLAN_STEP, 4096)?;
+    let mut health = Health::new(ctx)?;
+    let mut seq = Sequence::default();
+    let mut last_grasp = 0;
+    let mut last_input = (0, 0);
+    // Where to start: the first step the estimated state has not reached (a restart resumes).
+    let mut current: Option<usize> = None;
+    let mut regions: Vec<u32> = Vec::with_capacity(4096);
+
+    let publish =
+        |k: usize, input: (u64, u64), regions: &mut Vec<u32>, seq: &mut Sequence| -> Result<()> {
+            let done = k >= steps.len();
+            let step = &steps[k.min(steps.len() - 1)];
+            let mut h = PlanStepHeader {
+                header: Header::new(Kind::PlanStep, seq.advance(), input.0, input.1),
+                phase: if done {
+                    PlanPhase::Done as u32
+                } else {
+                    phase(step.phase) as u32
+                },
+                finger_count: step.fingers.len().min(MAX_FINGERS) as u32,
+                step: step.step as u64,
+                rotation: step.rotation_deg.to_radians(),
+                quality: step.quality,
+                ..Default::default()
+            };
+            regions.clear();
+            let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
+            let icrs = problem
+                .evaluate(&contacts)
+                .ok()
+                .and_then(|e| problem.icrs(&contacts, &e, alpha).ok());
+            let mut region = 0;
+            for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
+                let t = &mut h.targets[slot];
+                *t = FingerTarget {
+                    finger: f.finger,
+                    in_contact: u32::from(f.contact.is_some()),
+                    candidate: f.contact.unwrap_or(0) as u32,
+                    joint_count: f.joints_deg.len().min(MAX_JOINTS) as u32,
+                    point: f.point.unwrap_or([0.0; 3]),
+                    cap_angle: f.cap_angle_deg.unwrap_or(0.0).to_radians(),
+                    joints: [0.0; MAX_JOINTS],
+                };
+                for (j, d) in f.joints_deg.iter().enumerate().take(MAX_JOINTS) {
+                    t.joints[j] = d.to_radians();
+                }
+                if f.contact.is_some() {
+                    if let Some(r) = icrs.as_ref().and_then(|r| r.get(region)) {
+                        h.region_lengths[slot] = r.members.len() as u32;
+                        regions.extend_from_slice(&r.members);
+                    }
+                    region += 1;
+                }
+            }
+            out.send(h, regions)?;
+            Ok(())
+        };
+
+    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
+    let wake = ws.attach_notification(grasps.listener())?;
+    let tick = ws.attach_interval(Duration::from_secs_f64(REPUBLISH))?;
+    let mut failure = None;
+    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+        let mut step = || -> Result<()> {
+            if id.has_event_from(&wake)
+                && let Some(g) = grasps.latest()?
+            {
+                if let Err(e) = g.header.check(Kind::GraspState) {
+                    health.refuse(format!("grasp state: {e}"));
+                } else if g.header.sequence <= last_grasp || !g.rotation.is_finite() {
+                    health.refuse("grasp state out of order or not finite");
+                } else {
+                    last_grasp = g.header.sequence;
+                    last_input = (g.header.sequence, g.header.origin_time_ns);
+                    health.processed += 1;
+                    let k = match current {
+                        Some(k) => k,
+                        None => {
+                            // First state seen: resume at the latest step it has reached.
+                            let k = (0..steps.len())
+                                .rev()
+                                .find(|&k| reached(&steps[k], &g))
+                                .unwrap_or(0);
+                            current = Some(k);
+                            k
+                        }
+                    };
+                    if k < steps.len() && reached(&steps[k], &g) {
+                        current = Some(k + 1);
+                        publish(k + 1, last_input, &mut regions, &mut seq)?;
+                    }
+                }
+            }
+            if id.has_event_from(&tick) {
+                if let Some(k) = current {
+                    publish(k, last_input, &mut regions, &mut seq)?;
+                }
+                health.report(NodeState::Running)?;
+            }
+            Ok(())
+        };
+        match step() {
+            Ok(()) => CallbackProgression::Continue,
+            Err(e) => {
+                failure = Some(e);
+                CallbackProgression::Stop
+            }
+        }
+    };
+    ws.wait_and_process(&mut on_event)?;
+    failure.map_or(Ok(()), Err)
+}

@@ -1,0 +1,183 @@
+//! The simulated hand and object (`icrflow-plant`): applies hand commands quasi-statically and
+//! publishes noisy joint encoders at the loop rate and noisy, delayed object-pose
+//! measurements at a lower rate.
+//!
+//! Each tick (`pipeline.rate_hz`): the joints move toward the last tracked command at most
+//! `pipeline.joint_speed_deg_s`; a held command keeps them still. The fingers commanded with
+//! a force that touch the object before and after the move roll it ([`crate::rolling`]): the
+//! object's rotation is the mean of what each implies. Encoders get Gaussian noise
+//! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
+//! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use anyhow::{Context as _, Result};
+use iceoryx2::prelude::*;
+use icrflow_interfaces::{
+    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, NodeState,
+    ObjectPose, topics,
+};
+
+use crate::rolling::{rotation, tip, touches};
+use crate::runtime::{Context, Health, Noise, Sequence, now};
+
+/// Distance within which a pressing fingertip comes into contact (m).
+const TOUCH: f64 = 5e-4;
+
+/// Runs the plant.
+pub fn run(ctx: &Context) -> Result<()> {
+    let p = &ctx.config.pipeline;
+    let hand = &ctx.setup.hand;
+    let r_o = ctx.setup.object.max_radius();
+    // The true state starts in the initial grasp, as the planner computes it.
+    let (contacts, _) = ctx
+        .setup
+        .scenario(&ctx.config)
+        .start()
+        .context("the initial grasp")?;
+    let mut q: Vec<Vec<f64>> = hand
+        .fingers
+        .iter()
+        .map(|f| {
+            contacts
+                .iter()
+                .find(|c| c.finger == f.id)
+                .map_or_else(|| f.home.clone(), |c| c.q.clone())
+        })
+        .collect();
+    // In contact: pressed on the object (a force is commanded) since it touched it. A finger
+    // in contact rolls the object; it leaves contact when no force is commanded.
+    let mut contact: Vec<bool> = hand
+        .fingers
+        .iter()
+        .map(|f| contacts.iter().any(|c| c.finger == f.id))
+        .collect();
+    let mut theta = 0.0;
+    let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
+    let mut noise = Noise::new(p.seed);
+    let mut target: Option<HandCommand> = None;
+    let joints = ctx.bus.publisher::<JointState>(topics::JOINT_STATE)?;
+    let poses = ctx.bus.publisher::<ObjectPose>(topics::OBJECT_POSE)?;
+    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+    let mut health = Health::new(ctx)?;
+    let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
+    let dt = 1.0 / p.rate_hz;
+    let max_step = p.joint_speed * dt;
+    let pose_every = (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64;
+    let latency_ns = (p.pose_latency * 1e9) as u64;
+
+    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
+    let tick = ws.attach_interval(Duration::from_secs_f64(dt))?;
+    let wake = ws.attach_notification(commands.listener())?;
+    let mut ticks: u64 = 0;
+    let mut failure: Option<anyhow::Error> = None;
+    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+        let mut step = || -> Result<()> {
+            if id.has_event_from(&wake)
+                && let Some(c) = commands.latest()?
+            {
+                {
+                    health.processed += 1;
+                    if c.header.check(Kind::HandCommand).is_err() {
+                        health.refuse("hand command of another schema or kind");
+                    } else if c.mode == CommandMode::Track as u32 {
+                        target = Some(c);
+                    } else {
+                        // Hold: stay where we are.
+                        target = None;
+                    }
+                }
+            }
+            if !id.has_event_from(&tick) {
+                return Ok(());
+            }
+            ticks += 1;
+            // Move the joints; roll the object with the fingers that press on it.
+            let mut turn = 0.0;
+            let mut rolling = 0;
+            for (slot, f) in hand.fingers.iter().enumerate() {
+                let before = tip(f, &q[slot]);
+                if let Some(c) = &target {
+                    let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id)
+                    else {
+                        continue;
+                    };
+                    let mut arrived = true;
+                    for (j, a) in q[slot].iter_mut().enumerate() {
+                        let goal =
+                            c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
+                        *a += (goal - *a).clamp(-max_step, max_step);
+                        arrived &= (goal - *a).abs() < 1e-9;
+                    }
+                    let pressing = c.forces[k].iter().any(|x| *x != 0.0);
+                    let after = tip(f, &q[slot]);
+                    if contact[slot] && pressing {
+                        turn += rotation(&before, &after, f, r_o);
+                        rolling += 1;
+                    }
+                    // A pressing finger comes into contact where its motion ends on the surface.
+                    contact[slot] =
+                        pressing && (contact[slot] || (arrived && touches(&after, f, r_o, TOUCH)));
+                }
+            }
+            if rolling > 0 {
+                theta += turn / rolling as f64;
+            }
+            let t = now();
+            history.push_back((t, theta));
+            while history.len() > 4000 {
+                history.pop_front();
+            }
+            // Encoders.
+            let seq = joint_seq.advance();
+            let mut m = JointState {
+                header: Header::new(Kind::JointState, seq, 0, t),
+                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+                ..Default::default()
+            };
+            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+                m.finger_ids[slot] = f.id;
+                m.joint_counts[slot] = f.dof().min(MAX_JOINTS) as u32;
+                for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
+                    m.positions[slot][j] = a + noise.gauss(p.joint_noise);
+                }
+            }
+            joints.send(m)?;
+            // Pose measurement of the scene `latency` ago.
+            if ticks.is_multiple_of(pose_every) {
+                let captured = t.saturating_sub(latency_ns);
+                let past = history
+                    .iter()
+                    .rev()
+                    .find(|(when, _)| *when <= captured)
+                    .or(history.front())
+                    .map_or(theta, |(_, th)| *th);
+                let measured = past + noise.gauss(p.pose_noise);
+                let half = 0.5 * measured;
+                poses.send(ObjectPose {
+                    header: Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured),
+                    captured_time_ns: captured,
+                    position: [0.0; 3],
+                    orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                })?;
+            }
+            if ticks.is_multiple_of(50) {
+                health.report(NodeState::Running)?;
+            }
+            Ok(())
+        };
+        match step() {
+            Ok(()) => CallbackProgression::Continue,
+            Err(e) => {
+                failure = Some(e);
+                CallbackProgression::Stop
+            }
+        }
+    };
+    ws.wait_and_process(&mut on_event)?;
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}

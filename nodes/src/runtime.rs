@@ -1,0 +1,161 @@
+//! What every node process shares: argument parsing, the run's config and bus, health
+//! reports, sequence numbers, simulated noise.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context as _, Result, bail};
+use iceoryx2::prelude::{LogLevel, set_log_level};
+use icrflow_interfaces::{Header, Kind, NodeHealth, NodeState, now_ns, topics, write_text};
+use icrflow_scenario::{Config, Setup};
+
+use crate::bus::{Bus, BusConfig, Pub};
+
+/// A node's context: its config, what the config builds, and its bus connection.
+pub struct Context {
+    /// Node name.
+    pub name: &'static str,
+    /// The run's config.
+    pub config: Config,
+    /// Object, grasp problem, hand, initial contacts.
+    pub setup: Setup,
+    /// The bus.
+    pub bus: Bus,
+}
+
+/// Runs node `name`: reads `--config PATH` from the arguments and the bus settings from the
+/// environment, builds the context and calls `body`; errors are printed with the node's
+/// name and give exit status 1.
+pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
+    set_log_level(LogLevel::Warn);
+    let result = (|| -> Result<()> {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        let config = match args.as_slice() {
+            [flag, path] if flag == "--config" => PathBuf::from(path),
+            _ => bail!("usage: icrflow-{name} --config CONFIG (started by `icrflow run`)"),
+        };
+        let config = Config::load(&config)?;
+        let setup = Setup::new(&config)?;
+        let bus = Bus::new(name, &BusConfig::from_env()?)?;
+        body(&Context {
+            name,
+            config,
+            setup,
+            bus,
+        })
+    })();
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("icrflow-{name}: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Sequence numbers of one publisher, from 1.
+#[derive(Debug, Default)]
+pub struct Sequence(u64);
+
+impl Sequence {
+    /// The next number.
+    pub fn advance(&mut self) -> u64 {
+        self.0 += 1;
+        self.0
+    }
+}
+
+/// A node's health reports.
+pub struct Health {
+    publisher: Pub<NodeHealth>,
+    sequence: Sequence,
+    name: &'static str,
+    /// Messages processed.
+    pub processed: u64,
+    /// Messages refused.
+    pub refused: u64,
+    /// The last problem.
+    pub last_problem: String,
+}
+
+impl Health {
+    /// Health reports of the context's node.
+    pub fn new(ctx: &Context) -> Result<Self> {
+        Ok(Self {
+            publisher: ctx.bus.publisher(topics::NODE_HEALTH)?,
+            sequence: Sequence::default(),
+            name: ctx.name,
+            processed: 0,
+            refused: 0,
+            last_problem: String::new(),
+        })
+    }
+
+    /// Counts a refused input and remembers why.
+    pub fn refuse(&mut self, why: impl std::fmt::Display) {
+        self.refused += 1;
+        self.last_problem = why.to_string();
+    }
+
+    /// Publishes a report.
+    pub fn report(&mut self, state: NodeState) -> Result<()> {
+        let mut h = NodeHealth {
+            header: Header::new(Kind::NodeHealth, self.sequence.advance(), 0, 0),
+            state: state as u32,
+            pid: std::process::id(),
+            processed: self.processed,
+            refused: self.refused,
+            ..Default::default()
+        };
+        write_text(&mut h.node, self.name);
+        write_text(&mut h.message, &self.last_problem);
+        self.publisher
+            .send(h)
+            .context("publishing health")
+            .map(|_| ())
+    }
+}
+
+/// Nanoseconds as seconds.
+pub fn seconds(ns: u64) -> f64 {
+    ns as f64 * 1e-9
+}
+
+/// The time now ([`now_ns`]).
+pub fn now() -> u64 {
+    now_ns()
+}
+
+/// A small deterministic random generator (SplitMix64) with Gaussian samples, for the
+/// simulated sensor noise.
+#[derive(Debug, Clone)]
+pub struct Noise(u64);
+
+impl Noise {
+    /// A generator from `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self(seed ^ 0x5DEE_CE66_D1CE_4E5B)
+    }
+
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in (0, 1].
+    fn unit(&mut self) -> f64 {
+        ((self.next() >> 11) as f64 + 1.0) / (1u64 << 53) as f64
+    }
+
+    /// A normal sample of standard deviation `sigma` (Box-Muller).
+    pub fn gauss(&mut self, sigma: f64) -> f64 {
+        if sigma == 0.0 {
+            return 0.0;
+        }
+        let (u, v) = (self.unit(), self.unit());
+        sigma * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}

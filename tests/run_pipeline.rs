@@ -1,0 +1,98 @@
+//! `icrflow run` end to end: the real node processes over a private iceoryx2 bus, closed loop
+//! on the simulated hand, compared with the offline plan.
+
+mod common;
+
+use common::{icrflow, root, scratch};
+
+fn json(bytes: &[u8]) -> serde_json::Value {
+    serde_json::from_slice(bytes).expect("one JSON object")
+}
+
+#[test]
+fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
+    let dir = scratch("run");
+    let offline = icrflow(&[
+        "plan",
+        "config/paper_sphere.toml",
+        "--json",
+        "--out",
+        dir.join("plan").to_str().unwrap(),
+    ]);
+    assert!(offline.status.success());
+    let offline = json(&offline.stdout);
+    let summary = dir.join("summary.json");
+    let o = icrflow(&[
+        "run",
+        "config/paper_sphere.toml",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success(),
+        "run failed: {err}\n{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(s["completed"], true, "{s}");
+    // The same total rotation (within the estimator's noise) and the same switches.
+    let rotation = s["rotation_deg"].as_f64().unwrap();
+    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
+    assert_eq!(s["switches"], offline["switches"], "{s}");
+    assert_eq!(
+        s["steps"].as_u64().unwrap() + 1,
+        offline["steps"].as_u64().unwrap(),
+        "every planned step after the start executed"
+    );
+    let alpha = s["alpha"].as_f64().unwrap();
+    assert!(
+        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
+        "{s}"
+    );
+    assert_eq!(s["restarts"], 0);
+    for key in ["grasp_state", "wrench_space", "hand_command"] {
+        let l = &s["latency_us"][key];
+        assert!(l["samples"].as_u64().unwrap() > 0, "{key}: {l}");
+        assert!(l["p50"].as_f64().unwrap() <= l["p99"].as_f64().unwrap());
+    }
+    // Nothing of the run's iceoryx2 bus is left behind.
+    let prefix = s["bus_prefix"].as_str().unwrap().to_string();
+    let left: Vec<String> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(&prefix))
+        .collect();
+    assert!(left.is_empty(), "left in /dev/shm: {left:?}");
+    assert!(!std::path::Path::new(s["bus_root"].as_str().unwrap()).exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn run_refuses_a_bad_config_before_starting_anything() {
+    let dir = scratch("run-bad");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    for (name, text, needle) in [
+        ("key", good.replace("step_deg", "step_degs"), "step_degs"),
+        (
+            "value",
+            good.replace("alpha = 0.1", "alpha = -1.0"),
+            "grasp.alpha",
+        ),
+        (
+            "pipeline",
+            format!("{good}\n[pipeline]\nrate_hz = 0.0\n"),
+            "pipeline.rate_hz",
+        ),
+    ] {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let o = icrflow(&["run", path.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{name}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{name}: {err}");
+        assert!(!err.contains("run: "), "{name}: a node was started: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
