@@ -72,6 +72,10 @@ pub struct RunSummary {
     pub holds: u64,
     /// Hand commands sent.
     pub commands: u64,
+    /// Tracking commands made (their source time) from a joint measurement older than
+    /// `pipeline.max_input_age_ms` plus 10 ms (the command's computation after the node's
+    /// check): should be 0, the hand command node holds instead.
+    pub stale_tracked: u64,
     /// Wall time (s).
     pub seconds: f64,
     /// The run's iceoryx2 prefix (its shared-memory objects are `/dev/shm/<prefix>*`).
@@ -162,7 +166,10 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         let mut attaches = std::collections::BTreeSet::new();
         let mut min_quality = f64::INFINITY;
         let mut rotation = 0.0;
-        let (mut holds, mut sent) = (0u64, 0u64);
+        let (mut holds, mut sent, mut stale_tracked) = (0u64, 0u64, 0u64);
+        // What the hand command node guarantees at publication, plus an allowance for the
+        // delivery to this process.
+        let max_age_ns = (config.pipeline.max_input_age * 1e9) as u64 + 10_000_000;
         let mut done = false;
         let mut reason = String::new();
         let (mut lat_g, mut lat_w, mut lat_c) = (Vec::new(), Vec::new(), Vec::new());
@@ -217,6 +224,10 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                         if tracking {
                             if c.header.origin_time_ns > 0 {
                                 lat_c.push(us(c.header.origin_time_ns));
+                                let made = c.header.source_time_ns;
+                                if made.saturating_sub(c.header.origin_time_ns) > max_age_ns {
+                                    stale_tracked += 1;
+                                }
                             }
                         } else {
                             holds += 1;
@@ -279,6 +290,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             min_quality,
             holds,
             sent,
+            stale_tracked,
             latencies: Latencies {
                 grasp_state: percentiles(&mut lat_g),
                 wrench_space: percentiles(&mut lat_w),
@@ -303,6 +315,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         restarts: supervisor.restarts(),
         holds: stats.holds,
         commands: stats.sent,
+        stale_tracked: stats.stale_tracked,
         seconds: started.elapsed().as_secs_f64(),
         bus_prefix: bus_config.prefix.clone(),
         bus_root: bus_config.root.display().to_string(),
@@ -353,6 +366,7 @@ struct Stats {
     min_quality: f64,
     holds: u64,
     sent: u64,
+    stale_tracked: u64,
     latencies: Latencies,
 }
 

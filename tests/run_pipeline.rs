@@ -3,7 +3,13 @@
 
 mod common;
 
+use std::sync::Mutex;
+
 use common::{icrflow, root, scratch};
+
+/// The pipeline tests run one at a time: each starts a whole pipeline (six processes on this
+/// machine's cores), and the kill test finds its nodes by name.
+static PIPELINE: Mutex<()> = Mutex::new(());
 
 fn json(bytes: &[u8]) -> serde_json::Value {
     serde_json::from_slice(bytes).expect("one JSON object")
@@ -11,6 +17,7 @@ fn json(bytes: &[u8]) -> serde_json::Value {
 
 #[test]
 fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("run");
     let offline = icrflow(&[
         "plan",
@@ -93,6 +100,83 @@ fn run_refuses_a_bad_config_before_starting_anything() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains(needle), "{name}: {err}");
         assert!(!err.contains("run: "), "{name}: a node was started: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The pid of the running process whose command line names `program`.
+fn find(program: &str) -> Option<u32> {
+    std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
+        let pid: u32 = e.file_name().to_string_lossy().parse().ok()?;
+        let cmd = std::fs::read(e.path().join("cmdline")).ok()?;
+        let argv0 = cmd.split(|b| *b == 0).next()?;
+        String::from_utf8_lossy(argv0)
+            .ends_with(&format!("/{program}"))
+            .then_some(pid)
+    })
+}
+
+#[test]
+fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("kill");
+    let mut stale = Vec::new();
+    for node in ["estimator", "wrench", "planner", "command", "plant"] {
+        let summary = dir.join(format!("{node}.json"));
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_icrflow"))
+            .args([
+                "run",
+                "config/paper_sphere.toml",
+                "--summary-json",
+                summary.to_str().unwrap(),
+            ])
+            .current_dir(root())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Let the run get going (a few seconds of its ~15), then kill the node.
+        std::thread::sleep(std::time::Duration::from_secs(4));
+        let program = format!("icrflow-{node}");
+        let pid = find(&program).unwrap_or_else(|| panic!("{program} is not running"));
+        let killed = std::process::Command::new("kill")
+            .args(["-9", &pid.to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let out = run.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{node}: run failed: {err}");
+        assert!(
+            err.contains(&format!("node {node} exited (killed by SIGKILL)")),
+            "{node}: {err}"
+        );
+        let s = json(&std::fs::read(&summary).unwrap());
+        assert_eq!(s["completed"], true, "{node}: {s}");
+        assert!(s["restarts"].as_u64().unwrap() >= 1, "{node}: {s}");
+        assert_eq!(s["switches"], 15, "{node}: {s}");
+        // The hand held while the node was gone (the command node itself: no commands at
+        // all), and never tracked on a stale measurement.
+        if node != "command" {
+            assert!(s["holds"].as_u64().unwrap() > 0, "{node}: {s}");
+        }
+        stale.push((node, s["stale_tracked"].as_u64().unwrap()));
+        let alpha = s["alpha"].as_f64().unwrap();
+        assert!(
+            s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
+            "{node}: {s}"
+        );
+        let prefix = s["bus_prefix"].as_str().unwrap().to_string();
+        let left = std::fs::read_dir("/dev/shm")
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+            .count();
+        assert_eq!(left, 0, "{node}: iceoryx2 resources left behind");
+        assert!(
+            find(&program).is_none(),
+            "{node}: a node process survived the run"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -75,7 +75,8 @@ pub struct Header {
     pub schema: u32,
     /// [`Kind`] as `u32`.
     pub kind: u32,
-    /// Sequence number of this message from its publisher, from 1.
+    /// Sequence number of this message from its publisher: strictly increasing, never 0 (the
+    /// pipeline's nodes start at the time in microseconds, so a restart continues above).
     pub sequence: u64,
     /// When the sender produced it ([`now_ns`]).
     pub source_time_ns: u64,

@@ -44,6 +44,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut facets = Vec::with_capacity(4096);
     let mut last: Option<(HandCommand, u64)> = None;
     let mut last_grasp: Option<GraspState> = None;
+    let mut wrench_origin = 0u64;
     let dt = 1.0 / p.rate_hz;
     let mut contacts = Vec::with_capacity(MAX_FINGERS);
 
@@ -78,8 +79,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                 && let Some(m) = wrenches.latest(&mut facets)?
             {
                 health.processed += 1;
-                if let Err(e) = gate.offer_wrench(&m, t) {
-                    health.refuse(e);
+                match gate.offer_wrench(&m, t) {
+                    Ok(()) => wrench_origin = m.header.origin_time_ns,
+                    Err(e) => health.refuse(e),
                 }
             }
             let event = id.has_event_from(&w_plan)
@@ -128,8 +130,12 @@ pub fn run(ctx: &Context) -> Result<()> {
                                 header: Header::new(
                                     Kind::HandCommand,
                                     seq.advance(),
-                                    plan.header.sequence,
-                                    plan.header.origin_time_ns,
+                                    last_grasp.map_or(0, |g| g.header.sequence),
+                                    // Caused by the newest measurement among the inputs.
+                                    plan.header
+                                        .origin_time_ns
+                                        .max(last_grasp.map_or(0, |g| g.header.origin_time_ns))
+                                        .max(wrench_origin),
                                 ),
                                 mode: CommandMode::Track as u32,
                                 finger_count: plan.finger_count,

@@ -46,7 +46,12 @@ pub fn run(ctx: &Context) -> Result<()> {
     let out = ctx.bus.publisher::<GraspState>(topics::GRASP_STATE)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
-    let mut theta = 0.0;
+    let checkpoint = ctx.bus.config().root.join("estimator.state");
+    let mut theta: f64 = std::fs::read_to_string(&checkpoint)
+        .ok()
+        .and_then(|t| t.trim().parse().ok())
+        .filter(|x: &f64| x.is_finite())
+        .unwrap_or(0.0);
     let mut last_joint_seq = 0;
     let mut last_pose_seq = 0;
     let mut previous: Vec<Option<Tip>> = vec![None; hand.fingers.len()];
@@ -190,6 +195,12 @@ pub fn run(ctx: &Context) -> Result<()> {
                 history.pop_front();
             }
             out.send(g)?;
+            if last_joint_seq.is_multiple_of(10) {
+                let tmp = checkpoint.with_extension("tmp");
+                if std::fs::write(&tmp, format!("{theta:e}")).is_ok() {
+                    let _ = std::fs::rename(&tmp, &checkpoint);
+                }
+            }
             if last_joint_seq.is_multiple_of(50) {
                 health.report(NodeState::Running)?;
             }

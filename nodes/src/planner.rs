@@ -4,7 +4,7 @@
 //! estimated grasp has reached it (the object's rotation within [`ROTATION_TOLERANCE`] of the
 //! target, and the same fingers in contact), then the next. Each published step carries its
 //! grasp's ICRs. After the last step it publishes `Done`. Restarted after a crash, it plans
-//! again and resumes at the first step not yet reached by the estimated state.
+//! again and resumes at the step nearest to the estimated state.
 
 use std::time::Duration;
 
@@ -93,16 +93,18 @@ fn fingers_in_contact(step: &Step) -> Vec<u32> {
         .collect()
 }
 
-fn reached(step: &Step, g: &GraspState) -> bool {
-    let touching: Vec<u32> = g
-        .fingers
+fn touching(g: &GraspState) -> Vec<u32> {
+    g.fingers
         .iter()
         .take(g.finger_count as usize)
         .filter(|f| f.in_contact == 1)
         .map(|f| f.finger)
-        .collect();
+        .collect()
+}
+
+fn reached(step: &Step, g: &GraspState) -> bool {
     (g.rotation - step.rotation_deg.to_radians()).abs() <= ROTATION_TOLERANCE
-        && touching == fingers_in_contact(step)
+        && touching(g) == fingers_in_contact(step)
 }
 
 /// Runs the planner node.
@@ -120,7 +122,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut seq = Sequence::default();
     let mut last_grasp = 0;
     let mut last_input = (0, 0);
-    // Where to start: the first step the estimated state has not reached (a restart resumes).
+    // The step being commanded; chosen from the first grasp state seen (a restart resumes).
     let mut current: Option<usize> = None;
     let mut regions: Vec<u32> = Vec::with_capacity(4096);
 
@@ -194,12 +196,21 @@ pub fn run(ctx: &Context) -> Result<()> {
                     let k = match current {
                         Some(k) => k,
                         None => {
-                            // First state seen: resume at the latest step it has reached.
+                            // First state seen: resume at the step nearest to it (the same
+                            // fingers in contact, the closest rotation; a fresh run is at the
+                            // start), so that a restarted planner never sends the hand back.
+                            let touching = touching(&g);
                             let k = (0..steps.len())
-                                .rev()
-                                .find(|&k| reached(&steps[k], &g))
+                                .filter(|&k| fingers_in_contact(&steps[k]) == touching)
+                                .min_by(|&a, &b| {
+                                    let d = |k: usize| {
+                                        (g.rotation - steps[k].rotation_deg.to_radians()).abs()
+                                    };
+                                    d(a).total_cmp(&d(b)).then(b.cmp(&a))
+                                })
                                 .unwrap_or(0);
                             current = Some(k);
+                            publish(k, last_input, &mut regions, &mut seq)?;
                             k
                         }
                     };

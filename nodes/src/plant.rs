@@ -8,6 +8,11 @@
 //! object's rotation is the mean of what each implies. Encoders get Gaussian noise
 //! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
 //! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
+//! A command older than `pipeline.max_input_age_ms` is not followed: the hand holds still.
+//!
+//! The plant stands for the physical hand and object, whose state outlives any process: it
+//! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
+//! from it instead of from the initial grasp.
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -54,6 +59,27 @@ pub fn run(ctx: &Context) -> Result<()> {
         .map(|f| contacts.iter().any(|c| c.finger == f.id))
         .collect();
     let mut theta = 0.0;
+    let state_file = ctx.bus.config().root.join("plant.state");
+    if let Ok(text) = std::fs::read_to_string(&state_file) {
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .filter_map(|v| v.parse().ok())
+            .collect();
+        let needed = 1 + hand.fingers.len() * 2 + q.iter().map(Vec::len).sum::<usize>();
+        if values.len() == needed {
+            theta = values[0];
+            let mut at = 1;
+            for (slot, joints) in q.iter_mut().enumerate() {
+                contact[slot] = values[at] != 0.0;
+                at += 2;
+                for a in joints.iter_mut() {
+                    *a = values[at];
+                    at += 1;
+                }
+            }
+        }
+    }
+    let max_age_ns = (p.max_input_age * 1e9) as u64;
     let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
     let mut noise = Noise::new(p.seed);
     let mut target: Option<HandCommand> = None;
@@ -93,6 +119,14 @@ pub fn run(ctx: &Context) -> Result<()> {
                 return Ok(());
             }
             ticks += 1;
+            let t = now();
+            if target
+                .as_ref()
+                .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > max_age_ns)
+            {
+                // A stale command is not followed: hold still.
+                target = None;
+            }
             // Move the joints; roll the object with the fingers that press on it.
             let mut turn = 0.0;
             let mut rolling = 0;
@@ -124,7 +158,19 @@ pub fn run(ctx: &Context) -> Result<()> {
             if rolling > 0 {
                 theta += turn / rolling as f64;
             }
-            let t = now();
+            if ticks.is_multiple_of(10) {
+                let mut text = format!("{theta:e}");
+                for (slot, joints) in q.iter().enumerate() {
+                    text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
+                    for a in joints {
+                        text.push_str(&format!(" {a:e}"));
+                    }
+                }
+                let tmp = state_file.with_extension("tmp");
+                if std::fs::write(&tmp, text).is_ok() {
+                    let _ = std::fs::rename(&tmp, &state_file);
+                }
+            }
             history.push_back((t, theta));
             while history.len() > 4000 {
                 history.pop_front();

@@ -53,9 +53,18 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
     }
 }
 
-/// Sequence numbers of one publisher, from 1.
-#[derive(Debug, Default)]
+/// Sequence numbers of one publisher. They start at the current time in microseconds since
+/// the Unix epoch and count up by one, so that a restarted publisher continues above its
+/// previous incarnation (receivers refuse sequences that do not increase), as long as it
+/// publishes below 1 MHz.
+#[derive(Debug)]
 pub struct Sequence(u64);
+
+impl Default for Sequence {
+    fn default() -> Self {
+        Self(now_ns() / 1000)
+    }
+}
 
 impl Sequence {
     /// The next number.

@@ -187,6 +187,16 @@ impl Gate {
                 });
             }
         }
+        // End to end: the joint measurement the grasp state was estimated from must be fresh
+        // too, not only the estimate.
+        let origin = grasp.header.origin_time_ns;
+        if origin > 0 && now.saturating_sub(origin) > self.max_age_ns {
+            return Err(Hold::Stale {
+                topic: "joint measurement behind the grasp state",
+                age_ms: now.saturating_sub(origin) as f64 * 1e-6,
+                limit_ms: self.max_age_ns as f64 * 1e-6,
+            });
+        }
         if wrench.force_closure != 1 {
             return Err(Hold::NotForceClosure);
         }
