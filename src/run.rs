@@ -62,7 +62,7 @@ pub struct RunSummary {
     pub switches: usize,
     /// Plan steps executed (the start excluded: the hand begins in it).
     pub steps: usize,
-    /// Smallest quality alpha* of the grasp in force while the hand tracked (wrench-space node).
+    /// Smallest quality alpha* of the grasp a tracking command was computed with.
     pub min_quality: f64,
     /// The margin.
     pub alpha: f64,
@@ -196,14 +196,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                 }
                 if id.has_event_from(&w_wrench)
                     && let Some(w) = wrenches.latest(&mut facets)?
+                    && w.header.origin_time_ns > 0
                 {
-                    if w.header.origin_time_ns > 0 {
-                        lat_w.push(us(w.header.origin_time_ns));
-                    }
-                    if tracking {
-                        min_quality =
-                            min_quality.min(if w.force_closure == 1 { w.quality } else { 0.0 });
-                    }
+                    lat_w.push(us(w.header.origin_time_ns));
                 }
                 if id.has_event_from(&w_plan)
                     && let Some(p) = plans.latest(&mut regions)?
@@ -222,6 +217,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                         sent += 1;
                         tracking = c.mode == CommandMode::Track as u32;
                         if tracking {
+                            min_quality = min_quality.min(c.quality);
                             if c.header.origin_time_ns > 0 {
                                 lat_c.push(us(c.header.origin_time_ns));
                                 let made = c.header.source_time_ns;

@@ -379,6 +379,9 @@ pub struct HandCommand {
     pub joint_targets: [[f64; MAX_JOINTS]; MAX_FINGERS],
     /// Fingertip force targets in the hand frame (N); zero for a free finger.
     pub forces: [[f64; 3]; MAX_FINGERS],
+    /// Quality alpha* of the grasp (from the wrench space) the command was computed with; 0
+    /// when holding.
+    pub quality: f64,
     /// Why the hand holds (UTF-8, zero-padded; empty when tracking).
     pub reason: [u8; TEXT_BYTES],
 }
@@ -392,6 +395,7 @@ impl Default for HandCommand {
             finger_ids: [0; MAX_FINGERS],
             joint_targets: [[0.0; MAX_JOINTS]; MAX_FINGERS],
             forces: [[0.0; 3]; MAX_FINGERS],
+            quality: 0.0,
             reason: [0; TEXT_BYTES],
         }
     }

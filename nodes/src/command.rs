@@ -139,6 +139,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                                 ),
                                 mode: CommandMode::Track as u32,
                                 finger_count: plan.finger_count,
+                                quality: gate.quality(),
                                 ..Default::default()
                             };
                             let elapsed =
@@ -192,6 +193,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                     let mut c = last.map_or_else(HandCommand::default, |(c, _)| c);
                     c.header = Header::new(Kind::HandCommand, seq.advance(), 0, 0);
                     c.mode = CommandMode::Hold as u32;
+                    c.quality = 0.0;
                     write_text(&mut c.reason, &health.last_problem);
                     c
                 }

@@ -167,6 +167,11 @@ impl Gate {
         Ok(())
     }
 
+    /// The quality alpha* of the last accepted wrench space (0 before any).
+    pub fn quality(&self) -> f64 {
+        self.wrench.as_ref().map_or(0.0, |w| w.quality)
+    }
+
     /// Whether a command may be computed now: every input accepted, still fresh, and the
     /// grasp force closure with quality >= alpha. Returns the plan step to follow.
     pub fn decide(&self, now: u64) -> Result<&PlanStepHeader, Hold> {
