@@ -265,6 +265,22 @@ impl Bus {
             .map_err(|e| topic_error(topic, "event service", e))
     }
 
+    /// The notifier that wakes `topic`'s subscribers.
+    fn notifier(&self, topic: &str) -> Result<Notifier<ipc::Service>, BusError> {
+        self.event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| topic_error(topic, "notifier", e))
+    }
+
+    /// The listener a subscriber of `topic` waits on.
+    fn listener(&self, topic: &str) -> Result<Listener<ipc::Service>, BusError> {
+        self.event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| topic_error(topic, "listener", e))
+    }
+
     fn pubsub<T: Debug + ZeroCopySend + 'static>(
         &self,
         topic: &str,
@@ -299,11 +315,7 @@ impl Bus {
             .publisher_builder()
             .create()
             .map_err(|e| topic_error(&full, "publisher", e))?;
-        let notifier = self
-            .event(&full)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| topic_error(&full, "notifier", e))?;
+        let notifier = self.notifier(&full)?;
         Ok(Pub {
             publisher,
             notifier,
@@ -355,11 +367,7 @@ impl Bus {
             .initial_max_slice_len(max_len.max(1))
             .create()
             .map_err(|e| topic_error(&full, "publisher", e))?;
-        let notifier = self
-            .event(&full)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| topic_error(&full, "notifier", e))?;
+        let notifier = self.notifier(&full)?;
         Ok(SlicePub {
             publisher,
             notifier,
@@ -382,11 +390,7 @@ impl Bus {
             .buffer_size(BUFFER)
             .create()
             .map_err(|e| topic_error(&full, "subscriber", e))?;
-        let listener = self
-            .event(&full)?
-            .listener_builder()
-            .create()
-            .map_err(|e| topic_error(&full, "listener", e))?;
+        let listener = self.listener(&full)?;
         Ok(SliceSub {
             subscriber,
             listener,
@@ -406,11 +410,7 @@ impl Bus {
             .buffer_size(BUFFER)
             .create()
             .map_err(|e| topic_error(&full, "subscriber", e))?;
-        let listener = self
-            .event(&full)?
-            .listener_builder()
-            .create()
-            .map_err(|e| topic_error(&full, "listener", e))?;
+        let listener = self.listener(&full)?;
         Ok(Sub {
             subscriber,
             listener,

@@ -20,7 +20,7 @@ use icrflow_interfaces::{
 use icrflow_plan::hand::wrap;
 
 use crate::rolling::{Tip, rotation, tip, touches};
-use crate::runtime::{Context, Health, Sequence};
+use crate::runtime::{Context, Health, Sequence, serve};
 
 /// Weight of a pose measurement's correction.
 pub const GAIN: f64 = 0.3;
@@ -63,157 +63,145 @@ pub fn run(ctx: &Context) -> Result<()> {
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let wake_j = ws.attach_notification(joints.listener())?;
     let wake_p = ws.attach_notification(poses.listener())?;
-    let mut failure = None;
-    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-        let mut step = || -> Result<()> {
-            if id.has_event_from(&wake_p)
-                && let Some(m) = poses.latest()?
-            {
-                let [w, _, _, z] = m.orientation;
-                let measured = 2.0 * z.atan2(w);
-                if let Err(e) = m.header.check(Kind::ObjectPose) {
-                    health.refuse(format!("object pose: {e}"));
-                } else if m.header.sequence <= last_pose_seq {
-                    health.refuse("object pose out of order");
-                } else if !measured.is_finite() {
-                    health.refuse("object pose not finite");
-                } else {
-                    last_pose_seq = m.header.sequence;
-                    let then = history
-                        .iter()
-                        .rev()
-                        .find(|(t, _)| *t <= m.captured_time_ns)
-                        .or(history.front())
-                        .map_or(theta, |(_, th)| *th);
-                    theta += GAIN * wrap(measured - then);
-                    health.processed += 1;
-                }
-            }
-            if !id.has_event_from(&wake_j) {
-                return Ok(());
-            }
-            let Some(m) = joints.latest()? else {
-                return Ok(());
-            };
-            if let Err(e) = m.header.check(Kind::JointState) {
-                health.refuse(format!("joint state: {e}"));
-                return Ok(());
-            }
-            if m.header.sequence <= last_joint_seq {
-                health.refuse("joint state out of order");
-                return Ok(());
-            }
-            last_joint_seq = m.header.sequence;
-            health.processed += 1;
-            let mut g = GraspState {
-                header: Header::new(
-                    Kind::GraspState,
-                    seq.advance(),
-                    m.header.sequence,
-                    m.header.origin_time_ns,
-                ),
-                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
-                ..Default::default()
-            };
-            let mut turn = 0.0;
-            let mut rolling = 0;
-            let mut residual = 0.0;
-            let mut touching = 0;
-            let mut tips = Vec::with_capacity(hand.fingers.len());
-            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-                let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id)
-                else {
-                    tips.push(None);
-                    continue;
-                };
-                q.clear();
-                q.extend_from_slice(&m.positions[k][..f.dof()]);
-                if q.iter().any(|x| !x.is_finite()) {
-                    health.refuse(format!("finger {}: joint angle not finite", f.id));
-                    return Ok(());
-                }
-                let t = tip(f, &q);
-                let was = contact[slot];
-                streak[slot] = if touches(&t, f, r_o, TOUCH) {
-                    streak[slot].saturating_add(1)
-                } else {
-                    0
-                };
-                let on = if was {
-                    touches(&t, f, r_o, RELEASE)
-                } else {
-                    streak[slot] >= SETTLE
-                };
-                contact[slot] = on;
-                if let Some(before) = previous[slot]
-                    && was
-                    && on
-                    && (t.distance - before.distance).abs() < RADIAL
-                {
-                    turn += rotation(&before, &t, f, r_o);
-                    rolling += 1;
-                }
-                tips.push(Some((t, on)));
-                previous[slot] = Some(t);
-            }
-            if rolling > 0 {
-                theta += turn / rolling as f64;
-            }
-            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-                let c = &mut g.fingers[slot];
-                c.finger = f.id;
-                let Some((t, on)) = tips[slot] else { continue };
-                if !on {
-                    continue;
-                }
-                let body = t.psi - theta;
-                let (index, _) = section.nearest_angle(body).unwrap_or((0, 0.0));
-                let p = section.samples.points[index];
-                let n = section.samples.normals[index];
-                *c = FingerContact {
-                    finger: f.id,
-                    in_contact: 1,
-                    candidate: index as u32,
-                    reserved: 0,
-                    point: [p.x, p.y, p.z],
-                    normal: [n.x, n.y, n.z],
-                    residual: t.distance - (r_o + f.tip_radius),
-                };
-                residual += c.residual * c.residual;
-                touching += 1;
-            }
-            g.rotation = theta;
-            let half = 0.5 * theta;
-            g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
-            g.residual = if touching > 0 {
-                (residual / touching as f64).sqrt()
+    serve(&ws, |id| {
+        if id.has_event_from(&wake_p)
+            && let Some(m) = poses.latest()?
+        {
+            let [w, _, _, z] = m.orientation;
+            let measured = 2.0 * z.atan2(w);
+            if !health.accept(
+                "object pose",
+                &m.header,
+                Kind::ObjectPose,
+                &mut last_pose_seq,
+            ) {
+                // Refused and counted.
+            } else if !measured.is_finite() {
+                health.refuse("object pose not finite");
             } else {
-                0.0
-            };
-            history.push_back((m.header.source_time_ns, theta));
-            while history.len() > 4000 {
-                history.pop_front();
-            }
-            out.send(g)?;
-            if last_joint_seq.is_multiple_of(10) {
-                let tmp = checkpoint.with_extension("tmp");
-                if std::fs::write(&tmp, format!("{theta:e}")).is_ok() {
-                    let _ = std::fs::rename(&tmp, &checkpoint);
-                }
-            }
-            if last_joint_seq.is_multiple_of(50) {
-                health.report(NodeState::Running)?;
-            }
-            Ok(())
-        };
-        match step() {
-            Ok(()) => CallbackProgression::Continue,
-            Err(e) => {
-                failure = Some(e);
-                CallbackProgression::Stop
+                let then = history
+                    .iter()
+                    .rev()
+                    .find(|(t, _)| *t <= m.captured_time_ns)
+                    .or(history.front())
+                    .map_or(theta, |(_, th)| *th);
+                theta += GAIN * wrap(measured - then);
+                health.processed += 1;
             }
         }
-    };
-    ws.wait_and_process(&mut on_event)?;
-    failure.map_or(Ok(()), Err)
+        if !id.has_event_from(&wake_j) {
+            return Ok(());
+        }
+        let Some(m) = joints.latest()? else {
+            return Ok(());
+        };
+        if !health.accept(
+            "joint state",
+            &m.header,
+            Kind::JointState,
+            &mut last_joint_seq,
+        ) {
+            return Ok(());
+        }
+        health.processed += 1;
+        let mut g = GraspState {
+            header: Header::new(
+                Kind::GraspState,
+                seq.advance(),
+                m.header.sequence,
+                m.header.origin_time_ns,
+            ),
+            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+            ..Default::default()
+        };
+        let mut turn = 0.0;
+        let mut rolling = 0;
+        let mut residual = 0.0;
+        let mut touching = 0;
+        let mut tips = Vec::with_capacity(hand.fingers.len());
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id) else {
+                tips.push(None);
+                continue;
+            };
+            q.clear();
+            q.extend_from_slice(&m.positions[k][..f.dof()]);
+            if q.iter().any(|x| !x.is_finite()) {
+                health.refuse(format!("finger {}: joint angle not finite", f.id));
+                return Ok(());
+            }
+            let t = tip(f, &q);
+            let was = contact[slot];
+            streak[slot] = if touches(&t, f, r_o, TOUCH) {
+                streak[slot].saturating_add(1)
+            } else {
+                0
+            };
+            let on = if was {
+                touches(&t, f, r_o, RELEASE)
+            } else {
+                streak[slot] >= SETTLE
+            };
+            contact[slot] = on;
+            if let Some(before) = previous[slot]
+                && was
+                && on
+                && (t.distance - before.distance).abs() < RADIAL
+            {
+                turn += rotation(&before, &t, f, r_o);
+                rolling += 1;
+            }
+            tips.push(Some((t, on)));
+            previous[slot] = Some(t);
+        }
+        if rolling > 0 {
+            theta += turn / rolling as f64;
+        }
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            let c = &mut g.fingers[slot];
+            c.finger = f.id;
+            let Some((t, on)) = tips[slot] else { continue };
+            if !on {
+                continue;
+            }
+            let body = t.psi - theta;
+            let (index, _) = section.nearest_angle(body).unwrap_or((0, 0.0));
+            let p = section.samples.points[index];
+            let n = section.samples.normals[index];
+            *c = FingerContact {
+                finger: f.id,
+                in_contact: 1,
+                candidate: index as u32,
+                reserved: 0,
+                point: [p.x, p.y, p.z],
+                normal: [n.x, n.y, n.z],
+                residual: t.distance - (r_o + f.tip_radius),
+            };
+            residual += c.residual * c.residual;
+            touching += 1;
+        }
+        g.rotation = theta;
+        let half = 0.5 * theta;
+        g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
+        g.residual = if touching > 0 {
+            (residual / touching as f64).sqrt()
+        } else {
+            0.0
+        };
+        history.push_back((m.header.source_time_ns, theta));
+        while history.len() > 4000 {
+            history.pop_front();
+        }
+        out.send(g)?;
+        if last_joint_seq.is_multiple_of(10) {
+            let tmp = checkpoint.with_extension("tmp");
+            if std::fs::write(&tmp, format!("{theta:e}")).is_ok() {
+                let _ = std::fs::rename(&tmp, &checkpoint);
+            }
+        }
+        if last_joint_seq.is_multiple_of(50) {
+            health.report(NodeState::Running)?;
+        }
+        Ok(())
+    })
 }

@@ -16,7 +16,7 @@ use icrflow_interfaces::{
 };
 use icrflow_plan::planner::{Phase, Step};
 
-use crate::runtime::{Context, Health, Sequence};
+use crate::runtime::{Context, Health, Sequence, serve};
 
 /// How close the estimated rotation must come to a step's target (rad).
 pub const ROTATION_TOLERANCE: f64 = 0.3 * std::f64::consts::PI / 180.0;
@@ -179,63 +179,50 @@ pub fn run(ctx: &Context) -> Result<()> {
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let wake = ws.attach_notification(grasps.listener())?;
     let tick = ws.attach_interval(Duration::from_secs_f64(REPUBLISH))?;
-    let mut failure = None;
-    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-        let mut step = || -> Result<()> {
-            if id.has_event_from(&wake)
-                && let Some(g) = grasps.latest()?
-            {
-                if let Err(e) = g.header.check(Kind::GraspState) {
-                    health.refuse(format!("grasp state: {e}"));
-                } else if g.header.sequence <= last_grasp || !g.rotation.is_finite() {
-                    health.refuse("grasp state out of order or not finite");
-                } else {
-                    last_grasp = g.header.sequence;
-                    last_input = (g.header.sequence, g.header.origin_time_ns);
-                    health.processed += 1;
-                    let k = match current {
-                        Some(k) => k,
-                        None => {
-                            // First state seen: resume at the step nearest to it (the same
-                            // fingers in contact, the closest rotation; a fresh run is at the
-                            // start), so that a restarted planner never sends the hand back.
-                            let touching = touching(&g);
-                            let k = (0..steps.len())
-                                .filter(|&k| fingers_in_contact(&steps[k]) == touching)
-                                .min_by(|&a, &b| {
-                                    let d = |k: usize| {
-                                        (g.rotation - steps[k].rotation_deg.to_radians()).abs()
-                                    };
-                                    d(a).total_cmp(&d(b)).then(b.cmp(&a))
-                                })
-                                .unwrap_or(0);
-                            current = Some(k);
-                            publish(k, last_input, &mut regions, &mut seq)?;
-                            k
-                        }
-                    };
-                    if k < steps.len() && reached(&steps[k], &g) {
-                        current = Some(k + 1);
-                        publish(k + 1, last_input, &mut regions, &mut seq)?;
+    serve(&ws, |id| {
+        if id.has_event_from(&wake)
+            && let Some(g) = grasps.latest()?
+        {
+            if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last_grasp) {
+                // Refused and counted.
+            } else if !g.rotation.is_finite() {
+                health.refuse("grasp state not finite");
+            } else {
+                last_input = (g.header.sequence, g.header.origin_time_ns);
+                health.processed += 1;
+                let k = match current {
+                    Some(k) => k,
+                    None => {
+                        // First state seen: resume at the step nearest to it (the same
+                        // fingers in contact, the closest rotation; a fresh run is at the
+                        // start), so that a restarted planner never sends the hand back.
+                        let touching = touching(&g);
+                        let k = (0..steps.len())
+                            .filter(|&k| fingers_in_contact(&steps[k]) == touching)
+                            .min_by(|&a, &b| {
+                                let d = |k: usize| {
+                                    (g.rotation - steps[k].rotation_deg.to_radians()).abs()
+                                };
+                                d(a).total_cmp(&d(b)).then(b.cmp(&a))
+                            })
+                            .unwrap_or(0);
+                        current = Some(k);
+                        publish(k, last_input, &mut regions, &mut seq)?;
+                        k
                     }
+                };
+                if k < steps.len() && reached(&steps[k], &g) {
+                    current = Some(k + 1);
+                    publish(k + 1, last_input, &mut regions, &mut seq)?;
                 }
-            }
-            if id.has_event_from(&tick) {
-                if let Some(k) = current {
-                    publish(k, last_input, &mut regions, &mut seq)?;
-                }
-                health.report(NodeState::Running)?;
-            }
-            Ok(())
-        };
-        match step() {
-            Ok(()) => CallbackProgression::Continue,
-            Err(e) => {
-                failure = Some(e);
-                CallbackProgression::Stop
             }
         }
-    };
-    ws.wait_and_process(&mut on_event)?;
-    failure.map_or(Ok(()), Err)
+        if id.has_event_from(&tick) {
+            if let Some(k) = current {
+                publish(k, last_input, &mut regions, &mut seq)?;
+            }
+            health.report(NodeState::Running)?;
+        }
+        Ok(())
+    })
 }

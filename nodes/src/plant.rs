@@ -25,7 +25,7 @@ use icrflow_interfaces::{
 };
 
 use crate::rolling::{rotation, tip, touches};
-use crate::runtime::{Context, Health, Noise, Sequence, now};
+use crate::runtime::{Context, Health, Noise, Sequence, now, serve};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
@@ -97,133 +97,117 @@ pub fn run(ctx: &Context) -> Result<()> {
     let tick = ws.attach_interval(Duration::from_secs_f64(dt))?;
     let wake = ws.attach_notification(commands.listener())?;
     let mut ticks: u64 = 0;
-    let mut failure: Option<anyhow::Error> = None;
-    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-        let mut step = || -> Result<()> {
-            if id.has_event_from(&wake)
-                && let Some(c) = commands.latest()?
+    serve(&ws, |id| {
+        if id.has_event_from(&wake)
+            && let Some(c) = commands.latest()?
+        {
             {
-                {
-                    health.processed += 1;
-                    if c.header.check(Kind::HandCommand).is_err() {
-                        health.refuse("hand command of another schema or kind");
-                    } else if c.mode == CommandMode::Track as u32 {
-                        target = Some(c);
-                    } else {
-                        // Hold: stay where we are.
-                        target = None;
-                    }
+                health.processed += 1;
+                if c.header.check(Kind::HandCommand).is_err() {
+                    health.refuse("hand command of another schema or kind");
+                } else if c.mode == CommandMode::Track as u32 {
+                    target = Some(c);
+                } else {
+                    // Hold: stay where we are.
+                    target = None;
                 }
-            }
-            if !id.has_event_from(&tick) {
-                return Ok(());
-            }
-            ticks += 1;
-            let t = now();
-            if target
-                .as_ref()
-                .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > max_age_ns)
-            {
-                // A stale command is not followed: hold still.
-                target = None;
-            }
-            // Move the joints; roll the object with the fingers that press on it.
-            let mut turn = 0.0;
-            let mut rolling = 0;
-            for (slot, f) in hand.fingers.iter().enumerate() {
-                let before = tip(f, &q[slot]);
-                if let Some(c) = &target {
-                    let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id)
-                    else {
-                        continue;
-                    };
-                    let mut arrived = true;
-                    for (j, a) in q[slot].iter_mut().enumerate() {
-                        let goal =
-                            c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
-                        *a += (goal - *a).clamp(-max_step, max_step);
-                        arrived &= (goal - *a).abs() < 1e-9;
-                    }
-                    let pressing = c.forces[k].iter().any(|x| *x != 0.0);
-                    let after = tip(f, &q[slot]);
-                    if contact[slot] && pressing {
-                        turn += rotation(&before, &after, f, r_o);
-                        rolling += 1;
-                    }
-                    // A pressing finger comes into contact where its motion ends on the surface.
-                    contact[slot] =
-                        pressing && (contact[slot] || (arrived && touches(&after, f, r_o, TOUCH)));
-                }
-            }
-            if rolling > 0 {
-                theta += turn / rolling as f64;
-            }
-            if ticks.is_multiple_of(10) {
-                let mut text = format!("{theta:e}");
-                for (slot, joints) in q.iter().enumerate() {
-                    text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
-                    for a in joints {
-                        text.push_str(&format!(" {a:e}"));
-                    }
-                }
-                let tmp = state_file.with_extension("tmp");
-                if std::fs::write(&tmp, text).is_ok() {
-                    let _ = std::fs::rename(&tmp, &state_file);
-                }
-            }
-            history.push_back((t, theta));
-            while history.len() > 4000 {
-                history.pop_front();
-            }
-            // Encoders.
-            let seq = joint_seq.advance();
-            let mut m = JointState {
-                header: Header::new(Kind::JointState, seq, 0, t),
-                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
-                ..Default::default()
-            };
-            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-                m.finger_ids[slot] = f.id;
-                m.joint_counts[slot] = f.dof().min(MAX_JOINTS) as u32;
-                for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
-                    m.positions[slot][j] = a + noise.gauss(p.joint_noise);
-                }
-            }
-            joints.send(m)?;
-            // Pose measurement of the scene `latency` ago.
-            if ticks.is_multiple_of(pose_every) {
-                let captured = t.saturating_sub(latency_ns);
-                let past = history
-                    .iter()
-                    .rev()
-                    .find(|(when, _)| *when <= captured)
-                    .or(history.front())
-                    .map_or(theta, |(_, th)| *th);
-                let measured = past + noise.gauss(p.pose_noise);
-                let half = 0.5 * measured;
-                poses.send(ObjectPose {
-                    header: Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured),
-                    captured_time_ns: captured,
-                    position: [0.0; 3],
-                    orientation: [half.cos(), 0.0, 0.0, half.sin()],
-                })?;
-            }
-            if ticks.is_multiple_of(50) {
-                health.report(NodeState::Running)?;
-            }
-            Ok(())
-        };
-        match step() {
-            Ok(()) => CallbackProgression::Continue,
-            Err(e) => {
-                failure = Some(e);
-                CallbackProgression::Stop
             }
         }
-    };
-    ws.wait_and_process(&mut on_event)?;
-    match failure {
-        Some(e) => Err(e),
-        None => Ok(()),
-    }
+        if !id.has_event_from(&tick) {
+            return Ok(());
+        }
+        ticks += 1;
+        let t = now();
+        if target
+            .as_ref()
+            .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > max_age_ns)
+        {
+            // A stale command is not followed: hold still.
+            target = None;
+        }
+        // Move the joints; roll the object with the fingers that press on it.
+        let mut turn = 0.0;
+        let mut rolling = 0;
+        for (slot, f) in hand.fingers.iter().enumerate() {
+            let before = tip(f, &q[slot]);
+            if let Some(c) = &target {
+                let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id)
+                else {
+                    continue;
+                };
+                let mut arrived = true;
+                for (j, a) in q[slot].iter_mut().enumerate() {
+                    let goal = c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
+                    *a += (goal - *a).clamp(-max_step, max_step);
+                    arrived &= (goal - *a).abs() < 1e-9;
+                }
+                let pressing = c.forces[k].iter().any(|x| *x != 0.0);
+                let after = tip(f, &q[slot]);
+                if contact[slot] && pressing {
+                    turn += rotation(&before, &after, f, r_o);
+                    rolling += 1;
+                }
+                // A pressing finger comes into contact where its motion ends on the surface.
+                contact[slot] =
+                    pressing && (contact[slot] || (arrived && touches(&after, f, r_o, TOUCH)));
+            }
+        }
+        if rolling > 0 {
+            theta += turn / rolling as f64;
+        }
+        if ticks.is_multiple_of(10) {
+            let mut text = format!("{theta:e}");
+            for (slot, joints) in q.iter().enumerate() {
+                text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
+                for a in joints {
+                    text.push_str(&format!(" {a:e}"));
+                }
+            }
+            let tmp = state_file.with_extension("tmp");
+            if std::fs::write(&tmp, text).is_ok() {
+                let _ = std::fs::rename(&tmp, &state_file);
+            }
+        }
+        history.push_back((t, theta));
+        while history.len() > 4000 {
+            history.pop_front();
+        }
+        // Encoders.
+        let seq = joint_seq.advance();
+        let mut m = JointState {
+            header: Header::new(Kind::JointState, seq, 0, t),
+            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+            ..Default::default()
+        };
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            m.finger_ids[slot] = f.id;
+            m.joint_counts[slot] = f.dof().min(MAX_JOINTS) as u32;
+            for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
+                m.positions[slot][j] = a + noise.gauss(p.joint_noise);
+            }
+        }
+        joints.send(m)?;
+        // Pose measurement of the scene `latency` ago.
+        if ticks.is_multiple_of(pose_every) {
+            let captured = t.saturating_sub(latency_ns);
+            let past = history
+                .iter()
+                .rev()
+                .find(|(when, _)| *when <= captured)
+                .or(history.front())
+                .map_or(theta, |(_, th)| *th);
+            let measured = past + noise.gauss(p.pose_noise);
+            let half = 0.5 * measured;
+            poses.send(ObjectPose {
+                header: Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured),
+                captured_time_ns: captured,
+                position: [0.0; 3],
+                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+            })?;
+        }
+        if ticks.is_multiple_of(50) {
+            health.report(NodeState::Running)?;
+        }
+        Ok(())
+    })
 }

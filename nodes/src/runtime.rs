@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context as _, Result, bail};
-use iceoryx2::prelude::{LogLevel, set_log_level};
+use iceoryx2::prelude::{CallbackProgression, LogLevel, WaitSetAttachmentId, ipc, set_log_level};
+use iceoryx2::waitset::WaitSet;
 use icrflow_interfaces::{Header, Kind, NodeHealth, NodeState, now_ns, topics, write_text};
 use icrflow_scenario::{Config, Setup};
 
@@ -51,6 +52,23 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// A node's event loop: calls `handle` on every wake-up of the WaitSet until a termination
+/// signal stops the WaitSet (`Ok`) or `handle` fails (its error).
+pub fn serve(
+    ws: &WaitSet<ipc::Service>,
+    mut handle: impl FnMut(WaitSetAttachmentId<ipc::Service>) -> Result<()>,
+) -> Result<()> {
+    let mut failure = None;
+    ws.wait_and_process(|id| match handle(id) {
+        Ok(()) => CallbackProgression::Continue,
+        Err(e) => {
+            failure = Some(e);
+            CallbackProgression::Stop
+        }
+    })?;
+    failure.map_or(Ok(()), Err)
 }
 
 /// Sequence numbers of one publisher. They start at the current time in microseconds since
@@ -104,6 +122,21 @@ impl Health {
     pub fn refuse(&mut self, why: impl std::fmt::Display) {
         self.refused += 1;
         self.last_problem = why.to_string();
+    }
+
+    /// Accepts a message's header if it is of our schema, of `kind`, and after `last` (then
+    /// moved to it); otherwise counts the refusal with `topic` named.
+    pub fn accept(&mut self, topic: &str, h: &Header, kind: Kind, last: &mut u64) -> bool {
+        if let Err(e) = h.check(kind) {
+            self.refuse(format!("{topic}: {e}"));
+            false
+        } else if h.sequence <= *last {
+            self.refuse(format!("{topic} out of order"));
+            false
+        } else {
+            *last = h.sequence;
+            true
+        }
     }
 
     /// Publishes a report.

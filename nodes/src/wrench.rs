@@ -8,7 +8,7 @@ use icrflow_interfaces::{
     Facet, GraspState, Header, Kind, MAX_FINGERS, NodeState, WrenchSpaceHeader, topics,
 };
 
-use crate::runtime::{Context, Health, Sequence};
+use crate::runtime::{Context, Health, Sequence, serve};
 
 /// Most facets published (a 6D hull of 8 fingers x 8 edges stays well below).
 pub const MAX_FACETS: usize = 4096;
@@ -31,74 +31,56 @@ pub fn run(ctx: &Context) -> Result<()> {
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let wake = ws.attach_notification(grasps.listener())?;
-    let mut failure = None;
-    let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-        let mut step = || -> Result<()> {
-            if !id.has_event_from(&wake) {
-                return Ok(());
-            }
-            let Some(g) = grasps.latest()? else {
-                return Ok(());
-            };
-            if let Err(e) = g.header.check(Kind::GraspState) {
-                health.refuse(format!("grasp state: {e}"));
-                return Ok(());
-            }
-            if g.header.sequence <= last {
-                health.refuse("grasp state out of order");
-                return Ok(());
-            }
-            last = g.header.sequence;
-            contacts.clear();
-            for f in g
-                .fingers
-                .iter()
-                .take((g.finger_count as usize).min(MAX_FINGERS))
-            {
-                if f.in_contact == 1 && (f.candidate as usize) < n {
-                    contacts.push(f.candidate as usize);
-                }
-            }
-            let mut header = WrenchSpaceHeader {
-                header: Header::new(
-                    Kind::WrenchSpace,
-                    seq.advance(),
-                    g.header.sequence,
-                    g.header.origin_time_ns,
-                ),
-                dim: dim as u32,
-                alpha,
-                ..Default::default()
-            };
-            facets.clear();
-            if !contacts.is_empty() {
-                let e = problem.evaluate(&contacts)?;
-                header.force_closure = u32::from(e.force_closure());
-                header.quality = if e.force_closure() { e.quality } else { 0.0 };
-                header.epsilon = e.epsilon;
-                if let Some(hull) = &e.hull {
-                    for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
-                        let mut normal = [0.0; 6];
-                        normal[..dim].copy_from_slice(hull.normal(f));
-                        facets.push(Facet { normal, offset: *b });
-                    }
-                }
-            }
-            out.send(header, &facets)?;
-            health.processed += 1;
-            if last.is_multiple_of(50) {
-                health.report(NodeState::Running)?;
-            }
-            Ok(())
+    serve(&ws, |id| {
+        if !id.has_event_from(&wake) {
+            return Ok(());
+        }
+        let Some(g) = grasps.latest()? else {
+            return Ok(());
         };
-        match step() {
-            Ok(()) => CallbackProgression::Continue,
-            Err(e) => {
-                failure = Some(e);
-                CallbackProgression::Stop
+        if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last) {
+            return Ok(());
+        }
+        contacts.clear();
+        for f in g
+            .fingers
+            .iter()
+            .take((g.finger_count as usize).min(MAX_FINGERS))
+        {
+            if f.in_contact == 1 && (f.candidate as usize) < n {
+                contacts.push(f.candidate as usize);
             }
         }
-    };
-    ws.wait_and_process(&mut on_event)?;
-    failure.map_or(Ok(()), Err)
+        let mut header = WrenchSpaceHeader {
+            header: Header::new(
+                Kind::WrenchSpace,
+                seq.advance(),
+                g.header.sequence,
+                g.header.origin_time_ns,
+            ),
+            dim: dim as u32,
+            alpha,
+            ..Default::default()
+        };
+        facets.clear();
+        if !contacts.is_empty() {
+            let e = problem.evaluate(&contacts)?;
+            header.force_closure = u32::from(e.force_closure());
+            header.quality = if e.force_closure() { e.quality } else { 0.0 };
+            header.epsilon = e.epsilon;
+            if let Some(hull) = &e.hull {
+                for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
+                    let mut normal = [0.0; 6];
+                    normal[..dim].copy_from_slice(hull.normal(f));
+                    facets.push(Facet { normal, offset: *b });
+                }
+            }
+        }
+        out.send(header, &facets)?;
+        health.processed += 1;
+        if last.is_multiple_of(50) {
+            health.report(NodeState::Running)?;
+        }
+        Ok(())
+    })
 }
