@@ -60,7 +60,8 @@ pub struct RunSummary {
     pub goal_deg: f64,
     /// Finger switches executed (attach steps reached).
     pub switches: usize,
-    /// Plan steps executed (the start excluded: the hand begins in it).
+    /// The last plan step commanded (the plan's step number; the start is 0), i.e. the number
+    /// of plan steps executed after the start.
     pub steps: usize,
     /// Smallest quality alpha* of the grasp a tracking command was computed with.
     pub min_quality: f64,
@@ -162,7 +163,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         }
         let timeout = Duration::from_secs(600);
         let (mut regions, mut facets) = (Vec::new(), Vec::new());
-        let mut steps_seen = std::collections::BTreeSet::new();
+        let mut last_step = 0u64;
         let mut attaches = std::collections::BTreeSet::new();
         let mut min_quality = f64::INFINITY;
         let mut rotation = 0.0;
@@ -206,7 +207,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     if p.phase == PlanPhase::Done as u32 {
                         done = true;
                     } else {
-                        steps_seen.insert(p.step);
+                        last_step = last_step.max(p.step);
                         if p.phase == PlanPhase::Attach as u32 {
                             attaches.insert(p.step);
                         }
@@ -282,7 +283,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             reason,
             rotation,
             attaches: attaches.len(),
-            steps: steps_seen.len(),
+            steps: last_step as usize,
             min_quality,
             holds,
             sent,
