@@ -15,11 +15,13 @@ use icrflow_grasp::object::Object;
 use icrflow_grasp::reference::{Case, cases_json};
 use icrflow_grasp::wrench::{ContactModel, Space};
 
+/// The package's directory, as cargo gives it when running the test (a test binary cached from
+/// another checkout of the same commit would carry that checkout's compile-time path).
+fn manifest_dir() -> std::ffi::OsString {
+    std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into())
+}
 fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
+    Path::new(&manifest_dir()).parent().unwrap().to_path_buf()
 }
 
 fn python() -> String {

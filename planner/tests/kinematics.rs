@@ -9,8 +9,13 @@ use icrflow_plan::paper;
 use icrflow_plan::urdf::{UrdfFinger, fingers_from_file};
 use proptest::prelude::*;
 
+/// The package's directory, as cargo gives it when running the test (a test binary cached from
+/// another checkout of the same commit would carry that checkout's compile-time path).
+fn manifest_dir() -> std::ffi::OsString {
+    std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into())
+}
 fn hands_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/hands")
+    PathBuf::from(manifest_dir()).join("../config/hands")
 }
 
 /// Joint angles inside the limits from unit fractions.

@@ -763,7 +763,11 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
     /// kinematics (the paper hand, whose URDF is `config/hands/paper_hand.urdf`).
     #[test]
     fn toml_and_urdf_hands_agree() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let dir = Path::new(
+            &std::env::var_os("CARGO_MANIFEST_DIR")
+                .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into()),
+        )
+        .join("../config");
         let mut links = String::from("[hand]\nfingertip_radius = 0.025\n");
         let mut urdf = String::from("[hand]\nurdf = \"hands/paper_hand.urdf\"\n");
         for (f, angle) in [(1, 45.0_f64), (2, -45.0), (3, -135.0), (4, 135.0)] {

@@ -2,12 +2,17 @@
 
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 /// The repository root.
-pub fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+pub fn root() -> PathBuf {
+    PathBuf::from(manifest_dir())
+}
+/// The package's directory, as cargo gives it when running the test (a test binary cached from
+/// another checkout of the same commit would carry that checkout's compile-time path).
+fn manifest_dir() -> std::ffi::OsString {
+    std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into())
 }
 
 /// Runs `icrflow` with `args` from the repository root.
