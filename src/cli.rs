@@ -27,7 +27,8 @@ pub enum Command {
     },
     /// Run the pipeline on CONFIG: every node its own process on a private iceoryx2 bus,
     /// supervised, closed loop on the simulated hand, until the goal rotation (or Ctrl-C with
-    /// --live); prints a summary. Exit status 2: the goal was not reached.
+    /// --live); prints a summary. Exit status 2: the goal was not reached (a --live run stopped
+    /// by Ctrl-C exits 0).
     Run {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,

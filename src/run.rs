@@ -9,8 +9,7 @@ use anyhow::{Context, Result, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use icrflow_interfaces::{
-    CommandMode, Facet, GraspState, HandCommand, PlanPhase, PlanStepHeader, WrenchSpaceHeader,
-    now_ns, read_text, topics,
+    CommandMode, GraspState, HandCommand, JointState, PlanPhase, PlanStepHeader, read_text, topics,
 };
 use icrflow_nodes::bus::{Bus, BusConfig};
 use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
@@ -33,17 +32,61 @@ pub struct Percentiles {
     pub samples: usize,
 }
 
-fn percentiles(v: &mut [f64]) -> Percentiles {
-    if v.is_empty() {
-        return Percentiles::default();
+/// Latency samples (us) in a fixed histogram of buckets 1 % wide from 1 us to about 100 s, so
+/// that a long `--live` run keeps constant memory. Percentiles are bucket upper bounds (within
+/// 1 % above the true value, never above the largest sample); the largest sample is exact.
+#[derive(Debug, Clone)]
+struct Histogram {
+    counts: Vec<u64>,
+    samples: u64,
+    max: f64,
+}
+
+impl Histogram {
+    const GROWTH: f64 = 1.01;
+    const BUCKETS: usize = 1852; // 1.01^1851 > 1e8
+
+    fn new() -> Self {
+        Self {
+            counts: vec![0; Self::BUCKETS],
+            samples: 0,
+            max: 0.0,
+        }
     }
-    v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
-    Percentiles {
-        p50: at(0.5),
-        p99: at(0.99),
-        max: v[v.len() - 1],
-        samples: v.len(),
+
+    fn add(&mut self, us: f64) {
+        let bucket = if us <= 1.0 {
+            0
+        } else {
+            ((us.ln() / Self::GROWTH.ln()).ceil() as usize).min(Self::BUCKETS - 1)
+        };
+        self.counts[bucket] += 1;
+        self.samples += 1;
+        self.max = self.max.max(us);
+    }
+
+    fn at(&self, q: f64) -> f64 {
+        let rank = ((q * self.samples as f64).ceil() as u64).clamp(1, self.samples);
+        let mut seen = 0;
+        for (bucket, count) in self.counts.iter().enumerate() {
+            seen += count;
+            if seen >= rank {
+                return Self::GROWTH.powi(bucket as i32).min(self.max);
+            }
+        }
+        self.max
+    }
+
+    fn percentiles(&self) -> Percentiles {
+        if self.samples == 0 {
+            return Percentiles::default();
+        }
+        Percentiles {
+            p50: self.at(0.5),
+            p99: self.at(0.99),
+            max: self.max,
+            samples: self.samples as usize,
+        }
     }
 }
 
@@ -71,8 +114,16 @@ pub struct RunSummary {
     pub restarts: u32,
     /// Hand commands that held.
     pub holds: u64,
-    /// Hand commands sent.
+    /// Hand commands sent (one per joint measurement that reached the command node; holds
+    /// when none came for three periods).
     pub commands: u64,
+    /// Joint measurements the plant published (`pipeline.rate_hz` nominal; a tick the plant
+    /// was not scheduled for in time is skipped).
+    pub measurements: u64,
+    /// Measurements per second over the run.
+    pub measurement_rate_hz: f64,
+    /// Hand commands per second over the run.
+    pub command_rate_hz: f64,
     /// Tracking commands made (their source time) from a joint measurement older than
     /// `pipeline.max_input_age_ms` plus 10 ms (the command's computation after the node's
     /// check): should be 0, the hand command node holds instead.
@@ -83,20 +134,134 @@ pub struct RunSummary {
     pub bus_prefix: String,
     /// The run's iceoryx2 root directory (removed at the end).
     pub bus_root: String,
-    /// Latency per stage: from the plant's joint measurement to the grasp state, the wrench
-    /// space, the plan step and the hand command caused by it (us).
+    /// Latency of the critical path, end to end and per stage (us).
     pub latency_us: Latencies,
+    /// The planner's plan-step stream.
+    pub plan_steps: PlanStream,
+    /// Resident memory of each node process, sampled every second (KiB).
+    pub memory_kib: std::collections::BTreeMap<String, Memory>,
 }
 
-/// Latency percentiles per stage.
+/// Latency percentiles of the tracking commands: from the plant's joint measurement to the
+/// hand command it caused, and its parts, from the commands' traces
+/// ([`icrflow_interfaces::Trace`]).
 #[derive(Debug, Serialize, Default)]
 pub struct Latencies {
-    /// Joint measurement to grasp state (estimator).
+    /// Joint measurement published to hand command published.
+    pub end_to_end: Percentiles,
+    /// Each hop's transport: publication to the next process taking the message off the bus
+    /// (iceoryx2 delivery, the event that wakes the receiver, and its scheduling).
+    pub transport: Hops,
+    /// Each process's computation: input taken off the bus to output published.
+    pub compute: Stages,
+}
+
+/// Per-hop transport latencies of the critical path.
+#[derive(Debug, Serialize, Default)]
+pub struct Hops {
+    /// Plant to estimator.
+    pub joint_state: Percentiles,
+    /// Estimator to wrench-space node.
     pub grasp_state: Percentiles,
-    /// Joint measurement to wrench space (estimator + wrench-space node).
+    /// Wrench-space node to hand command node.
     pub wrench_space: Percentiles,
-    /// Joint measurement to hand command: end to end.
-    pub hand_command: Percentiles,
+}
+
+/// Per-process computation latencies of the critical path.
+#[derive(Debug, Serialize, Default)]
+pub struct Stages {
+    /// Joint state to grasp state.
+    pub estimator: Percentiles,
+    /// Grasp state to wrench space.
+    pub wrench: Percentiles,
+    /// Wrench space (with its grasp state and the plan step) to hand command.
+    pub command: Percentiles,
+}
+
+/// The plan-step stream.
+#[derive(Debug, Serialize, Default)]
+pub struct PlanStream {
+    /// Plan steps published (the current target at the stream's rate, and each new one).
+    pub published: u64,
+    /// Mean rate over the run (Hz).
+    pub rate_hz: f64,
+    /// The planner's time from taking up a step to publishing it (us).
+    pub compute_us: Percentiles,
+}
+
+/// Resident memory of one process over the run (KiB).
+#[derive(Debug, Serialize, Default, Clone, Copy)]
+pub struct Memory {
+    /// At the first sample.
+    pub first: u64,
+    /// At the last sample.
+    pub last: u64,
+    /// The largest sample.
+    pub max: u64,
+    /// Samples.
+    pub samples: usize,
+}
+
+/// The resident set size of process `pid` (KiB), from `/proc`.
+fn resident_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// Latency samples of the critical path, from the traces of the tracking commands.
+struct Timing {
+    end_to_end: Histogram,
+    hops: [Histogram; 3],
+    stages: [Histogram; 3],
+}
+
+impl Timing {
+    fn new() -> Self {
+        Self {
+            end_to_end: Histogram::new(),
+            hops: std::array::from_fn(|_| Histogram::new()),
+            stages: std::array::from_fn(|_| Histogram::new()),
+        }
+    }
+
+    /// Adds a tracking command's trace `[measured, estimator in, out, wrench in, out,
+    /// command in, out]`; other traces (a chain cut by a restart) are skipped.
+    fn add(&mut self, trace: &[u64]) {
+        let &[t0, ..] = trace else { return };
+        if trace.len() != icrflow_interfaces::TRACE_STAMPS {
+            return;
+        }
+        let us = |a: u64, b: u64| b.saturating_sub(a) as f64 * 1e-3;
+        self.end_to_end.add(us(t0, trace[6]));
+        for k in 0..3 {
+            self.hops[k].add(us(trace[2 * k], trace[2 * k + 1]));
+            self.stages[k].add(us(trace[2 * k + 1], trace[2 * k + 2]));
+        }
+    }
+
+    fn summary(&self) -> Latencies {
+        let [h0, h1, h2] = &self.hops;
+        let [s0, s1, s2] = &self.stages;
+        Latencies {
+            end_to_end: self.end_to_end.percentiles(),
+            transport: Hops {
+                joint_state: h0.percentiles(),
+                grasp_state: h1.percentiles(),
+                wrench_space: h2.percentiles(),
+            },
+            compute: Stages {
+                estimator: s0.percentiles(),
+                wrench: s1.percentiles(),
+                command: s2.percentiles(),
+            },
+        }
+    }
 }
 
 fn node_program(name: &str) -> Result<PathBuf> {
@@ -146,6 +311,10 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         PathBuf::from(format!("/tmp/icrflow/run-{pid}")),
     )?;
     set_log_level(LogLevel::Warn);
+    // A run that was killed outright (SIGKILL, power loss) leaves its bus and the plant's and
+    // estimator's checkpoints behind under its pid; a later run given the same pid must not
+    // resume from them. No live process has our pid, so what is there is stale.
+    remove_run_files(&bus_config);
     let mut supervisor = Supervisor::new(bus_config.clone(), specs, false);
     let started = Instant::now();
     let goal = config.plan.goal;
@@ -155,14 +324,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
     let stats = {
         let bus = Bus::new("run", &bus_config)?;
         let plans = bus.slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
+        // Read on the run's own tick (only the newest matters), so they cost no wake-up.
         let grasps = bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-        let wrenches = bus.slice_subscriber::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE)?;
+        let joints = bus.subscriber::<JointState>(topics::JOINT_STATE)?;
+        // Joint measurements, counted by their sequence numbers (one per measurement; a
+        // restarted plant starts higher up).
+        let (mut measurements, mut last_joint) = (0u64, 0u64);
         let commands = bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
         for e in supervisor.start()? {
             report(&e);
         }
         let timeout = Duration::from_secs(600);
-        let (mut regions, mut facets) = (Vec::new(), Vec::new());
         let mut last_step = 0u64;
         let mut attaches = std::collections::BTreeSet::new();
         let mut min_quality = f64::INFINITY;
@@ -173,37 +345,24 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         let max_age_ns = (config.pipeline.max_input_age * 1e9) as u64 + 10_000_000;
         let mut done = false;
         let mut reason = String::new();
-        let (mut lat_g, mut lat_w, mut lat_c) = (Vec::new(), Vec::new(), Vec::new());
-        let mut tracking = false;
+        let mut timing = Timing::new();
+        let (mut plan_published, mut plan_compute) = (0u64, Histogram::new());
+        let mut memory = std::collections::BTreeMap::<String, Memory>::new();
+        let mut next_sample = Instant::now() + Duration::from_secs(1);
 
         let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-        let w_plan = ws.attach_notification(plans.listener())?;
-        let w_grasp = ws.attach_notification(grasps.listener())?;
-        let w_wrench = ws.attach_notification(wrenches.listener())?;
-        let w_cmd = ws.attach_notification(commands.listener())?;
-        let tick = ws.attach_interval(Duration::from_millis(10))?;
+        let _plans = ws.attach_notification(plans.listener())?;
+        let _commands = ws.attach_notification(commands.listener())?;
+        let tick = ws.attach_interval(icrflow_nodes::runtime::RESYNC)?;
         let mut failure = None;
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             let mut step = || -> Result<bool> {
-                let t = now_ns();
-                let us = |origin: u64| (t.saturating_sub(origin)) as f64 * 1e-3;
-                if id.has_event_from(&w_grasp) {
-                    grasps.drain(|g| {
-                        rotation = g.rotation;
-                        if g.header.origin_time_ns > 0 {
-                            lat_g.push(us(g.header.origin_time_ns));
-                        }
-                    })?;
-                }
-                if id.has_event_from(&w_wrench)
-                    && let Some(w) = wrenches.latest(&mut facets)?
-                    && w.header.origin_time_ns > 0
-                {
-                    lat_w.push(us(w.header.origin_time_ns));
-                }
-                if id.has_event_from(&w_plan)
-                    && let Some(p) = plans.latest(&mut regions)?
-                {
+                // Every wake-up reads every input (see icrflow_nodes::runtime::serve).
+                plans.drain(|p, _| {
+                    plan_published += 1;
+                    if let [.., taken, published] = p.header.trace.as_slice() {
+                        plan_compute.add(published.saturating_sub(*taken) as f64 * 1e-3);
+                    }
                     if p.phase == PlanPhase::Done as u32 {
                         done = true;
                     } else {
@@ -212,15 +371,14 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                             attaches.insert(p.step);
                         }
                     }
-                }
-                if id.has_event_from(&w_cmd) {
+                })?;
+                {
                     commands.drain(|c| {
                         sent += 1;
-                        tracking = c.mode == CommandMode::Track as u32;
-                        if tracking {
+                        if c.mode == CommandMode::Track as u32 {
                             min_quality = min_quality.min(c.quality);
+                            timing.add(c.header.trace.as_slice());
                             if c.header.origin_time_ns > 0 {
-                                lat_c.push(us(c.header.origin_time_ns));
                                 let made = c.header.source_time_ns;
                                 if made.saturating_sub(c.header.origin_time_ns) > max_age_ns {
                                     stale_tracked += 1;
@@ -235,8 +393,34 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     })?;
                 }
                 if id.has_event_from(&tick) {
+                    if let Some(j) = joints.latest()? {
+                        let gap = j.header.sequence.wrapping_sub(last_joint);
+                        measurements += if last_joint > 0 && gap < 1_000_000 {
+                            gap
+                        } else {
+                            1
+                        };
+                        last_joint = j.header.sequence;
+                    }
+                    if let Some(g) = grasps.latest()? {
+                        rotation = g.rotation;
+                    }
                     for e in supervisor.poll(Instant::now())? {
                         report(&e);
+                    }
+                    if Instant::now() >= next_sample {
+                        next_sample += Duration::from_secs(1);
+                        for n in NODES {
+                            if let Some(kib) = supervisor.pid(n).and_then(resident_kib) {
+                                let m = memory.entry(n.to_string()).or_insert(Memory {
+                                    first: kib,
+                                    ..Memory::default()
+                                });
+                                m.last = kib;
+                                m.max = m.max.max(kib);
+                                m.samples += 1;
+                            }
+                        }
                     }
                     if let Some(n) = supervisor.failed() {
                         reason = format!("node {n} failed too often");
@@ -287,12 +471,15 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             min_quality,
             holds,
             sent,
+            measurements,
             stale_tracked,
-            latencies: Latencies {
-                grasp_state: percentiles(&mut lat_g),
-                wrench_space: percentiles(&mut lat_w),
-                hand_command: percentiles(&mut lat_c),
+            latencies: timing.summary(),
+            plan_steps: PlanStream {
+                published: plan_published,
+                rate_hz: plan_published as f64 / started.elapsed().as_secs_f64(),
+                compute_us: plan_compute.percentiles(),
             },
+            memory,
         }
     };
     remove_run_files(&bus_config);
@@ -312,11 +499,16 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         restarts: supervisor.restarts(),
         holds: stats.holds,
         commands: stats.sent,
+        measurements: stats.measurements,
+        measurement_rate_hz: stats.measurements as f64 / started.elapsed().as_secs_f64(),
+        command_rate_hz: stats.sent as f64 / started.elapsed().as_secs_f64(),
         stale_tracked: stats.stale_tracked,
         seconds: started.elapsed().as_secs_f64(),
         bus_prefix: bus_config.prefix.clone(),
         bus_root: bus_config.root.display().to_string(),
         latency_us: stats.latencies,
+        plan_steps: stats.plan_steps,
+        memory_kib: stats.memory,
     };
     let mut o = std::io::stdout().lock();
     writeln!(
@@ -337,20 +529,52 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
     )?;
     writeln!(
         o,
-        "commands   {} sent, {} holds; {} node restarts; {:.1} s",
-        summary.commands, summary.holds, summary.restarts, summary.seconds
+        "commands   {} sent ({:.0} Hz; {:.0} Hz of joint measurements), {} holds; {} node restarts; {:.1} s",
+        summary.commands,
+        summary.command_rate_hz,
+        summary.measurement_rate_hz,
+        summary.holds,
+        summary.restarts,
+        summary.seconds
     )?;
     let l = &summary.latency_us;
     writeln!(
         o,
-        "latency    joint measurement to hand command p50 {:.0} us, p99 {:.0} us, max {:.0} us",
-        l.hand_command.p50, l.hand_command.p99, l.hand_command.max
+        "latency    joint measurement to hand command p50 {:.0} us, p99 {:.0} us, max {:.0} us ({} commands)",
+        l.end_to_end.p50, l.end_to_end.p99, l.end_to_end.max, l.end_to_end.samples
     )?;
+    writeln!(
+        o,
+        "           hops p50 {:.0} / {:.0} / {:.0} us, compute p50 {:.0} / {:.0} / {:.0} us (estimator, wrench space, command)",
+        l.transport.joint_state.p50,
+        l.transport.grasp_state.p50,
+        l.transport.wrench_space.p50,
+        l.compute.estimator.p50,
+        l.compute.wrench.p50,
+        l.compute.command.p50
+    )?;
+    writeln!(
+        o,
+        "plan       {} plan steps published, {:.0} Hz",
+        summary.plan_steps.published, summary.plan_steps.rate_hz
+    )?;
+    let grew: Vec<String> = summary
+        .memory_kib
+        .iter()
+        .map(|(n, m)| format!("{n} {}->{} KiB", m.first, m.last))
+        .collect();
+    writeln!(o, "memory     {}", grew.join(", "))?;
     if let Some(p) = summary_json {
         let text = serde_json::to_string_pretty(&summary)?;
         std::fs::write(&p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
     }
-    Ok(if summary.completed { 0 } else { 2 })
+    // A live run ends by Ctrl-C: that is success if nothing failed.
+    let interrupted = live && summary.reason.starts_with("stopped by a signal");
+    Ok(if summary.completed || interrupted {
+        0
+    } else {
+        2
+    })
 }
 
 /// What the run saw.
@@ -363,8 +587,11 @@ struct Stats {
     min_quality: f64,
     holds: u64,
     sent: u64,
+    measurements: u64,
     stale_tracked: u64,
     latencies: Latencies,
+    plan_steps: PlanStream,
+    memory: std::collections::BTreeMap<String, Memory>,
 }
 
 /// Removes what iceoryx2 leaves of a finished run: its root directory (empty directories by
@@ -392,5 +619,34 @@ fn report(e: &Event) {
             cleaned,
         } => eprintln!("run: node {name} exited ({status}); cleaned {cleaned} dead iceoryx2 nodes"),
         Event::GaveUp { name, reason } => eprintln!("run: giving up on {name}: {reason}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histogram_percentiles_are_within_one_percent_above_the_exact_ones() {
+        // Latency-like samples from 0.3 us to ~60 ms (a deterministic spread).
+        let mut exact: Vec<f64> = (0..20_000u64)
+            .map(|i| 0.3 * (1.0 + (i * 7919 % 20_000) as f64).powf(1.3))
+            .collect();
+        let mut h = Histogram::new();
+        for &x in &exact {
+            h.add(x);
+        }
+        exact.sort_by(f64::total_cmp);
+        let p = h.percentiles();
+        assert_eq!(p.samples, exact.len());
+        assert_eq!(p.max, exact[exact.len() - 1]);
+        for (q, got) in [(0.5, p.p50), (0.99, p.p99)] {
+            let want = exact[(q * exact.len() as f64).ceil() as usize - 1];
+            assert!(
+                got >= want && got <= want.max(1.0) * 1.01,
+                "q {q}: {got} vs exact {want}"
+            );
+        }
+        assert_eq!(Histogram::new().percentiles().samples, 0);
     }
 }

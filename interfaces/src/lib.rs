@@ -21,7 +21,7 @@ use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -39,7 +39,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v1`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v2`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -68,7 +68,7 @@ pub enum Kind {
 
 /// The header every message starts with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("icrflow.Header.v1")]
+#[type_name("icrflow.Header.v2")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -85,6 +85,45 @@ pub struct Header {
     /// Source time of the plant measurement at the start of the chain that led to this
     /// message (end-to-end latency = now - origin).
     pub origin_time_ns: u64,
+    /// When each process along that chain took its input off the bus and published its
+    /// output, for the per-stage latency ([`Trace`]).
+    pub trace: Trace,
+}
+
+/// Most timestamps a [`Trace`] holds: the measurement and three processing stages after it.
+pub const TRACE_STAMPS: usize = 7;
+
+/// The timestamps ([`now_ns`]) of a message chain, oldest first: the origin's publication,
+/// then for every process after it the time it took its input off the bus and the time it
+/// published. A hand command caused by a joint measurement carries `[measured, estimator in,
+/// estimator out, wrench in, wrench out, command in, command out]`: the differences are the
+/// transport hops (out to in) and the computations (in to out). Stamps beyond
+/// [`TRACE_STAMPS`] are dropped (`len` stays at the limit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("icrflow.Trace.v2")]
+#[repr(C)]
+pub struct Trace {
+    /// The stamps (the first `len`).
+    pub stamps: [u64; TRACE_STAMPS],
+    /// How many are set.
+    pub len: u32,
+    /// Padding (zero).
+    pub reserved: u32,
+}
+
+impl Trace {
+    /// Appends a stamp (dropped when full).
+    pub fn push(&mut self, t: u64) {
+        if let Some(slot) = self.stamps.get_mut(self.len as usize) {
+            *slot = t;
+            self.len += 1;
+        }
+    }
+
+    /// The stamps set.
+    pub fn as_slice(&self) -> &[u64] {
+        &self.stamps[..(self.len as usize).min(TRACE_STAMPS)]
+    }
 }
 
 /// Why a header is refused.
@@ -135,7 +174,32 @@ impl Header {
             source_time_ns: now_ns(),
             input_sequence,
             origin_time_ns,
+            trace: Trace::default(),
         }
+    }
+
+    /// A header for a message computed from `input`, which this process took off the bus at
+    /// `received_ns`: the input's sequence, origin and trace (with `received_ns` appended).
+    pub fn after(kind: Kind, sequence: u64, input: &Header, received_ns: u64) -> Self {
+        let mut trace = input.trace;
+        trace.push(received_ns);
+        Self {
+            input_sequence: input.sequence,
+            origin_time_ns: if input.origin_time_ns > 0 {
+                input.origin_time_ns
+            } else {
+                input.source_time_ns
+            },
+            trace,
+            ..Self::new(kind, sequence, 0, 0)
+        }
+    }
+
+    /// Marks the message as published now: its source time, appended to its trace. Called by
+    /// the bus when sending ([`Message`]), so that the source time is the publication time.
+    pub fn stamp(&mut self) {
+        self.source_time_ns = now_ns();
+        self.trace.push(self.source_time_ns);
     }
 
     /// Checks the schema version and kind.
@@ -182,9 +246,36 @@ impl Header {
     }
 }
 
+/// A message type: a [`Header`] first, then its fields (for the fixed user header of a slice
+/// topic, the header of the whole sample).
+pub trait Message {
+    /// The header, for the bus to [`Header::stamp`] at publication.
+    fn header_mut(&mut self) -> &mut Header;
+}
+
+macro_rules! messages {
+    ($($t:ty),*) => {$(
+        impl Message for $t {
+            fn header_mut(&mut self) -> &mut Header {
+                &mut self.header
+            }
+        }
+    )*};
+}
+
+messages!(
+    JointState,
+    ObjectPose,
+    GraspState,
+    WrenchSpaceHeader,
+    PlanStepHeader,
+    HandCommand,
+    NodeHealth
+);
+
 /// Joint encoder readings of the hand.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.JointState.v1")]
+#[type_name("icrflow.JointState.v2")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -203,7 +294,7 @@ pub struct JointState {
 
 /// An object-pose measurement (e.g. from vision): noisy, delayed, lower rate.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.ObjectPose.v1")]
+#[type_name("icrflow.ObjectPose.v2")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -219,7 +310,7 @@ pub struct ObjectPose {
 
 /// One finger's contact in a [`GraspState`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.FingerContact.v1")]
+#[type_name("icrflow.FingerContact.v2")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -240,7 +331,7 @@ pub struct FingerContact {
 
 /// The estimated object pose and contact state.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.GraspState.v1")]
+#[type_name("icrflow.GraspState.v2")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -263,7 +354,7 @@ pub struct GraspState {
 
 /// User header of the wrench-space topic; the payload is a slice of [`Facet`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.WrenchSpaceHeader.v1")]
+#[type_name("icrflow.WrenchSpaceHeader.v2")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -282,7 +373,7 @@ pub struct WrenchSpaceHeader {
 
 /// One facet `normal . w <= offset` of the grasp wrench space's hull.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.Facet.v1")]
+#[type_name("icrflow.Facet.v2")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -309,7 +400,7 @@ pub enum PlanPhase {
 
 /// One finger's target in a [`PlanStepHeader`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.FingerTarget.v1")]
+#[type_name("icrflow.FingerTarget.v2")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -331,7 +422,7 @@ pub struct FingerTarget {
 /// User header of the plan-step topic; the payload is the ICR regions, candidate indices of
 /// every finger in slot order (`region_lengths` long each).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.PlanStepHeader.v1")]
+#[type_name("icrflow.PlanStepHeader.v2")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -364,7 +455,7 @@ pub enum CommandMode {
 
 /// A command to the hand.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("icrflow.HandCommand.v1")]
+#[type_name("icrflow.HandCommand.v2")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -417,7 +508,7 @@ pub enum NodeState {
 
 /// A node's periodic health report.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("icrflow.NodeHealth.v1")]
+#[type_name("icrflow.NodeHealth.v2")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -528,6 +619,32 @@ mod tests {
             h.check_fresh(Kind::JointState, 4, now + 2_000_000, 1_000_000),
             Err(HeaderError::Stale { .. })
         ));
+    }
+
+    #[test]
+    fn a_chain_of_messages_carries_its_origin_and_every_stage_in_its_trace() {
+        let mut joint = Header::new(Kind::JointState, 7, 0, 0);
+        joint.stamp();
+        let measured = joint.source_time_ns;
+        let mut grasp = Header::after(Kind::GraspState, 3, &joint, measured + 10);
+        grasp.stamp();
+        assert_eq!(grasp.input_sequence, 7);
+        assert_eq!(grasp.origin_time_ns, measured);
+        let mut wrench = Header::after(Kind::WrenchSpace, 9, &grasp, grasp.source_time_ns + 10);
+        wrench.stamp();
+        let mut command = Header::after(Kind::HandCommand, 2, &wrench, wrench.source_time_ns + 1);
+        command.stamp();
+        let t = command.trace.as_slice();
+        assert_eq!(t.len(), TRACE_STAMPS);
+        assert_eq!(t[0], measured);
+        assert_eq!(t[1], measured + 10);
+        assert_eq!(t[6], command.source_time_ns);
+        assert!(t.windows(2).all(|w| w[0] <= w[1]), "{t:?}");
+        assert_eq!(command.origin_time_ns, measured);
+        // A longer chain keeps the first stamps.
+        let mut more = Header::after(Kind::HandCommand, 3, &command, command.source_time_ns);
+        more.stamp();
+        assert_eq!(more.trace, command.trace);
     }
 
     #[test]

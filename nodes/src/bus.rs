@@ -18,7 +18,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::publish_subscribe::{
     PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
 };
-use icrflow_interfaces::topics;
+use icrflow_interfaces::{Message, topics};
 
 /// Environment variable carrying the run's iceoryx2 prefix to a node process.
 pub const ENV_PREFIX: &str = "ICRFLOW_IOX_PREFIX";
@@ -28,7 +28,7 @@ pub const ENV_ROOT: &str = "ICRFLOW_IOX_ROOT";
 pub const ENV_RIG: &str = "ICRFLOW_RIG";
 
 /// Messages a subscriber keeps queued (the oldest is overwritten beyond that).
-const BUFFER: usize = 8;
+const BUFFER: usize = 32;
 
 /// Why the bus failed, with the topic or node named.
 #[derive(Debug, thiserror::Error)]
@@ -443,6 +443,16 @@ impl<T: Debug + ZeroCopySend + 'static> Pub<T> {
     }
 }
 
+impl<T: Debug + ZeroCopySend + Message + 'static> Pub<T> {
+    /// Stamps the message's header as published now ([`Header::stamp`]) and sends it.
+    ///
+    /// [`Header::stamp`]: icrflow_interfaces::Header::stamp
+    pub fn publish(&self, mut message: T) -> Result<usize, BusError> {
+        message.header_mut().stamp();
+        self.send(message)
+    }
+}
+
 impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
     /// The listener to attach to a WaitSet.
     pub fn listener(&self) -> &Listener<ipc::Service> {
@@ -500,6 +510,18 @@ impl<H: Debug + ZeroCopySend + Default + 'static, T: Debug + ZeroCopySend + Copy
     }
 }
 
+impl<
+    H: Debug + ZeroCopySend + Default + Message + 'static,
+    T: Debug + ZeroCopySend + Copy + 'static,
+> SlicePub<H, T>
+{
+    /// Stamps the header as published now and sends it with `items` ([`Pub::publish`]).
+    pub fn publish(&self, mut header: H, items: &[T]) -> Result<usize, BusError> {
+        header.header_mut().stamp();
+        self.send(header, items)
+    }
+}
+
 impl<H: Debug + ZeroCopySend + Copy + 'static, T: Debug + ZeroCopySend + Copy + 'static>
     SliceSub<H, T>
 {
@@ -508,22 +530,33 @@ impl<H: Debug + ZeroCopySend + Copy + 'static, T: Debug + ZeroCopySend + Copy + 
         &self.listener
     }
 
-    /// The newest queued message, if any: its header, with its items copied into `items`
-    /// (cleared first; its capacity is reused). Consumes wake-ups and older messages.
-    pub fn latest(&self, items: &mut Vec<T>) -> Result<Option<H>, BusError> {
+    /// Consumes the pending wake-ups and calls `f` on every queued message (header and
+    /// items), oldest first.
+    pub fn drain(&self, mut f: impl FnMut(&H, &[T])) -> Result<usize, BusError> {
         self.listener
             .try_wait(|_| {})
             .map_err(|e| topic_error(&self.topic, "listener", e))?;
-        let mut header = None;
+        let mut n = 0;
         while let Some(sample) = self
             .subscriber
             .receive()
             .map_err(|e| topic_error(&self.topic, "receive", e))?
         {
-            header = Some(*sample.user_header());
-            items.clear();
-            items.extend_from_slice(sample.payload());
+            f(sample.user_header(), sample.payload());
+            n += 1;
         }
+        Ok(n)
+    }
+
+    /// The newest queued message, if any: its header, with its items copied into `items`
+    /// (cleared first; its capacity is reused). Consumes wake-ups and older messages.
+    pub fn latest(&self, items: &mut Vec<T>) -> Result<Option<H>, BusError> {
+        let mut header = None;
+        self.drain(|h, payload| {
+            header = Some(*h);
+            items.clear();
+            items.extend_from_slice(payload);
+        })?;
         Ok(header)
     }
 }

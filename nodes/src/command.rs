@@ -2,33 +2,44 @@
 //! command, joint targets and fingertip forces that balance the grasp, only when the
 //! [`Gate`] allows it; otherwise it holds the last safe command and says why.
 //!
-//! Every input event and every tick of the loop rate: offer the newest plan step, grasp state
-//! and wrench space to the gate (refused ones are counted and reported in the node's health);
-//! if the gate allows, the joint targets are the plan step's, clamped into the joint limits
-//! and to at most `pipeline.joint_speed_deg_s` from the last command per elapsed time, and
-//! the forces balance zero external wrench inside the exact friction cones with the
-//! configured minimum normal force ([`icrflow_plan::forces::balance`]; infeasible holds).
+//! The critical path is three hops long: joint measurement (plant) -> grasp state (estimator)
+//! -> wrench space (wrench-space node) -> hand command. Every wrench space is answered by one
+//! command, computed from that wrench space together with the very grasp state it was computed
+//! from (matched by sequence number; the grasp states are read off the bus only then, so they
+//! cost no wake-up), and the newest plan step, which the planner publishes beside the path at
+//! its own rate. The command stream therefore runs at the plant's measurement rate
+//! (`pipeline.rate_hz`). When no wrench space has come for [`WATCHDOG_PERIODS`] periods, the
+//! node's own timer sends holds at that rate.
+//!
+//! A tracking command's joint targets are the plan step's, clamped into the joint limits and
+//! to at most `pipeline.joint_speed_deg_s` from the last command per elapsed time (so the
+//! stream interpolates between plan steps), and its forces balance zero external wrench inside
+//! the exact friction cones with the configured minimum normal force
+//! ([`icrflow_plan::forces::balance`]; infeasible holds).
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use anyhow::Result;
 use iceoryx2::prelude::*;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, NodeState,
-    PlanStepHeader, WrenchSpaceHeader, topics, write_text,
+    CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
+    WrenchSpaceHeader, topics, write_text,
 };
 use icrflow_plan::forces::{ForceContact, balance};
 
 use crate::runtime::{Context, Health, Sequence, now, serve};
-use crate::safety::Gate;
+use crate::safety::{Gate, Hold};
+
+/// Periods without a wrench space after which the node holds on its own timer.
+pub const WATCHDOG_PERIODS: f64 = 3.0;
+/// Grasp states kept to find the one behind a wrench space.
+const RECENT: usize = 16;
 
 /// Runs the hand command node.
 pub fn run(ctx: &Context) -> Result<()> {
     let p = &ctx.config.pipeline;
-    let hand = &ctx.setup.hand;
-    let problem = &ctx.setup.problem;
-    let mu = ctx.config.grasp.model.mu();
     let plans = ctx
         .bus
         .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
@@ -42,165 +53,196 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut gate = Gate::new((p.max_input_age * 1e9) as u64, ctx.config.grasp.alpha);
     let mut regions = Vec::with_capacity(4096);
     let mut facets = Vec::with_capacity(4096);
-    let mut last: Option<(HandCommand, u64)> = None;
-    let mut last_grasp: Option<GraspState> = None;
-    let mut wrench_origin = 0u64;
-    let dt = 1.0 / p.rate_hz;
-    let mut contacts = Vec::with_capacity(MAX_FINGERS);
+    let mut recent: VecDeque<GraspState> = VecDeque::with_capacity(RECENT);
+    let mut tracker = Tracker {
+        ctx,
+        contacts: Vec::with_capacity(MAX_FINGERS),
+        forces: None,
+        last: None,
+    };
+    let period = 1.0 / p.rate_hz;
+    let watchdog_ns = (WATCHDOG_PERIODS * period * 1e9) as u64;
+    let mut last_sent = now();
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let w_plan = ws.attach_notification(plans.listener())?;
-    let w_grasp = ws.attach_notification(grasps.listener())?;
-    let w_wrench = ws.attach_notification(wrenches.listener())?;
-    let tick = ws.attach_interval(Duration::from_secs_f64(dt))?;
-    let mut ticks = 0u64;
+    let _plan = ws.attach_notification(plans.listener())?;
+    let _wrench = ws.attach_notification(wrenches.listener())?;
+    let tick = ws.attach_interval(Duration::from_secs_f64(period))?;
     serve(&ws, |id| {
+        health.tick()?;
         let t = now();
-        if id.has_event_from(&w_plan)
-            && let Some(m) = plans.latest(&mut regions)?
-        {
+        if let Some(m) = plans.latest(&mut regions)? {
             health.processed += 1;
             if let Err(e) = gate.offer_plan(&m, t) {
                 health.refuse(e);
             }
         }
-        if id.has_event_from(&w_grasp)
-            && let Some(m) = grasps.latest()?
-        {
+        // The answer to a wrench space: the header of the command it causes (None: hold).
+        let mut answer: Option<Option<Header>> = None;
+        if let Some(w) = wrenches.latest(&mut facets)? {
             health.processed += 1;
-            match gate.offer_grasp(&m, t) {
-                Ok(()) => last_grasp = Some(m),
-                Err(e) => health.refuse(e),
-            }
-        }
-        if id.has_event_from(&w_wrench)
-            && let Some(m) = wrenches.latest(&mut facets)?
-        {
-            health.processed += 1;
-            match gate.offer_wrench(&m, t) {
-                Ok(()) => wrench_origin = m.header.origin_time_ns,
-                Err(e) => health.refuse(e),
-            }
-        }
-        let event =
-            id.has_event_from(&w_plan) || id.has_event_from(&w_wrench) || id.has_event_from(&tick);
-        if !event {
-            return Ok(());
-        }
-        ticks += 1;
-        let decision = gate.decide(t).copied();
-        let command = match decision {
-            Ok(plan) => {
-                let theta = last_grasp.map_or(0.0, |g| g.rotation);
-                let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
-                contacts.clear();
-                let mut slots = Vec::with_capacity(MAX_FINGERS);
-                for (k, target) in plan
-                    .targets
-                    .iter()
-                    .enumerate()
-                    .take(plan.finger_count as usize)
-                {
-                    if target.in_contact == 1 {
-                        let c = target.candidate as usize;
-                        let cands = problem.candidates();
-                        if c < cands.points.len() {
-                            contacts.push(ForceContact {
-                                point: rot * (cands.points[c] - ctx.setup.object.centre_of_mass),
-                                normal: rot * cands.normals[c],
-                            });
-                            slots.push(k);
-                        }
-                    }
+            grasps.drain(|g| {
+                if recent.len() == RECENT {
+                    recent.pop_front();
                 }
-                match balance(
-                    &contacts,
-                    &Vec3::zeros(),
-                    mu,
-                    p.min_normal_force,
-                    &Vec3::zeros(),
-                    &Vec3::zeros(),
-                ) {
-                    Ok(forces) => {
-                        let mut c = HandCommand {
-                            header: Header::new(
-                                Kind::HandCommand,
-                                seq.advance(),
-                                last_grasp.map_or(0, |g| g.header.sequence),
-                                // Caused by the newest measurement among the inputs.
-                                plan.header
-                                    .origin_time_ns
-                                    .max(last_grasp.map_or(0, |g| g.header.origin_time_ns))
-                                    .max(wrench_origin),
-                            ),
-                            mode: CommandMode::Track as u32,
-                            finger_count: plan.finger_count,
-                            quality: gate.quality(),
-                            ..Default::default()
-                        };
-                        let elapsed =
-                            last.map_or(dt, |(_, when)| (t.saturating_sub(when)) as f64 * 1e-9);
-                        let max_step = p.joint_speed * elapsed.max(dt);
-                        for (k, target) in plan
-                            .targets
-                            .iter()
-                            .enumerate()
-                            .take(plan.finger_count as usize)
-                        {
-                            c.finger_ids[k] = target.finger;
-                            let Some(f) = hand.finger(target.finger) else {
-                                continue;
-                            };
-                            for j in 0..(target.joint_count as usize).min(MAX_JOINTS).min(f.dof()) {
-                                let mut goal =
-                                    target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
-                                if let Some((prev, _)) = &last {
-                                    let from = prev.joint_targets[k][j];
-                                    goal = from + (goal - from).clamp(-max_step, max_step);
-                                }
-                                c.joint_targets[k][j] = goal;
-                            }
-                        }
-                        for (slot, f) in slots.iter().zip(&forces) {
-                            c.forces[*slot] = [f.x, f.y, f.z];
-                        }
-                        Some(c)
-                    }
-                    Err(e) => {
-                        health.refuse(format!("forces: {e}"));
+                recent.push_back(*g);
+            })?;
+            let behind = recent
+                .iter()
+                .rev()
+                .find(|g| g.header.sequence == w.header.input_sequence);
+            let accepted = match behind {
+                None => Err(format!(
+                    "wrench space {}: its grasp state {} was not received",
+                    w.header.sequence, w.header.input_sequence
+                )),
+                Some(g) => gate
+                    .offer_grasp(g, t)
+                    .and_then(|()| gate.offer_wrench(&w, t))
+                    .map_err(|e| e.to_string()),
+            };
+            answer = Some(match accepted {
+                Ok(()) => Some(Header::after(Kind::HandCommand, 0, &w.header, t)),
+                Err(why) => {
+                    health.refuse(why);
+                    None
+                }
+            });
+        }
+        let command = match answer {
+            Some(Some(header)) => match gate.decide(t) {
+                Ok(plan) => match tracker.track(plan, &gate, header, t) {
+                    Ok(c) => Some(c),
+                    Err(why) => {
+                        health.refuse(why);
                         None
                     }
+                },
+                Err(hold) => {
+                    health.refuse(&hold);
+                    None
                 }
-            }
-            Err(hold) => {
-                health.refuse(&hold);
+            },
+            Some(None) => None,
+            None if id.has_event_from(&tick) && t.saturating_sub(last_sent) > watchdog_ns => {
+                let quiet = Hold::Quiet {
+                    ms: t.saturating_sub(last_sent) as f64 * 1e-6,
+                };
+                health.refuse(gate.decide(t).err().unwrap_or(quiet));
                 None
             }
+            None => return Ok(()),
         };
-        let command = match command {
-            Some(c) => {
-                last = Some((c, t));
-                c
-            }
-            None => {
-                // Hold the last safe command (or, before any, no motion at all).
-                let mut c = last.map_or_else(HandCommand::default, |(c, _)| c);
-                c.header = Header::new(Kind::HandCommand, seq.advance(), 0, 0);
-                c.mode = CommandMode::Hold as u32;
-                c.quality = 0.0;
-                write_text(&mut c.reason, &health.last_problem);
-                c
-            }
-        };
-        out.send(command)?;
-        if ticks.is_multiple_of(50) {
-            let state = if command.mode == CommandMode::Hold as u32 {
-                NodeState::Degraded
-            } else {
-                NodeState::Running
-            };
-            health.report(state)?;
-        }
+        let mut c = command.unwrap_or_else(|| tracker.hold(&health.last_problem));
+        c.header.sequence = seq.advance();
+        out.publish(c)?;
+        last_sent = t;
         Ok(())
     })
+}
+
+/// Tracking commands: the plan step's joint targets within limits and speed, and balancing
+/// fingertip forces.
+struct Tracker<'a> {
+    ctx: &'a Context,
+    contacts: Vec<ForceContact>,
+    /// The body-frame forces of a contact set (candidates in slot order, padded with MAX).
+    forces: Option<([u32; MAX_FINGERS], Vec<Vec3>)>,
+    /// The last tracking command and when it was made.
+    last: Option<(HandCommand, u64)>,
+}
+
+impl Tracker<'_> {
+    /// The command that follows `plan` in the grasp the gate accepted, with `header`, at time
+    /// `t`; or why there is none.
+    fn track(
+        &mut self,
+        plan: &PlanStepHeader,
+        gate: &Gate,
+        header: Header,
+        t: u64,
+    ) -> Result<HandCommand, String> {
+        let ctx = self.ctx;
+        let p = &ctx.config.pipeline;
+        let hand = &ctx.setup.hand;
+        let cands = ctx.setup.problem.candidates();
+        let theta = gate.grasp().map_or(0.0, |g| g.rotation);
+        let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
+        let n = (plan.finger_count as usize).min(MAX_FINGERS);
+        let mut slots = [0usize; MAX_FINGERS];
+        let mut set = [u32::MAX; MAX_FINGERS];
+        let mut count = 0;
+        for (k, target) in plan.targets.iter().enumerate().take(n) {
+            if target.in_contact == 1 && (target.candidate as usize) < cands.points.len() {
+                slots[count] = k;
+                set[count] = target.candidate;
+                count += 1;
+            }
+        }
+        // The forces in the object's frame, solved once per contact set: with no external
+        // load the problem is invariant under rotation (cones, equilibrium, and the least
+        // squared force alike), so the hand-frame forces are these rotated.
+        if self.forces.as_ref().is_none_or(|(of, _)| *of != set) {
+            self.contacts.clear();
+            for &c in set.iter().take(count) {
+                self.contacts.push(ForceContact {
+                    point: cands.points[c as usize] - ctx.setup.object.centre_of_mass,
+                    normal: cands.normals[c as usize],
+                });
+            }
+            let forces = balance(
+                &self.contacts,
+                &Vec3::zeros(),
+                ctx.config.grasp.model.mu(),
+                p.min_normal_force,
+                &Vec3::zeros(),
+                &Vec3::zeros(),
+            )
+            .map_err(|e| format!("forces: {e}"))?;
+            self.forces = Some((set, forces));
+        }
+        let (_, forces) = self.forces.as_ref().expect("solved above");
+        let mut c = HandCommand {
+            header,
+            mode: CommandMode::Track as u32,
+            finger_count: plan.finger_count,
+            quality: gate.quality(),
+            ..Default::default()
+        };
+        let dt = 1.0 / p.rate_hz;
+        let elapsed = self
+            .last
+            .map_or(dt, |(_, when)| t.saturating_sub(when) as f64 * 1e-9);
+        let max_step = p.joint_speed * elapsed.max(dt);
+        for (k, target) in plan.targets.iter().enumerate().take(n) {
+            c.finger_ids[k] = target.finger;
+            let Some(f) = hand.finger(target.finger) else {
+                continue;
+            };
+            for j in 0..(target.joint_count as usize).min(MAX_JOINTS).min(f.dof()) {
+                let mut goal = target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
+                if let Some((prev, _)) = &self.last {
+                    let from = prev.joint_targets[k][j];
+                    goal = from + (goal - from).clamp(-max_step, max_step);
+                }
+                c.joint_targets[k][j] = goal;
+            }
+        }
+        for (slot, f) in slots.iter().zip(forces) {
+            let f = rot * f;
+            c.forces[*slot] = [f.x, f.y, f.z];
+        }
+        self.last = Some((c, t));
+        Ok(c)
+    }
+
+    /// A hold of the last tracking command (before any, no motion at all), saying `why`.
+    fn hold(&self, why: &str) -> HandCommand {
+        let mut c = self.last.map_or_else(HandCommand::default, |(c, _)| c);
+        c.header = Header::new(Kind::HandCommand, 0, 0, 0);
+        c.mode = CommandMode::Hold as u32;
+        c.quality = 0.0;
+        write_text(&mut c.reason, why);
+        c
+    }
 }

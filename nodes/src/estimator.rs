@@ -11,11 +11,12 @@
 //! the fingertip centre meets the object, in the body frame, snapped to the nearest candidate.
 
 use std::collections::VecDeque;
+use std::fmt::Write as _;
 
 use anyhow::Result;
 use iceoryx2::prelude::*;
 use icrflow_interfaces::{
-    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, NodeState, ObjectPose, topics,
+    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, ObjectPose, topics,
 };
 use icrflow_plan::hand::wrap;
 
@@ -59,14 +60,16 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut streak = vec![0u32; hand.fingers.len()];
     let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
     let mut q = vec![0.0; 8];
+    let mut tips: Vec<Option<(Tip, bool)>> = Vec::with_capacity(hand.fingers.len());
+    let mut text = String::with_capacity(32);
+    let checkpoint_tmp = checkpoint.with_extension("tmp");
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let wake_j = ws.attach_notification(joints.listener())?;
-    let wake_p = ws.attach_notification(poses.listener())?;
-    serve(&ws, |id| {
-        if id.has_event_from(&wake_p)
-            && let Some(m) = poses.latest()?
-        {
+    let _joints = ws.attach_notification(joints.listener())?;
+    let _poses = ws.attach_notification(poses.listener())?;
+    serve(&ws, |_| {
+        health.tick()?;
+        if let Some(m) = poses.latest()? {
             let [w, _, _, z] = m.orientation;
             let measured = 2.0 * z.atan2(w);
             if !health.accept(
@@ -89,12 +92,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                 health.processed += 1;
             }
         }
-        if !id.has_event_from(&wake_j) {
-            return Ok(());
-        }
         let Some(m) = joints.latest()? else {
             return Ok(());
         };
+        let received = crate::runtime::now();
         if !health.accept(
             "joint state",
             &m.header,
@@ -105,12 +106,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         health.processed += 1;
         let mut g = GraspState {
-            header: Header::new(
-                Kind::GraspState,
-                seq.advance(),
-                m.header.sequence,
-                m.header.origin_time_ns,
-            ),
+            header: Header::after(Kind::GraspState, seq.advance(), &m.header, received),
             finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
             ..Default::default()
         };
@@ -118,7 +114,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         let mut rolling = 0;
         let mut residual = 0.0;
         let mut touching = 0;
-        let mut tips = Vec::with_capacity(hand.fingers.len());
+        tips.clear();
         for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
             let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id) else {
                 tips.push(None);
@@ -192,15 +188,13 @@ pub fn run(ctx: &Context) -> Result<()> {
         while history.len() > 4000 {
             history.pop_front();
         }
-        out.send(g)?;
+        out.publish(g)?;
         if last_joint_seq.is_multiple_of(10) {
-            let tmp = checkpoint.with_extension("tmp");
-            if std::fs::write(&tmp, format!("{theta:e}")).is_ok() {
-                let _ = std::fs::rename(&tmp, &checkpoint);
+            text.clear();
+            let _ = write!(text, "{theta:e}");
+            if std::fs::write(&checkpoint_tmp, &text).is_ok() {
+                let _ = std::fs::rename(&checkpoint_tmp, &checkpoint);
             }
-        }
-        if last_joint_seq.is_multiple_of(50) {
-            health.report(NodeState::Running)?;
         }
         Ok(())
     })

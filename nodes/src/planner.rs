@@ -11,17 +11,18 @@ use std::time::Duration;
 use anyhow::{Context as _, Result};
 use iceoryx2::prelude::*;
 use icrflow_interfaces::{
-    FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, NodeState, PlanPhase,
-    PlanStepHeader, topics,
+    FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
+    topics,
 };
 use icrflow_plan::planner::{Phase, Step};
 
-use crate::runtime::{Context, Health, Sequence, serve};
+use crate::runtime::{Context, Health, Sequence, now, serve};
 
 /// How close the estimated rotation must come to a step's target (rad).
 pub const ROTATION_TOLERANCE: f64 = 0.3 * std::f64::consts::PI / 180.0;
-/// Period of re-publishing the current target, so that it never goes stale (s).
-pub const REPUBLISH: f64 = 0.02;
+/// Period of the plan-step stream (s): the current target is published at least this often
+/// (100 Hz), and at once when the estimate reaches it.
+pub const REPUBLISH: f64 = 0.01;
 /// Largest object rotation between two published targets of a rolling step (rad): the step is
 /// cut into sub-targets whose fingertip poses are interpolated along the rolling motion (centre
 /// and cap angle) and solved by inverse kinematics, so that the hand follows the planned
@@ -85,26 +86,31 @@ fn phase(p: Phase) -> PlanPhase {
     }
 }
 
-fn fingers_in_contact(step: &Step) -> Vec<u32> {
+/// The fingers in contact in a plan step.
+fn fingers_in_contact(step: &Step) -> impl Iterator<Item = u32> + '_ {
     step.fingers
         .iter()
         .filter(|f| f.contact.is_some())
         .map(|f| f.finger)
-        .collect()
 }
 
-fn touching(g: &GraspState) -> Vec<u32> {
+/// The fingers in contact in an estimated grasp.
+fn touching(g: &GraspState) -> impl Iterator<Item = u32> + '_ {
     g.fingers
         .iter()
         .take(g.finger_count as usize)
         .filter(|f| f.in_contact == 1)
         .map(|f| f.finger)
-        .collect()
+}
+
+/// Whether the estimate has the step's fingers in contact.
+fn same_contacts(step: &Step, g: &GraspState) -> bool {
+    touching(g).eq(fingers_in_contact(step))
 }
 
 fn reached(step: &Step, g: &GraspState) -> bool {
     (g.rotation - step.rotation_deg.to_radians()).abs() <= ROTATION_TOLERANCE
-        && touching(g) == fingers_in_contact(step)
+        && same_contacts(step, g)
 }
 
 /// Runs the planner node.
@@ -121,74 +127,88 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last_grasp = 0;
-    let mut last_input = (0, 0);
+    // The header of the newest grasp state and when it was taken off the bus.
+    let mut last_input: Option<(Header, u64)> = None;
     // The step being commanded; chosen from the first grasp state seen (a restart resumes).
     let mut current: Option<usize> = None;
-    let mut regions: Vec<u32> = Vec::with_capacity(4096);
+    // The ICR members of step `.0` (the concatenated regions and their lengths).
+    let mut icrs: Option<(usize, Vec<u32>, [u32; MAX_FINGERS])> = None;
 
-    let publish =
-        |k: usize, input: (u64, u64), regions: &mut Vec<u32>, seq: &mut Sequence| -> Result<()> {
-            let done = k >= steps.len();
-            let step = &steps[k.min(steps.len() - 1)];
-            let mut h = PlanStepHeader {
-                header: Header::new(Kind::PlanStep, seq.advance(), input.0, input.1),
-                phase: if done {
-                    PlanPhase::Done as u32
-                } else {
-                    phase(step.phase) as u32
-                },
-                finger_count: step.fingers.len().min(MAX_FINGERS) as u32,
-                step: step.step as u64,
-                rotation: step.rotation_deg.to_radians(),
-                quality: step.quality,
-                ..Default::default()
-            };
-            regions.clear();
+    let mut publish = |k: usize, input: Option<(Header, u64)>, seq: &mut Sequence| -> Result<()> {
+        let done = k >= steps.len();
+        let at = k.min(steps.len() - 1);
+        let step = &steps[at];
+        let header = match input {
+            Some((h, received)) => Header::after(Kind::PlanStep, seq.advance(), &h, received),
+            None => Header::new(Kind::PlanStep, seq.advance(), 0, 0),
+        };
+        let mut h = PlanStepHeader {
+            header,
+            phase: if done {
+                PlanPhase::Done as u32
+            } else {
+                phase(step.phase) as u32
+            },
+            finger_count: step.fingers.len().min(MAX_FINGERS) as u32,
+            step: step.step as u64,
+            rotation: step.rotation_deg.to_radians(),
+            quality: step.quality,
+            ..Default::default()
+        };
+        if icrs.as_ref().is_none_or(|(of, _, _)| *of != at) {
+            // The step's ICRs, computed once per step.
+            let mut members = Vec::with_capacity(4096);
+            let mut lengths = [0u32; MAX_FINGERS];
             let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
-            let icrs = problem
+            let regions = problem
                 .evaluate(&contacts)
                 .ok()
                 .and_then(|e| problem.icrs(&contacts, &e, alpha).ok());
             let mut region = 0;
             for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
-                let t = &mut h.targets[slot];
-                *t = FingerTarget {
-                    finger: f.finger,
-                    in_contact: u32::from(f.contact.is_some()),
-                    candidate: f.contact.unwrap_or(0) as u32,
-                    joint_count: f.joints_deg.len().min(MAX_JOINTS) as u32,
-                    point: f.point.unwrap_or([0.0; 3]),
-                    cap_angle: f.cap_angle_deg.unwrap_or(0.0).to_radians(),
-                    joints: [0.0; MAX_JOINTS],
-                };
-                for (j, d) in f.joints_deg.iter().enumerate().take(MAX_JOINTS) {
-                    t.joints[j] = d.to_radians();
-                }
                 if f.contact.is_some() {
-                    if let Some(r) = icrs.as_ref().and_then(|r| r.get(region)) {
-                        h.region_lengths[slot] = r.members.len() as u32;
-                        regions.extend_from_slice(&r.members);
+                    if let Some(r) = regions.as_ref().and_then(|r| r.get(region)) {
+                        lengths[slot] = r.members.len() as u32;
+                        members.extend_from_slice(&r.members);
                     }
                     region += 1;
                 }
             }
-            out.send(h, regions)?;
-            Ok(())
-        };
+            icrs = Some((at, members, lengths));
+        }
+        let (_, members, lengths) = icrs.as_ref().expect("computed above");
+        h.region_lengths = *lengths;
+        for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
+            let t = &mut h.targets[slot];
+            *t = FingerTarget {
+                finger: f.finger,
+                in_contact: u32::from(f.contact.is_some()),
+                candidate: f.contact.unwrap_or(0) as u32,
+                joint_count: f.joints_deg.len().min(MAX_JOINTS) as u32,
+                point: f.point.unwrap_or([0.0; 3]),
+                cap_angle: f.cap_angle_deg.unwrap_or(0.0).to_radians(),
+                joints: [0.0; MAX_JOINTS],
+            };
+            for (j, d) in f.joints_deg.iter().enumerate().take(MAX_JOINTS) {
+                t.joints[j] = d.to_radians();
+            }
+        }
+        out.publish(h, members)?;
+        Ok(())
+    };
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let wake = ws.attach_notification(grasps.listener())?;
+    let _grasps = ws.attach_notification(grasps.listener())?;
     let tick = ws.attach_interval(Duration::from_secs_f64(REPUBLISH))?;
     serve(&ws, |id| {
-        if id.has_event_from(&wake)
-            && let Some(g) = grasps.latest()?
-        {
+        health.tick()?;
+        if let Some(g) = grasps.latest()? {
             if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last_grasp) {
                 // Refused and counted.
             } else if !g.rotation.is_finite() {
                 health.refuse("grasp state not finite");
             } else {
-                last_input = (g.header.sequence, g.header.origin_time_ns);
+                last_input = Some((g.header, now()));
                 health.processed += 1;
                 let k = match current {
                     Some(k) => k,
@@ -196,9 +216,8 @@ pub fn run(ctx: &Context) -> Result<()> {
                         // First state seen: resume at the step nearest to it (the same
                         // fingers in contact, the closest rotation; a fresh run is at the
                         // start), so that a restarted planner never sends the hand back.
-                        let touching = touching(&g);
                         let k = (0..steps.len())
-                            .filter(|&k| fingers_in_contact(&steps[k]) == touching)
+                            .filter(|&k| same_contacts(&steps[k], &g))
                             .min_by(|&a, &b| {
                                 let d = |k: usize| {
                                     (g.rotation - steps[k].rotation_deg.to_radians()).abs()
@@ -207,21 +226,21 @@ pub fn run(ctx: &Context) -> Result<()> {
                             })
                             .unwrap_or(0);
                         current = Some(k);
-                        publish(k, last_input, &mut regions, &mut seq)?;
+                        publish(k, last_input, &mut seq)?;
                         k
                     }
                 };
                 if k < steps.len() && reached(&steps[k], &g) {
                     current = Some(k + 1);
-                    publish(k + 1, last_input, &mut regions, &mut seq)?;
+                    publish(k + 1, last_input, &mut seq)?;
                 }
             }
         }
-        if id.has_event_from(&tick) {
-            if let Some(k) = current {
-                publish(k, last_input, &mut regions, &mut seq)?;
-            }
-            health.report(NodeState::Running)?;
+        if id.has_event_from(&tick)
+            && let Some(k) = current
+        {
+            // Taken up again now: the trace's last stage is this publication alone.
+            publish(k, last_input.map(|(h, _)| (h, now())), &mut seq)?;
         }
         Ok(())
     })

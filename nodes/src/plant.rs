@@ -15,17 +15,16 @@
 //! from it instead of from the initial grasp.
 
 use std::collections::VecDeque;
-use std::time::Duration;
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
-use iceoryx2::prelude::*;
 use icrflow_interfaces::{
-    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, NodeState,
-    ObjectPose, topics,
+    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose, topics,
 };
 
 use crate::rolling::{rotation, tip, touches};
-use crate::runtime::{Context, Health, Noise, Sequence, now, serve};
+use crate::runtime::{Context, Health, Noise, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
@@ -93,28 +92,37 @@ pub fn run(ctx: &Context) -> Result<()> {
     let pose_every = (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64;
     let latency_ns = (p.pose_latency * 1e9) as u64;
 
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let tick = ws.attach_interval(Duration::from_secs_f64(dt))?;
-    let wake = ws.attach_notification(commands.listener())?;
     let mut ticks: u64 = 0;
-    serve(&ws, |id| {
-        if id.has_event_from(&wake)
-            && let Some(c) = commands.latest()?
-        {
-            {
-                health.processed += 1;
-                if c.header.check(Kind::HandCommand).is_err() {
-                    health.refuse("hand command of another schema or kind");
-                } else if c.mode == CommandMode::Track as u32 {
-                    target = Some(c);
-                } else {
-                    // Hold: stay where we are.
-                    target = None;
-                }
+    let mut text = String::with_capacity(1024);
+    let state_tmp = state_file.with_extension("tmp");
+    // The plant keeps its own clock, like a hand's controller: a tick every period on an
+    // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
+    // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.
+    let period = Duration::from_secs_f64(dt);
+    let mut next = Instant::now();
+    loop {
+        health.tick()?;
+        next += period;
+        let early = next.saturating_duration_since(Instant::now());
+        if early > Duration::ZERO {
+            if ctx.bus.node().wait(early).is_err() {
+                return Ok(());
             }
+        } else if Instant::now().duration_since(next) > period {
+            // A whole period late (the process was not scheduled in time): the missed ticks
+            // are skipped, not sent in a burst.
+            next = Instant::now();
         }
-        if !id.has_event_from(&tick) {
-            return Ok(());
+        if let Some(c) = commands.latest()? {
+            health.processed += 1;
+            if c.header.check(Kind::HandCommand).is_err() {
+                health.refuse("hand command of another schema or kind");
+            } else if c.mode == CommandMode::Track as u32 {
+                target = Some(c);
+            } else {
+                // Hold: stay where we are.
+                target = None;
+            }
         }
         ticks += 1;
         let t = now();
@@ -156,16 +164,16 @@ pub fn run(ctx: &Context) -> Result<()> {
             theta += turn / rolling as f64;
         }
         if ticks.is_multiple_of(10) {
-            let mut text = format!("{theta:e}");
+            text.clear();
+            let _ = write!(text, "{theta:e}");
             for (slot, joints) in q.iter().enumerate() {
                 text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
                 for a in joints {
-                    text.push_str(&format!(" {a:e}"));
+                    let _ = write!(text, " {a:e}");
                 }
             }
-            let tmp = state_file.with_extension("tmp");
-            if std::fs::write(&tmp, text).is_ok() {
-                let _ = std::fs::rename(&tmp, &state_file);
+            if std::fs::write(&state_tmp, &text).is_ok() {
+                let _ = std::fs::rename(&state_tmp, &state_file);
             }
         }
         history.push_back((t, theta));
@@ -175,7 +183,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         // Encoders.
         let seq = joint_seq.advance();
         let mut m = JointState {
-            header: Header::new(Kind::JointState, seq, 0, t),
+            header: Header::new(Kind::JointState, seq, 0, 0),
             finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
             ..Default::default()
         };
@@ -186,7 +194,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 m.positions[slot][j] = a + noise.gauss(p.joint_noise);
             }
         }
-        joints.send(m)?;
+        joints.publish(m)?;
         // Pose measurement of the scene `latency` ago.
         if ticks.is_multiple_of(pose_every) {
             let captured = t.saturating_sub(latency_ns);
@@ -198,16 +206,12 @@ pub fn run(ctx: &Context) -> Result<()> {
                 .map_or(theta, |(_, th)| *th);
             let measured = past + noise.gauss(p.pose_noise);
             let half = 0.5 * measured;
-            poses.send(ObjectPose {
+            poses.publish(ObjectPose {
                 header: Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured),
                 captured_time_ns: captured,
                 position: [0.0; 3],
                 orientation: [half.cos(), 0.0, 0.0, half.sin()],
             })?;
         }
-        if ticks.is_multiple_of(50) {
-            health.report(NodeState::Running)?;
-        }
-        Ok(())
-    })
+    }
 }

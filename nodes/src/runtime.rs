@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::{Context as _, Result, bail};
 use iceoryx2::prelude::{CallbackProgression, LogLevel, WaitSetAttachmentId, ipc, set_log_level};
@@ -54,12 +55,24 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
     }
 }
 
+/// Period of the wake-up every node's event loop has besides its inputs' events (see
+/// [`serve`]).
+pub const RESYNC: Duration = Duration::from_millis(10);
+
 /// A node's event loop: calls `handle` on every wake-up of the WaitSet until a termination
 /// signal stops the WaitSet (`Ok`) or `handle` fails (its error).
+///
+/// `handle` must read every one of its subscribers on every wake-up, whichever attachment
+/// woke it (reading is non-blocking and resets the subscriber's event): iceoryx2 0.10's
+/// listener can lose a wake-up for good when a notifier sends while the listener is draining
+/// (the datagram is consumed, the shared state stays "notified", and later notifiers skip
+/// sending; see [`crate::bus`]). So the loop also wakes every [`RESYNC`], which bounds such a
+/// stall to that period.
 pub fn serve(
     ws: &WaitSet<ipc::Service>,
     mut handle: impl FnMut(WaitSetAttachmentId<ipc::Service>) -> Result<()>,
 ) -> Result<()> {
+    let _resync = ws.attach_interval(RESYNC)?;
     let mut failure = None;
     ws.wait_and_process(|id| match handle(id) {
         Ok(()) => CallbackProgression::Continue,
@@ -103,7 +116,12 @@ pub struct Health {
     pub refused: u64,
     /// The last problem.
     pub last_problem: String,
+    /// When the last report was published, and the refusals counted by then.
+    reported: (u64, u64),
 }
+
+/// Period of the health reports ([`Health::tick`]).
+pub const HEALTH_PERIOD_NS: u64 = 100_000_000;
 
 impl Health {
     /// Health reports of the context's node.
@@ -115,6 +133,7 @@ impl Health {
             processed: 0,
             refused: 0,
             last_problem: String::new(),
+            reported: (0, 0),
         })
     }
 
@@ -139,6 +158,22 @@ impl Health {
         }
     }
 
+    /// Publishes a report if the last is [`HEALTH_PERIOD_NS`] old: `Degraded` if inputs were
+    /// refused since the last report, `Running` otherwise. Called on every wake-up.
+    pub fn tick(&mut self) -> Result<()> {
+        let t = now_ns();
+        if t.saturating_sub(self.reported.0) < HEALTH_PERIOD_NS {
+            return Ok(());
+        }
+        let state = if self.refused > self.reported.1 {
+            NodeState::Degraded
+        } else {
+            NodeState::Running
+        };
+        self.reported = (t, self.refused);
+        self.report(state)
+    }
+
     /// Publishes a report.
     pub fn report(&mut self, state: NodeState) -> Result<()> {
         let mut h = NodeHealth {
@@ -152,7 +187,7 @@ impl Health {
         write_text(&mut h.node, self.name);
         write_text(&mut h.message, &self.last_problem);
         self.publisher
-            .send(h)
+            .publish(h)
             .context("publishing health")
             .map(|_| ())
     }

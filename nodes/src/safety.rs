@@ -41,6 +41,20 @@ pub enum Hold {
         /// What is wrong.
         what: String,
     },
+    /// The wrench space was computed from another grasp state than the one accepted.
+    #[error("the wrench space (of grasp state {wrench_of}) is not that of grasp state {grasp}")]
+    Mismatch {
+        /// The grasp state the wrench space was computed from.
+        wrench_of: u64,
+        /// The grasp state accepted.
+        grasp: u64,
+    },
+    /// No input has caused a command for a while.
+    #[error("no wrench space for {ms:.1} ms")]
+    Quiet {
+        /// Since the last command (ms).
+        ms: f64,
+    },
     /// The grasp is not force closure.
     #[error("the grasp is not force closure")]
     NotForceClosure,
@@ -167,13 +181,19 @@ impl Gate {
         Ok(())
     }
 
+    /// The last accepted grasp state.
+    pub fn grasp(&self) -> Option<&GraspState> {
+        self.grasp.as_ref()
+    }
+
     /// The quality alpha* of the last accepted wrench space (0 before any).
     pub fn quality(&self) -> f64 {
         self.wrench.as_ref().map_or(0.0, |w| w.quality)
     }
 
-    /// Whether a command may be computed now: every input accepted, still fresh, and the
-    /// grasp force closure with quality >= alpha. Returns the plan step to follow.
+    /// Whether a command may be computed now: every input accepted, still fresh, the wrench
+    /// space that of the accepted grasp state, and that grasp force closure with quality >=
+    /// alpha. Returns the plan step to follow.
     pub fn decide(&self, now: u64) -> Result<&PlanStepHeader, Hold> {
         let plan = self.plan.as_ref().ok_or(Hold::Missing("plan step"))?;
         let grasp = self.grasp.as_ref().ok_or(Hold::Missing("grasp state"))?;
@@ -200,6 +220,13 @@ impl Gate {
                 topic: "joint measurement behind the grasp state",
                 age_ms: now.saturating_sub(origin) as f64 * 1e-6,
                 limit_ms: self.max_age_ns as f64 * 1e-6,
+            });
+        }
+        // The quality judged below is that of the grasp the command is computed from.
+        if wrench.header.input_sequence != grasp.header.sequence {
+            return Err(Hold::Mismatch {
+                wrench_of: wrench.header.input_sequence,
+                grasp: grasp.header.sequence,
             });
         }
         if wrench.force_closure != 1 {
@@ -234,7 +261,7 @@ mod tests {
             ..Default::default()
         };
         let wrench = WrenchSpaceHeader {
-            header: Header::new(Kind::WrenchSpace, seq, 0, 0),
+            header: Header::new(Kind::WrenchSpace, seq, seq, 0),
             force_closure: 1,
             dim: 3,
             quality: 0.2,
@@ -308,17 +335,31 @@ mod tests {
         ));
         // The refused messages changed nothing: still following the good inputs.
         assert!(g.decide(now).is_ok());
-        // Quality below alpha, then not force closure.
-        let (_, _, mut low) = inputs(10);
+        // The wrench space of another grasp state than the accepted one.
+        let (_, _, mut other) = inputs(10);
+        other.header.input_sequence = 4;
+        g.offer_wrench(&other, now).unwrap();
+        assert_eq!(
+            g.decide(now),
+            Err(Hold::Mismatch {
+                wrench_of: 4,
+                grasp: 5
+            })
+        );
+        // Quality below alpha, then not force closure (of the accepted grasp state, 5).
+        let (_, _, mut low) = inputs(13);
+        low.header.input_sequence = 5;
         low.quality = 0.05;
         g.offer_wrench(&low, now).unwrap();
         assert!(matches!(g.decide(now), Err(Hold::BelowMargin { .. })));
-        let (_, _, mut open) = inputs(11);
+        let (_, _, mut open) = inputs(14);
+        open.header.input_sequence = 5;
         open.force_closure = 0;
         g.offer_wrench(&open, now).unwrap();
         assert_eq!(g.decide(now), Err(Hold::NotForceClosure));
         // Inputs that stop coming go stale: a crashed planner holds the hand.
-        let (_, _, w) = inputs(12);
+        let (_, _, mut w) = inputs(15);
+        w.header.input_sequence = 5;
         g.offer_wrench(&w, now).unwrap();
         assert!(g.decide(now).is_ok());
         assert!(matches!(g.decide(now + 2 * AGE), Err(Hold::Stale { .. })));

@@ -1,12 +1,16 @@
 //! The wrench-space node (`icrflow-wrench`): for every grasp state, the grasp wrench space of
 //! the fingers in contact, its hull, force closure, alpha* and epsilon, published with the
 //! hull's facets as an iceoryx2 dynamic slice.
+//!
+//! These depend only on which candidate points are in contact (body frame), which stays the
+//! same over many grasp states while a contact rolls across one facet: the node evaluates a
+//! contact set once and answers the following grasp states with the same set from that
+//! evaluation, so that the critical path (measurement to hand command) pays the hull only
+//! when a contact moves to another candidate.
 
 use anyhow::Result;
 use iceoryx2::prelude::*;
-use icrflow_interfaces::{
-    Facet, GraspState, Header, Kind, MAX_FINGERS, NodeState, WrenchSpaceHeader, topics,
-};
+use icrflow_interfaces::{Facet, GraspState, Header, Kind, MAX_FINGERS, WrenchSpaceHeader, topics};
 
 use crate::runtime::{Context, Health, Sequence, serve};
 
@@ -27,17 +31,18 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut last = 0;
     let mut contacts = Vec::with_capacity(MAX_FINGERS);
     let mut facets: Vec<Facet> = Vec::with_capacity(MAX_FACETS);
+    // The contact set of `facets` and the header fields evaluated for it.
+    let mut evaluated: Option<(Vec<usize>, WrenchSpaceHeader)> = None;
     let n = problem.candidates().points.len();
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let wake = ws.attach_notification(grasps.listener())?;
-    serve(&ws, |id| {
-        if !id.has_event_from(&wake) {
-            return Ok(());
-        }
+    let _grasps = ws.attach_notification(grasps.listener())?;
+    serve(&ws, |_| {
+        health.tick()?;
         let Some(g) = grasps.latest()? else {
             return Ok(());
         };
+        let received = crate::runtime::now();
         if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last) {
             return Ok(());
         }
@@ -51,36 +56,42 @@ pub fn run(ctx: &Context) -> Result<()> {
                 contacts.push(f.candidate as usize);
             }
         }
-        let mut header = WrenchSpaceHeader {
-            header: Header::new(
-                Kind::WrenchSpace,
-                seq.advance(),
-                g.header.sequence,
-                g.header.origin_time_ns,
-            ),
-            dim: dim as u32,
-            alpha,
-            ..Default::default()
-        };
-        facets.clear();
-        if !contacts.is_empty() {
-            let e = problem.evaluate(&contacts)?;
-            header.force_closure = u32::from(e.force_closure());
-            header.quality = if e.force_closure() { e.quality } else { 0.0 };
-            header.epsilon = e.epsilon;
-            if let Some(hull) = &e.hull {
-                for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
-                    let mut normal = [0.0; 6];
-                    normal[..dim].copy_from_slice(hull.normal(f));
-                    facets.push(Facet { normal, offset: *b });
+        let cached = evaluated.as_ref().filter(|(set, _)| *set == contacts);
+        let mut header = match cached {
+            Some((_, h)) => *h,
+            None => {
+                let mut h = WrenchSpaceHeader {
+                    dim: dim as u32,
+                    alpha,
+                    ..Default::default()
+                };
+                facets.clear();
+                if !contacts.is_empty() {
+                    let e = problem.evaluate(&contacts)?;
+                    h.force_closure = u32::from(e.force_closure());
+                    h.quality = if e.force_closure() { e.quality } else { 0.0 };
+                    h.epsilon = e.epsilon;
+                    if let Some(hull) = &e.hull {
+                        for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
+                            let mut normal = [0.0; 6];
+                            normal[..dim].copy_from_slice(hull.normal(f));
+                            facets.push(Facet { normal, offset: *b });
+                        }
+                    }
                 }
+                match &mut evaluated {
+                    Some((set, old)) => {
+                        set.clone_from(&contacts);
+                        *old = h;
+                    }
+                    None => evaluated = Some((contacts.clone(), h)),
+                }
+                h
             }
-        }
-        out.send(header, &facets)?;
+        };
+        header.header = Header::after(Kind::WrenchSpace, seq.advance(), &g.header, received);
+        out.publish(header, &facets)?;
         health.processed += 1;
-        if last.is_multiple_of(50) {
-            health.report(NodeState::Running)?;
-        }
         Ok(())
     })
 }

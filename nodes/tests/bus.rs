@@ -1,53 +1,16 @@
 //! The bus over real iceoryx2 services, in an isolated prefix and root: delivery with a
 //! WaitSet wake-up, refusal of a mismatched message type, and no resources left behind.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
-use icrflow_interfaces::{HandCommand, Header, JointState, Kind, topics};
+use icrflow_interfaces::{HandCommand, Header, JointState, Kind, SCHEMA_VERSION, topics};
+use std::path::PathBuf;
+
 use icrflow_nodes::bus::{Bus, BusConfig, BusError};
 
-fn isolated(tag: &str) -> BusConfig {
-    let id = format!("icrt_{tag}_{}_", std::process::id());
-    let root = PathBuf::from(format!("/tmp/icrflow-test-{tag}-{}", std::process::id()));
-    BusConfig::new("test", &id, root).unwrap()
-}
-
-/// Files of this run left in /dev/shm (but the one global counter iceoryx2 keeps by design)
-/// and under its root.
-fn leftovers(c: &BusConfig) -> Vec<String> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
-        let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with(&c.prefix) && !n.ends_with("global_mgmt") {
-            out.push(n);
-        }
-    }
-    fn walk(p: &std::path::Path, out: &mut Vec<String>) {
-        if let Ok(rd) = std::fs::read_dir(p) {
-            for e in rd.flatten() {
-                let path = e.path();
-                if path.is_dir() {
-                    walk(&path, out);
-                } else {
-                    out.push(path.display().to_string());
-                }
-            }
-        }
-    }
-    walk(&c.root, &mut out);
-    out
-}
-
-fn remove(c: &BusConfig) {
-    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
-        if e.file_name().to_string_lossy().starts_with(&c.prefix) {
-            let _ = std::fs::remove_file(e.path());
-        }
-    }
-    let _ = std::fs::remove_dir_all(&c.root);
-}
+mod common;
+use common::{isolated, leftovers, remove};
 
 #[test]
 fn a_message_wakes_the_subscriber_and_arrives_intact() {
@@ -100,7 +63,10 @@ fn a_mismatched_message_type_is_refused_by_name() {
         assert!(matches!(e, BusError::Mismatch { .. }), "{e}");
         let text = e.to_string();
         assert!(text.contains("icrflow/test/joint_state"), "{text}");
-        assert!(text.contains("icrflow.HandCommand.v1"), "{text}");
+        assert!(
+            text.contains(&format!("icrflow.HandCommand.v{SCHEMA_VERSION}")),
+            "{text}"
+        );
     }
     remove(&c);
 }

@@ -177,6 +177,29 @@ mod tests {
             .collect()
     }
 
+    /// With no external load the forces turn with the grasp: the hand command node solves
+    /// once per contact set in the object's frame and rotates the result.
+    #[test]
+    fn without_a_load_the_forces_rotate_with_the_contacts() {
+        let body = ring(&[30.0, -30.0, 140.0], 0.0475);
+        let zero = Vec3::zeros();
+        let f = balance(&body, &zero, 0.3, 1.0, &zero, &zero).unwrap();
+        for angle in [0.4_f64, 2.0, -1.3] {
+            let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), angle);
+            let turned: Vec<ForceContact> = body
+                .iter()
+                .map(|c| ForceContact {
+                    point: rot * c.point,
+                    normal: rot * c.normal,
+                })
+                .collect();
+            let g = balance(&turned, &zero, 0.3, 1.0, &zero, &zero).unwrap();
+            for (a, b) in f.iter().zip(&g) {
+                assert!((rot * a - b).norm() < 1e-6, "{angle}: {a} turned vs {b}");
+            }
+        }
+    }
+
     #[test]
     fn the_paper_grasp_balances_with_forces_inside_the_cones() {
         let c = ring(&[30.0, -30.0, 140.0], 0.0475);

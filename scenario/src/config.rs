@@ -638,7 +638,7 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
     };
     Ok(PipelineSpec {
         rig,
-        rate_hz: positive("pipeline.rate_hz", raw.rate_hz.unwrap_or(500.0))?,
+        rate_hz: positive("pipeline.rate_hz", raw.rate_hz.unwrap_or(1000.0))?,
         joint_speed: positive(
             "pipeline.joint_speed_deg_s",
             raw.joint_speed_deg_s.unwrap_or(360.0),
