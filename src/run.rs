@@ -16,6 +16,9 @@ use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 use icrflow_scenario::{Config, Setup};
 use serde::Serialize;
 
+/// A hold this long is reported on stderr, and again every time as long.
+const HOLD_REPORT: Duration = Duration::from_secs(1);
+
 /// The node processes, in start order.
 pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
 
@@ -346,6 +349,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         let mut done = false;
         let mut reason = String::new();
         let mut timing = Timing::new();
+        // Since when the hand holds, and when that was last reported.
+        let mut holding: Option<(Instant, Instant)> = None;
         let (mut plan_published, mut plan_compute) = (0u64, Histogram::new());
         let mut memory = std::collections::BTreeMap::<String, Memory>::new();
         let mut next_sample = Instant::now() + Duration::from_secs(1);
@@ -376,6 +381,14 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     commands.drain(|c| {
                         sent += 1;
                         if c.mode == CommandMode::Track as u32 {
+                            if let Some((since, _)) = holding.take()
+                                && since.elapsed() >= HOLD_REPORT
+                            {
+                                eprintln!(
+                                    "run: the hand tracks again after holding {:.1} s",
+                                    since.elapsed().as_secs_f64()
+                                );
+                            }
                             min_quality = min_quality.min(c.quality);
                             timing.add(c.header.trace.as_slice());
                             if c.header.origin_time_ns > 0 {
@@ -386,8 +399,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                             }
                         } else {
                             holds += 1;
-                            if holds % 500 == 1 {
-                                eprintln!("run: hand holds: {}", read_text(&c.reason));
+                            // A hold longer than HOLD_REPORT is reported (with its reason),
+                            // then every HOLD_REPORT again; short ones only count.
+                            let now = Instant::now();
+                            let (since, reported) = holding.get_or_insert((now, now));
+                            if now.duration_since(*reported) >= HOLD_REPORT {
+                                *reported = now;
+                                eprintln!(
+                                    "run: the hand has held for {:.1} s: {}",
+                                    now.duration_since(*since).as_secs_f64(),
+                                    read_text(&c.reason)
+                                );
                             }
                         }
                     })?;

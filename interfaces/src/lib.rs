@@ -658,16 +658,18 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v1");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v1");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v1");
-        assert_eq!(SCHEMA_VERSION, 1);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v2");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v2");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v2");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v2");
+        assert_eq!(SCHEMA_VERSION, 2);
     }
 
     #[test]
     fn layouts_are_padding_free_where_it_matters() {
         // Fixed sizes: a change here is a schema change (bump SCHEMA_VERSION and the names).
-        assert_eq!(std::mem::size_of::<Header>(), 40);
+        assert_eq!(std::mem::size_of::<Trace>(), 64);
+        assert_eq!(std::mem::size_of::<Header>(), 104);
         assert_eq!(std::mem::size_of::<Facet>(), 56);
         assert_eq!(std::mem::size_of::<FingerContact>(), 72);
     }

@@ -11,9 +11,11 @@
 //! (`pipeline.rate_hz`). When no wrench space has come for [`WATCHDOG_PERIODS`] periods, the
 //! node's own timer sends holds at that rate.
 //!
-//! A tracking command's joint targets are the plan step's, clamped into the joint limits and
-//! to at most `pipeline.joint_speed_deg_s` from the last command per elapsed time (so the
-//! stream interpolates between plan steps), and its forces balance zero external wrench inside
+//! A tracking command's joint targets are the plan step's, clamped into the joint limits, and
+//! approached along a straight line in each finger's joint space at most
+//! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
+//! steps, and the fingertips follow the planned rolling), and its forces balance zero external
+//! wrench inside
 //! the exact friction cones with the configured minimum normal force
 //! ([`icrflow_plan::forces::balance`]; infeasible holds).
 
@@ -34,6 +36,9 @@ use crate::safety::{Gate, Hold};
 
 /// Periods without a wrench space after which the node holds on its own timer.
 pub const WATCHDOG_PERIODS: f64 = 3.0;
+/// Most periods of motion one tracking command may catch up after a gap (a hold, a late
+/// input).
+pub const MAX_CATCH_UP: f64 = 5.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
@@ -210,22 +215,40 @@ impl Tracker<'_> {
             ..Default::default()
         };
         let dt = 1.0 / p.rate_hz;
-        let elapsed = self
-            .last
-            .map_or(dt, |(_, when)| t.saturating_sub(when) as f64 * 1e-9);
-        let max_step = p.joint_speed * elapsed.max(dt);
+        // Time since the last tracking command, at most MAX_CATCH_UP periods: after a hold the
+        // hand resumes at its speed, it does not jump to where the plan has gone meanwhile.
+        let elapsed = self.last.map_or(dt, |(_, when)| {
+            (t.saturating_sub(when) as f64 * 1e-9).clamp(dt, MAX_CATCH_UP * dt)
+        });
+        let max_step = p.joint_speed * elapsed;
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
             let Some(f) = hand.finger(target.finger) else {
                 continue;
             };
-            for j in 0..(target.joint_count as usize).min(MAX_JOINTS).min(f.dof()) {
-                let mut goal = target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
-                if let Some((prev, _)) = &self.last {
-                    let from = prev.joint_targets[k][j];
-                    goal = from + (goal - from).clamp(-max_step, max_step);
+            let joints = (target.joint_count as usize).min(MAX_JOINTS).min(f.dof());
+            let mut goal = [0.0; MAX_JOINTS];
+            for (j, g) in goal.iter_mut().enumerate().take(joints) {
+                *g = target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
+            }
+            // Toward the goal along a straight line in joint space, the largest joint motion at
+            // most `max_step`: every joint of the finger scaled alike, so the fingertip follows
+            // the planned rolling between the planner's closely spaced targets (clamping each
+            // joint on its own would bend the path off the object's surface).
+            let from = self.last.map(|(prev, _)| prev.joint_targets[k]);
+            let scale = from.map_or(1.0, |from| {
+                let largest = (0..joints).fold(0.0_f64, |m, j| m.max((goal[j] - from[j]).abs()));
+                if largest > max_step {
+                    max_step / largest
+                } else {
+                    1.0
                 }
-                c.joint_targets[k][j] = goal;
+            });
+            for j in 0..joints {
+                c.joint_targets[k][j] = match from {
+                    Some(from) => from[j] + scale * (goal[j] - from[j]),
+                    None => goal[j],
+                };
             }
         }
         for (slot, f) in slots.iter().zip(forces) {

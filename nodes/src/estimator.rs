@@ -60,6 +60,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut streak = vec![0u32; hand.fingers.len()];
     let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
     let mut q = vec![0.0; 8];
+    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let mut tips: Vec<Option<(Tip, bool)>> = Vec::with_capacity(hand.fingers.len());
     let mut text = String::with_capacity(32);
     let checkpoint_tmp = checkpoint.with_extension("tmp");
@@ -138,6 +139,15 @@ pub fn run(ctx: &Context) -> Result<()> {
             } else {
                 streak[slot] >= SETTLE
             };
+            if on != was && log_contacts {
+                // Transitions only: a line per touch or release.
+                eprintln!(
+                    "icrflow-estimator: finger {} {} (fingertip {:+.2} mm from the surface)",
+                    f.id,
+                    if on { "touches" } else { "released" },
+                    (t.distance - r_o - f.tip_radius) * 1e3
+                );
+            }
             contact[slot] = on;
             if let Some(before) = previous[slot]
                 && was

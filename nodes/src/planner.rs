@@ -29,10 +29,109 @@ pub const REPUBLISH: f64 = 0.01;
 /// rolling rather than a straight line in joint space that would lift the fingertips.
 pub const SUBSTEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
-/// The plan's steps cut into sub-targets (see [`SUBSTEP`]); attach and detach steps stay whole.
+/// How far from the object a finger comes to before it touches and goes to after it lets go
+/// (m): it approaches and leaves along the surface normal, never through the object. Where
+/// that pose is out of reach, the nearer ones of [`STANDOFFS`] are tried.
+pub const STANDOFF: f64 = 8e-3;
+/// Stand-off distances tried, farthest first (m); all beyond the estimator's release distance.
+const STANDOFFS: [f64; 4] = [STANDOFF, 6e-3, 4.5e-3, 3e-3];
+/// Cap-angle changes tried at a stand-off pose (deg), the unchanged one first.
+const CAP_TURNS: [f64; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 35.0, -35.0];
+
+/// Distances of the detour pose tried when the straight move between a finger's free pose and
+/// its stand-off would cross the object (m).
+const DETOURS: [f64; 4] = [15e-3, 25e-3, 40e-3, 60e-3];
+
+/// `step` with finger `slot` (not in contact in it) at a pose off the contact pose `q_deg`:
+/// the fingertip moved out along the line from the object's centre (the hand frame's origin)
+/// by the first of `distances` and [`CAP_TURNS`] whose straight joint-space moves from every
+/// pose of `legs` (degrees) stay outside the object. `None` if there is none.
+fn standoff(
+    step: &Step,
+    slot: usize,
+    q_deg: &[f64],
+    distances: &[f64],
+    legs: &[&[f64]],
+    hand: &icrflow_plan::hand::Hand,
+) -> Option<Step> {
+    let f = hand.finger(step.fingers[slot].finger)?;
+    let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<f64>>();
+    let q = rad(q_deg);
+    let legs: Vec<Vec<f64>> = legs.iter().map(|l| rad(l)).collect();
+    let (x, y, phi) = f.planar_pose(&q)?;
+    let r = x.hypot(y);
+    let q = distances.iter().find_map(|d| {
+        let out = 1.0 + d / r;
+        CAP_TURNS.iter().find_map(|turn| {
+            f.ik_planar(out * x, out * y, phi + turn.to_radians(), &q)
+                .ok()
+                .filter(|pose| legs.iter().all(|from| outside(f, from, pose, r)))
+        })
+    })?;
+    let mut t = step.clone();
+    t.fingers[slot].contact = None;
+    t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+    Some(t)
+}
+
+/// Whether the fingertip of `f` stays at least `r` (less 0.2 mm) from the object's centre all
+/// along the straight joint-space line from `a` to `b`, as the hand moves between targets.
+fn outside(f: &icrflow_plan::hand::Finger, a: &[f64], b: &[f64], r: f64) -> bool {
+    (0..=32).all(|i| {
+        let s = i as f64 / 32.0;
+        let q: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + s * (y - x)).collect();
+        let p = f.fk(&q).tip_centre;
+        p.x.hypot(p.y) >= r - 2e-4
+    })
+}
+
+/// The plan's steps cut into sub-targets (see [`SUBSTEP`]). An attach step is preceded by
+/// the attaching finger at its stand-off pose, a detach step by the released finger at its
+/// stand-off pose ([`STANDOFF`]), so that a finger never crosses the object on its way.
 fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
     let mut out = Vec::with_capacity(steps.len() * 12);
     for (k, step) in steps.iter().enumerate() {
+        if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
+            let prev = &steps[k - 1];
+            for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
+                // The free pose, the contact pose, and which way the finger goes between them.
+                let (free, contact, base) = match (a.contact, b.contact, step.phase) {
+                    (None, Some(_), Phase::Attach) => (&a.joints_deg, &b.joints_deg, prev),
+                    (Some(_), None, Phase::Detach) => (&b.joints_deg, &a.joints_deg, step),
+                    _ => continue,
+                };
+                // Near the contact: the stand-off, reached straight from the contact pose.
+                let Some(near) =
+                    standoff(base, slot, contact, &STANDOFFS, &[contact.as_slice()], hand)
+                else {
+                    continue;
+                };
+                let near_q = near.fingers[slot].joints_deg.clone();
+                // Between it and the free pose, a detour farther out where the straight move
+                // would cross the object.
+                let crosses = hand.finger(a.finger).is_some_and(|f| {
+                    let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<f64>>();
+                    let p = f.fk(&rad(contact)).tip_centre;
+                    !outside(f, &rad(free), &rad(&near_q), p.x.hypot(p.y))
+                });
+                let detour = crosses
+                    .then(|| standoff(base, slot, contact, &DETOURS, &[free, &near_q], hand))
+                    .flatten();
+                let mut legs = vec![near];
+                if let Some(d) = detour {
+                    legs.push(d);
+                }
+                if step.phase == Phase::Attach {
+                    // Free pose -> detour -> stand-off -> contact.
+                    legs.reverse();
+                }
+                for mut via in legs {
+                    via.step = step.step;
+                    via.phase = step.phase;
+                    out.push(via);
+                }
+            }
+        }
         if k == 0 || step.phase != Phase::Rolling {
             out.push(step.clone());
             continue;
@@ -244,4 +343,74 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rolling::tip;
+    use icrflow_scenario::{Config, Setup};
+
+    /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
+    /// from the object, without crossing the object on those moves.
+    #[test]
+    fn fingers_approach_and_leave_along_the_normal() {
+        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
+        let path = std::path::PathBuf::from(dir).join("../config/paper_sphere.toml");
+        let config = Config::load(&path).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+        let hand = &setup.hand;
+        let r = setup.object.max_radius();
+        let list = targets(&plan.steps, hand);
+        let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<_>>();
+        let (mut approaches, mut retreats) = (0, 0);
+        for w in list.windows(2) {
+            let (a, b) = (&w[0], &w[1]);
+            for slot in 0..a.fingers.len() {
+                let f = hand.finger(a.fingers[slot].finger).unwrap();
+                let (qa, qb) = (
+                    rad(&a.fingers[slot].joints_deg),
+                    rad(&b.fingers[slot].joints_deg),
+                );
+                // The moves to and from a contact stay outside the object (the move between the
+                // free pose and a stand-off is not planned yet, see the module docs).
+                let touching = |t: &Step| t.fingers[slot].contact.is_some();
+                if qa != qb && touching(a) != touching(b) {
+                    assert!(
+                        outside(f, &qa, &qb, r + f.tip_radius),
+                        "steps {} -> {}: finger {} crosses the object",
+                        a.step,
+                        b.step,
+                        f.id
+                    );
+                }
+                let gap = |q: &[f64]| tip(f, q).distance - r - f.tip_radius;
+                let standoff = |q: &[f64]| STANDOFFS.iter().any(|d| (gap(q) - d).abs() < 1e-6);
+                if b.phase == Phase::Attach
+                    && a.fingers[slot].contact.is_none()
+                    && b.fingers[slot].contact.is_some()
+                {
+                    assert!(standoff(&qa), "step {}: approach gap {}", b.step, gap(&qa));
+                    approaches += 1;
+                }
+                if b.phase == Phase::Detach
+                    && a.fingers[slot].contact.is_some()
+                    && b.fingers[slot].contact.is_none()
+                {
+                    assert!(standoff(&qb), "step {}: retreat gap {}", b.step, gap(&qb));
+                    retreats += 1;
+                }
+            }
+        }
+        assert_eq!(
+            approaches, plan.summary.switches,
+            "an approach before every attach"
+        );
+        assert_eq!(
+            retreats, plan.summary.switches,
+            "a retreat before every detach"
+        );
+    }
 }

@@ -93,6 +93,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let latency_ns = (p.pose_latency * 1e9) as u64;
 
     let mut ticks: u64 = 0;
+    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let mut text = String::with_capacity(1024);
     let state_tmp = state_file.with_extension("tmp");
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
@@ -156,8 +157,20 @@ pub fn run(ctx: &Context) -> Result<()> {
                     rolling += 1;
                 }
                 // A pressing finger comes into contact where its motion ends on the surface.
+                let was = contact[slot];
                 contact[slot] =
                     pressing && (contact[slot] || (arrived && touches(&after, f, r_o, TOUCH)));
+                if contact[slot] != was && log_contacts {
+                    eprintln!(
+                        "icrflow-plant: finger {} {} the object",
+                        f.id,
+                        if contact[slot] {
+                            "presses on"
+                        } else {
+                            "leaves"
+                        }
+                    );
+                }
             }
         }
         if rolling > 0 {

@@ -33,6 +33,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut facets: Vec<Facet> = Vec::with_capacity(MAX_FACETS);
     // The contact set of `facets` and the header fields evaluated for it.
     let mut evaluated: Option<(Vec<usize>, WrenchSpaceHeader)> = None;
+    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let n = problem.candidates().points.len();
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
@@ -78,6 +79,12 @@ pub fn run(ctx: &Context) -> Result<()> {
                             facets.push(Facet { normal, offset: *b });
                         }
                     }
+                }
+                if log_contacts {
+                    eprintln!(
+                        "icrflow-wrench: candidates {contacts:?}: force closure {}, alpha* {:.4}",
+                        h.force_closure, h.quality
+                    );
                 }
                 match &mut evaluated {
                     Some((set, old)) => {
