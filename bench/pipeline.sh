@@ -18,7 +18,7 @@ echo "== one hop between two processes (512 bytes)"
 cargo bench -p icrflow-nodes --bench hop -- --seconds "${1:-3}"
 summary="$CARGO_TARGET_DIR/bench-pipeline.json"
 echo "== the pipeline: config/paper_sphere_3turns.toml"
-timeout -s INT 65 "$CARGO_TARGET_DIR/release/icrflow" run --live config/paper_sphere_3turns.toml \
+timeout --preserve-status -s INT 65 "$CARGO_TARGET_DIR/release/icrflow" run --live config/paper_sphere_3turns.toml \
     --summary-json "$summary" 2>&1
 python3 - "$summary" <<'PY'
 import json, sys
