@@ -207,10 +207,28 @@ fn same_contacts(step: &Step, g: &GraspState) -> bool {
     touching(g).eq(fingers_in_contact(step))
 }
 
-fn reached(step: &Step, g: &GraspState) -> bool {
-    (g.rotation - step.rotation_deg.to_radians()).abs() <= ROTATION_TOLERANCE
-        && same_contacts(step, g)
+/// Whether the estimate has reached `step`: its fingers in contact, and for a rolling step its
+/// rotation within [`ROTATION_TOLERANCE`] (attaching and releasing a finger do not turn the
+/// object), or, `settled`, the object has stopped turning within [`SETTLED_TOLERANCE`] of it
+/// (the rolling of the real hand never matches the plan exactly; waiting for the rest would
+/// wait for ever).
+fn reached(step: &Step, g: &GraspState, settled: bool) -> bool {
+    let off = (g.rotation - step.rotation_deg.to_radians()).abs();
+    same_contacts(step, g)
+        && (step.phase != Phase::Rolling
+            || off <= ROTATION_TOLERANCE
+            || (settled && off <= SETTLED_TOLERANCE))
 }
+
+/// How far short of a rolling step the object may settle and the step still count as reached
+/// (rad); a hand held still farther away waits.
+pub const SETTLED_TOLERANCE: f64 = 2.0 * std::f64::consts::PI / 180.0;
+
+/// How long the estimated rotation must stay within [`STILL`] for the object to count as
+/// settled (ns).
+pub const SETTLED_NS: u64 = 500_000_000;
+/// Rotation change below which the object counts as still (rad).
+pub const STILL: f64 = 0.05 * std::f64::consts::PI / 180.0;
 
 /// Runs the planner node.
 pub fn run(ctx: &Context) -> Result<()> {
@@ -233,6 +251,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     // The ICR members of step `.0` (the concatenated regions and their lengths).
     let mut icrs: Option<(usize, Vec<u32>, [u32; MAX_FINGERS])> = None;
 
+    // Since when, at which rotation and on which step the object has been still.
+    let mut still = (0u64, f64::NAN, usize::MAX);
     let mut publish = |k: usize, input: Option<(Header, u64)>, seq: &mut Sequence| -> Result<()> {
         let done = k >= steps.len();
         let at = k.min(steps.len() - 1);
@@ -329,7 +349,13 @@ pub fn run(ctx: &Context) -> Result<()> {
                         k
                     }
                 };
-                if k < steps.len() && reached(&steps[k], &g) {
+                // Settled: the rotation has not moved for SETTLED_NS on this step.
+                let t = now();
+                if (g.rotation - still.1).abs() > STILL || still.2 != k {
+                    still = (t, g.rotation, k);
+                }
+                let settled = t.saturating_sub(still.0) >= SETTLED_NS;
+                if k < steps.len() && reached(&steps[k], &g, settled) {
                     current = Some(k + 1);
                     publish(k + 1, last_input, &mut seq)?;
                 }
