@@ -1,8 +1,9 @@
 //! The ICR planner node (`icrflow-planner`): plans the scenario (the same deterministic
 //! algorithm as `icrflow plan`: rolling within ICRs, finger switching) and leads the hand
 //! through it step by step, closed loop: a step is published as the target until the
-//! estimated grasp has reached it (the object's rotation within [`ROTATION_TOLERANCE`] of the
-//! target, and the same fingers in contact), then the next. Each published step carries its
+//! estimated grasp has reached it (the same fingers in contact and, for a rolling step, the
+//! object's rotation within [`ROTATION_TOLERANCE`] of the target, or settled within
+//! [`SETTLED_TOLERANCE`] of it), then the next. Each published step carries its
 //! grasp's ICRs. After the last step it publishes `Done`. Restarted after a crash, it plans
 //! again and resumes at the step nearest to the estimated state.
 
