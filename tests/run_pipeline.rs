@@ -93,13 +93,7 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     }
     assert_eq!(s["stale_tracked"], 0, "{s}");
     // Nothing of the run's iceoryx2 bus is left behind.
-    let prefix = s["bus_prefix"].as_str().unwrap().to_string();
-    let left: Vec<String> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(&prefix))
-        .collect();
+    let left = shm_left(&s);
     assert!(left.is_empty(), "left in /dev/shm: {left:?}");
     assert!(!std::path::Path::new(s["bus_root"].as_str().unwrap()).exists());
     let _ = std::fs::remove_dir_all(&dir);
@@ -133,6 +127,29 @@ fn run_refuses_a_bad_config_before_starting_anything() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `icrflow run` with `args` started from the repository root, its stderr captured.
+fn spawn_run(args: &[&str]) -> std::process::Child {
+    std::process::Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .arg("run")
+        .args(args)
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// The run's iceoryx2 shared-memory objects left in /dev/shm (its summary names the prefix).
+fn shm_left(summary: &serde_json::Value) -> Vec<String> {
+    let prefix = summary["bus_prefix"].as_str().unwrap();
+    std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(prefix))
+        .collect()
+}
+
 /// The pid of the running process whose command line names `program`.
 fn find(program: &str) -> Option<u32> {
     std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
@@ -151,18 +168,11 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
     let dir = scratch("kill");
     for node in ["estimator", "wrench", "planner", "command", "plant"] {
         let summary = dir.join(format!("{node}.json"));
-        let run = std::process::Command::new(env!("CARGO_BIN_EXE_icrflow"))
-            .args([
-                "run",
-                "config/paper_sphere.toml",
-                "--summary-json",
-                summary.to_str().unwrap(),
-            ])
-            .current_dir(root())
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
+        let run = spawn_run(&[
+            "config/paper_sphere.toml",
+            "--summary-json",
+            summary.to_str().unwrap(),
+        ]);
         // Let the run get going (a few seconds of its ~15), then kill the node.
         std::thread::sleep(std::time::Duration::from_secs(4));
         let program = format!("icrflow-{node}");
@@ -197,13 +207,11 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
             s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
             "{node}: {s}"
         );
-        let prefix = s["bus_prefix"].as_str().unwrap().to_string();
-        let left = std::fs::read_dir("/dev/shm")
-            .unwrap()
-            .flatten()
-            .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
-            .count();
-        assert_eq!(left, 0, "{node}: iceoryx2 resources left behind");
+        assert_eq!(
+            shm_left(&s),
+            Vec::<String>::new(),
+            "{node}: iceoryx2 resources left"
+        );
         assert!(
             find(&program).is_none(),
             "{node}: a node process survived the run"
@@ -217,19 +225,12 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("live");
     let summary = dir.join("live.json");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args([
-            "run",
-            "--live",
-            "config/paper_sphere.toml",
-            "--summary-json",
-            summary.to_str().unwrap(),
-        ])
-        .current_dir(root())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let run = spawn_run(&[
+        "--live",
+        "config/paper_sphere.toml",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
     std::thread::sleep(std::time::Duration::from_secs(6));
     let interrupted = std::process::Command::new("kill")
         .args(["-INT", &run.id().to_string()])
@@ -252,12 +253,10 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
             "{node} survived the interrupted run"
         );
     }
-    let prefix = s["bus_prefix"].as_str().unwrap().to_string();
-    let left = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .flatten()
-        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
-        .count();
-    assert_eq!(left, 0, "iceoryx2 resources left behind");
+    assert_eq!(
+        shm_left(&s),
+        Vec::<String>::new(),
+        "iceoryx2 resources left"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -56,9 +56,8 @@ fn standoff(
     hand: &icrflow_plan::hand::Hand,
 ) -> Option<Step> {
     let f = hand.finger(step.fingers[slot].finger)?;
-    let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<f64>>();
-    let q = rad(q_deg);
-    let legs: Vec<Vec<f64>> = legs.iter().map(|l| rad(l)).collect();
+    let q = radians(q_deg);
+    let legs: Vec<Vec<f64>> = legs.iter().map(|l| radians(l)).collect();
     let (x, y, phi) = f.planar_pose(&q)?;
     let r = x.hypot(y);
     let q = distances.iter().find_map(|d| {
@@ -73,6 +72,11 @@ fn standoff(
     t.fingers[slot].contact = None;
     t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
     Some(t)
+}
+
+/// Joint angles in radians from a plan's degrees.
+fn radians(deg: &[f64]) -> Vec<f64> {
+    deg.iter().map(|d| d.to_radians()).collect()
 }
 
 /// Whether the fingertip of `f` stays at least `r` (less 0.2 mm) from the object's centre all
@@ -111,9 +115,8 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
                 // Between it and the free pose, a detour farther out where the straight move
                 // would cross the object.
                 let crosses = hand.finger(a.finger).is_some_and(|f| {
-                    let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<f64>>();
-                    let p = f.fk(&rad(contact)).tip_centre;
-                    !outside(f, &rad(free), &rad(&near_q), p.x.hypot(p.y))
+                    let p = f.fk(&radians(contact)).tip_centre;
+                    !outside(f, &radians(free), &radians(&near_q), p.x.hypot(p.y))
                 });
                 let detour = crosses
                     .then(|| standoff(base, slot, contact, &DETOURS, &[free, &near_q], hand))
@@ -143,7 +146,7 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
         let mut near: Vec<Vec<f64>> = prev
             .fingers
             .iter()
-            .map(|f| f.joints_deg.iter().map(|d| d.to_radians()).collect())
+            .map(|f| radians(&f.joints_deg))
             .collect();
         for i in 1..=n {
             let s = i as f64 / n as f64;
@@ -155,8 +158,7 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
                     else {
                         continue;
                     };
-                    let qa: Vec<f64> = a.joints_deg.iter().map(|d| d.to_radians()).collect();
-                    let qb: Vec<f64> = b.joints_deg.iter().map(|d| d.to_radians()).collect();
+                    let (qa, qb) = (radians(&a.joints_deg), radians(&b.joints_deg));
                     let (Some((xa, ya, pa)), Some((xb, yb, pb))) =
                         (f.planar_pose(&qa), f.planar_pose(&qb))
                     else {
@@ -391,15 +393,14 @@ mod tests {
         let hand = &setup.hand;
         let r = setup.object.max_radius();
         let list = targets(&plan.steps, hand);
-        let rad = |d: &[f64]| d.iter().map(|x| x.to_radians()).collect::<Vec<_>>();
         let (mut approaches, mut retreats) = (0, 0);
         for w in list.windows(2) {
             let (a, b) = (&w[0], &w[1]);
             for slot in 0..a.fingers.len() {
                 let f = hand.finger(a.fingers[slot].finger).unwrap();
                 let (qa, qb) = (
-                    rad(&a.fingers[slot].joints_deg),
-                    rad(&b.fingers[slot].joints_deg),
+                    radians(&a.fingers[slot].joints_deg),
+                    radians(&b.fingers[slot].joints_deg),
                 );
                 // The moves to and from a contact stay outside the object (the move between the
                 // free pose and a stand-off is not planned yet, see the module docs).
