@@ -22,4 +22,5 @@ pub mod hand;
 pub mod paper;
 pub mod planner;
 pub mod rendezvous;
+pub mod route;
 pub mod urdf;

@@ -1,0 +1,220 @@
+//! Moves of a free finger around the object: from where it let go to its free pose, and back
+//! to where it will touch, without its fingertip cutting through the object.
+//!
+//! The hand moves between targets along straight lines in joint space (every joint scaled
+//! alike), so a route is a list of way points, each leg a straight joint-space move along
+//! which the fingertip centre stays at least a given distance from the object's centre (the
+//! hand frame's origin; the object's section in the hand's plane is taken as a circle, exact
+//! for the sphere, conservative for any object inside that radius). Only the fingertip is
+//! checked: the links are thin and move outside the fingertip's sweep in the paper's hand, but
+//! a hand whose links could sweep through the object needs more.
+//!
+//! Where the straight move is clear, the route is empty. Otherwise a small roadmap is searched:
+//! fingertip poses on circles of [`RADII`] beyond the given distance, every [`SPACING_DEG`]
+//! around the object, with cap angles every [`CAP_SPACING_DEG`], both elbow branches, each
+//! solved by inverse kinematics within the joint limits. Each pose is joined to its
+//! [`NEIGHBOURS`] nearest (in joint space), the start and goal to all; the shortest route (in
+//! joint motion, the time it takes at the joints' speed, plus [`LEG_COST`] per leg) is found
+//! by Dijkstra's algorithm, checking a leg only when it would shorten a route; finally way
+//! points that can be skipped along a clear leg are dropped.
+
+use icrflow_grasp::math::Real;
+
+use crate::hand::Finger;
+
+/// Distances of the roadmap's fingertip circles beyond the required distance (m).
+pub const RADII: [Real; 4] = [10e-3, 20e-3, 35e-3, 55e-3];
+/// Spacing of the roadmap's poses around the object (deg).
+pub const SPACING_DEG: Real = 15.0;
+/// Spacing of the cap angles tried at each roadmap position (deg).
+pub const CAP_SPACING_DEG: Real = 30.0;
+/// Roadmap poses each one is joined to.
+pub const NEIGHBOURS: usize = 12;
+/// Cost of a leg beyond its joint motion (rad): fewer way points among routes of about the
+/// same length.
+pub const LEG_COST: Real = 0.05;
+/// Points checked along a leg (its ends included).
+pub const SAMPLES: usize = 48;
+
+/// Whether the fingertip centre of `finger` stays at least `distance` from the object's centre
+/// all along the straight joint-space move from `a` to `b` (checked at [`SAMPLES`] points).
+pub fn clear(finger: &Finger, a: &[Real], b: &[Real], distance: Real) -> bool {
+    let mut q = vec![0.0; a.len()];
+    (0..SAMPLES).all(|i| {
+        let s = i as Real / (SAMPLES - 1) as Real;
+        for ((x, y), out) in a.iter().zip(b).zip(q.iter_mut()) {
+            *out = x + s * (y - x);
+        }
+        let p = finger.fk(&q).tip_centre;
+        p.x.hypot(p.y) >= distance
+    })
+}
+
+/// The largest joint motion between two poses (rad): how long the move takes at the joints'
+/// speed.
+fn motion(a: &[Real], b: &[Real]) -> Real {
+    a.iter()
+        .zip(b)
+        .fold(0.0, |m, (x, y)| Real::max(m, (x - y).abs()))
+}
+
+/// The way points (joint angles, rad) that take `finger` from `from` to `to` with its
+/// fingertip centre at least `distance` from the object's centre along every leg, neither end
+/// included; empty where the straight move is clear, `None` where no route is found (a planar
+/// finger is needed for the roadmap).
+pub fn route(
+    finger: &Finger,
+    from: &[Real],
+    to: &[Real],
+    distance: Real,
+) -> Option<Vec<Vec<Real>>> {
+    if clear(finger, from, to, distance) {
+        return Some(Vec::new());
+    }
+    // The roadmap: index 0 is the start, 1 the goal, then the poses.
+    let mut poses: Vec<Vec<Real>> = vec![from.to_vec(), to.to_vec()];
+    let around = (360.0 / SPACING_DEG).round() as usize;
+    let caps = (360.0 / CAP_SPACING_DEG).round() as usize;
+    for radius in RADII.map(|r| distance + r) {
+        for i in 0..around {
+            let psi = (i as Real * SPACING_DEG).to_radians();
+            let (x, y) = (radius * psi.cos(), radius * psi.sin());
+            for c in 0..caps {
+                let phi = psi + (c as Real * CAP_SPACING_DEG).to_radians();
+                for near in [from, to] {
+                    if let Ok(q) = finger.ik_planar(x, y, phi, near)
+                        && !poses.iter().any(|p| motion(p, &q) < 1e-6)
+                    {
+                        poses.push(q);
+                    }
+                }
+            }
+        }
+    }
+    let n = poses.len();
+    if n == 2 {
+        return None;
+    }
+    // Joined: each pose to its nearest, both ways; the start and the goal to every pose.
+    let mut joined = vec![Vec::<usize>::new(); n];
+    for a in 2..n {
+        let mut order: Vec<usize> = (2..n).filter(|&b| b != a).collect();
+        order.sort_by(|&x, &y| {
+            motion(&poses[a], &poses[x]).total_cmp(&motion(&poses[a], &poses[y]))
+        });
+        for &b in order.iter().take(NEIGHBOURS) {
+            joined[a].push(b);
+            joined[b].push(a);
+        }
+        joined[0].push(a);
+        joined[a].push(1);
+    }
+    for list in &mut joined {
+        list.sort_unstable();
+        list.dedup();
+    }
+    // Dijkstra from the start, legs checked lazily.
+    let mut cost = vec![Real::INFINITY; n];
+    let mut previous = vec![usize::MAX; n];
+    let mut done = vec![false; n];
+    cost[0] = 0.0;
+    loop {
+        let u = (0..n)
+            .filter(|&i| !done[i] && cost[i].is_finite())
+            .min_by(|&a, &b| cost[a].total_cmp(&cost[b]))?;
+        if u == 1 {
+            break;
+        }
+        done[u] = true;
+        for &v in &joined[u] {
+            let c = cost[u] + motion(&poses[u], &poses[v]) + LEG_COST;
+            if !done[v] && c < cost[v] && clear(finger, &poses[u], &poses[v], distance) {
+                cost[v] = c;
+                previous[v] = u;
+            }
+        }
+    }
+    let mut path = vec![1];
+    while let Some(&last) = path.last()
+        && last != 0
+    {
+        path.push(previous[last]);
+    }
+    path.reverse();
+    // Drop the way points a clear leg can skip.
+    let mut kept = vec![0];
+    let mut at = 0;
+    while path[at] != 1 {
+        let next = (at + 1..path.len())
+            .rev()
+            .find(|&j| clear(finger, &poses[path[at]], &poses[path[j]], distance))
+            .unwrap_or(at + 1);
+        kept.push(path[next]);
+        at = next;
+    }
+    Some(
+        kept[1..kept.len() - 1]
+            .iter()
+            .map(|&i| poses[i].clone())
+            .collect(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::paper;
+
+    /// On the paper's hand: from a pose beside the object on the far side of its base to its
+    /// home pose, the straight move cuts through the object; the route goes around it.
+    #[test]
+    fn a_route_goes_around_the_object_where_the_straight_move_cuts_through() {
+        let hand = paper::hand();
+        let r = paper::OBJECT_RADIUS + paper::TIP_RADIUS;
+        let mut routed = 0;
+        for f in &hand.fingers {
+            let home = f.home.clone();
+            let base = f.base.translation.vector;
+            let psi_base = base.y.atan2(base.x);
+            // Fingertip poses 4 mm off the surface all around the object.
+            for k in 0..36 {
+                let psi = psi_base + (k as Real * 10.0).to_radians();
+                let d = r + 4e-3;
+                let Some(start) = (0..12).find_map(|c| {
+                    let phi = psi + (c as Real * 30.0).to_radians();
+                    f.ik_planar(d * psi.cos(), d * psi.sin(), phi, &home).ok()
+                }) else {
+                    continue;
+                };
+                let limit = r + 2.5e-3;
+                let way = route(f, &start, &home, limit)
+                    .unwrap_or_else(|| panic!("finger {} at {k}0 deg: no route", f.id));
+                let mut legs = vec![start.clone()];
+                legs.extend(way.iter().cloned());
+                legs.push(home.clone());
+                for w in legs.windows(2) {
+                    assert!(
+                        clear(f, &w[0], &w[1], limit),
+                        "finger {}: a leg cuts in",
+                        f.id
+                    );
+                }
+                if !clear(f, &start, &home, limit) {
+                    assert!(!way.is_empty());
+                    routed += 1;
+                }
+            }
+        }
+        assert!(
+            routed > 0,
+            "no case needed a route: the test checks nothing"
+        );
+    }
+
+    #[test]
+    fn a_clear_move_needs_no_way_points() {
+        let hand = paper::hand();
+        let f = &hand.fingers[0];
+        assert_eq!(route(f, &f.home, &f.home, 0.01), Some(Vec::new()));
+    }
+}
