@@ -349,8 +349,10 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         let mut done = false;
         let mut reason = String::new();
         let mut timing = Timing::new();
-        // Since when the hand holds, and when that was last reported.
+        // Since when the hand holds, when that was last reported, and the last hold's reason.
         let mut holding: Option<(Instant, Instant)> = None;
+        let mut hold_reason = [0u8; icrflow_interfaces::TEXT_BYTES];
+        let max_hold = Duration::from_secs_f64(config.pipeline.max_hold);
         let (mut plan_published, mut plan_compute) = (0u64, Histogram::new());
         let mut memory = std::collections::BTreeMap::<String, Memory>::new();
         let mut next_sample = Instant::now() + Duration::from_secs(1);
@@ -399,6 +401,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                             }
                         } else {
                             holds += 1;
+                            hold_reason = c.reason;
                             // A hold longer than HOLD_REPORT is reported (with its reason),
                             // then every HOLD_REPORT again; short ones only count.
                             let now = Instant::now();
@@ -450,6 +453,18 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     }
                     if started.elapsed() > timeout {
                         reason = format!("timed out after {timeout:?}");
+                        return Ok(false);
+                    }
+                    // A run to the goal does not wait for ever on a hand that cannot go on.
+                    if let Some((since, _)) = holding
+                        && !live
+                        && since.elapsed() >= max_hold
+                    {
+                        reason = format!(
+                            "gave up: the hand held for {:.1} s (pipeline.max_hold_s): {}",
+                            since.elapsed().as_secs_f64(),
+                            read_text(&hold_reason)
+                        );
                         return Ok(false);
                     }
                 }

@@ -92,6 +92,8 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
         assert!(m["max"].as_u64().unwrap() >= m["last"].as_u64().unwrap());
     }
     assert_eq!(s["stale_tracked"], 0, "{s}");
+    // No fingertip went through the object (the plant reports every one that does).
+    assert!(!err.contains("inside the object"), "{err}");
     // Nothing of the run's iceoryx2 bus is left behind.
     let left = shm_left(&s);
     assert!(left.is_empty(), "left in /dev/shm: {left:?}");
@@ -202,6 +204,10 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
             s["stale_tracked"], 0,
             "{node}: tracked on a stale measurement: {s}"
         );
+        assert!(
+            !err.contains("inside the object"),
+            "{node}: a fingertip went through the object: {err}"
+        );
         let alpha = s["alpha"].as_f64().unwrap();
         assert!(
             s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
@@ -217,6 +223,40 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
             "{node}: a node process survived the run"
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_whose_hand_cannot_go_on_gives_up_with_the_reason() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("give-up");
+    // Every input is stale by the time it arrives: the hand holds from the start.
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join("stale.toml");
+    std::fs::write(
+        &config,
+        format!("{good}\n[pipeline]\nmax_input_age_ms = 0.001\nmax_hold_s = 2\n"),
+    )
+    .unwrap();
+    let summary = dir.join("stale.json");
+    let o = icrflow(&[
+        "run",
+        config.to_str().unwrap(),
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(s["completed"], false, "{s}");
+    let reason = s["reason"].as_str().unwrap();
+    assert!(
+        reason.starts_with("gave up: the hand held for") && reason.contains("stale"),
+        "{s}"
+    );
+    assert!(s["holds"].as_u64().unwrap() > 0, "{s}");
+    assert_eq!(s["commands"], s["holds"], "nothing but holds: {s}");
+    assert_eq!(shm_left(&s), Vec::<String>::new());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

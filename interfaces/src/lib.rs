@@ -21,7 +21,7 @@ use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -39,7 +39,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v2`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v3`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -68,7 +68,7 @@ pub enum Kind {
 
 /// The header every message starts with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("icrflow.Header.v2")]
+#[type_name("icrflow.Header.v3")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -100,7 +100,7 @@ pub const TRACE_STAMPS: usize = 7;
 /// transport hops (out to in) and the computations (in to out). Stamps beyond
 /// [`TRACE_STAMPS`] are dropped (`len` stays at the limit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("icrflow.Trace.v2")]
+#[type_name("icrflow.Trace.v3")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -275,7 +275,7 @@ messages!(
 
 /// Joint encoder readings of the hand.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.JointState.v2")]
+#[type_name("icrflow.JointState.v3")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -294,7 +294,7 @@ pub struct JointState {
 
 /// An object-pose measurement (e.g. from vision): noisy, delayed, lower rate.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.ObjectPose.v2")]
+#[type_name("icrflow.ObjectPose.v3")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -310,7 +310,7 @@ pub struct ObjectPose {
 
 /// One finger's contact in a [`GraspState`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.FingerContact.v2")]
+#[type_name("icrflow.FingerContact.v3")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -329,9 +329,9 @@ pub struct FingerContact {
     pub residual: f64,
 }
 
-/// The estimated object pose and contact state.
+/// The estimated object pose, contact state and hand joints.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.GraspState.v2")]
+#[type_name("icrflow.GraspState.v3")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -350,11 +350,14 @@ pub struct GraspState {
     pub reserved: u32,
     /// Each finger's contact.
     pub fingers: [FingerContact; MAX_FINGERS],
+    /// Each finger's joint angles (rad), in the slots of `fingers`: the hand's state the
+    /// contacts were estimated from.
+    pub joints: [[f64; MAX_JOINTS]; MAX_FINGERS],
 }
 
 /// User header of the wrench-space topic; the payload is a slice of [`Facet`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.WrenchSpaceHeader.v2")]
+#[type_name("icrflow.WrenchSpaceHeader.v3")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -373,7 +376,7 @@ pub struct WrenchSpaceHeader {
 
 /// One facet `normal . w <= offset` of the grasp wrench space's hull.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.Facet.v2")]
+#[type_name("icrflow.Facet.v3")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -400,7 +403,7 @@ pub enum PlanPhase {
 
 /// One finger's target in a [`PlanStepHeader`].
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.FingerTarget.v2")]
+#[type_name("icrflow.FingerTarget.v3")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -422,7 +425,7 @@ pub struct FingerTarget {
 /// User header of the plan-step topic; the payload is the ICR regions, candidate indices of
 /// every finger in slot order (`region_lengths` long each).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("icrflow.PlanStepHeader.v2")]
+#[type_name("icrflow.PlanStepHeader.v3")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -455,7 +458,7 @@ pub enum CommandMode {
 
 /// A command to the hand.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("icrflow.HandCommand.v2")]
+#[type_name("icrflow.HandCommand.v3")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -508,7 +511,7 @@ pub enum NodeState {
 
 /// A node's periodic health report.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("icrflow.NodeHealth.v2")]
+#[type_name("icrflow.NodeHealth.v3")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -658,11 +661,11 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v2");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v2");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v2");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v2");
-        assert_eq!(SCHEMA_VERSION, 2);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v3");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v3");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v3");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v3");
+        assert_eq!(SCHEMA_VERSION, 3);
     }
 
     #[test]
@@ -672,5 +675,6 @@ mod tests {
         assert_eq!(std::mem::size_of::<Header>(), 104);
         assert_eq!(std::mem::size_of::<Facet>(), 56);
         assert_eq!(std::mem::size_of::<FingerContact>(), 72);
+        assert_eq!(std::mem::size_of::<GraspState>(), 104 + 80 + 8 * 72 + 512);
     }
 }

@@ -36,9 +36,6 @@ use crate::safety::{Gate, Hold};
 
 /// Periods without a wrench space after which the node holds on its own timer.
 pub const WATCHDOG_PERIODS: f64 = 3.0;
-/// Most periods of motion one tracking command may catch up after a gap (a hold, a late
-/// input).
-pub const MAX_CATCH_UP: f64 = 5.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
@@ -215,11 +212,19 @@ impl Tracker<'_> {
             ..Default::default()
         };
         let dt = 1.0 / p.rate_hz;
-        // Time since the last tracking command, at most MAX_CATCH_UP periods: after a hold the
-        // hand resumes at its speed, it does not jump to where the plan has gone meanwhile.
-        let elapsed = self.last.map_or(dt, |(_, when)| {
-            (t.saturating_sub(when) as f64 * 1e-9).clamp(dt, MAX_CATCH_UP * dt)
-        });
+        // The motion is that of the time since the last tracking command (a late input moves
+        // the command on as far as the hand has gone meanwhile). Resumed, after no tracking
+        // command for longer than the watchdog's periods (a hold, a restart): the hand sets off
+        // from where it stands, one period's motion, and does not jump to where the plan has
+        // gone meanwhile.
+        let since = self
+            .last
+            .map(|(_, when)| t.saturating_sub(when) as f64 * 1e-9);
+        let resumed = since.is_none_or(|s| s > WATCHDOG_PERIODS * dt);
+        let elapsed = match since {
+            Some(s) if !resumed => s.max(dt),
+            _ => dt,
+        };
         let max_step = p.joint_speed * elapsed;
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
@@ -234,8 +239,18 @@ impl Tracker<'_> {
             // Toward the goal along a straight line in joint space, the largest joint motion at
             // most `max_step`: every joint of the finger scaled alike, so the fingertip follows
             // the planned rolling between the planner's closely spaced targets (clamping each
-            // joint on its own would bend the path off the object's surface).
-            let from = self.last.map(|(prev, _)| prev.joint_targets[k]);
+            // joint on its own would bend the path off the object's surface). From the last
+            // tracking command; when resumed, from the joints the grasp state was estimated
+            // from: where the hand stopped, which may be short of the last command.
+            let from = match self.last {
+                Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
+                _ => gate.grasp().and_then(|g| {
+                    let n = (g.finger_count as usize).min(MAX_FINGERS);
+                    (0..n)
+                        .find(|&s| g.fingers[s].finger == target.finger)
+                        .map(|s| g.joints[s])
+                }),
+            };
             let scale = from.map_or(1.0, |from| {
                 let largest = (0..joints).fold(0.0_f64, |m, j| m.max((goal[j] - from[j]).abs()));
                 if largest > max_step {

@@ -9,6 +9,8 @@
 //! A finger touches when its fingertip centre (from the encoders) is within [`TOUCH`] of the
 //! object's surface offset by the fingertip radius; its contact point is where the line to
 //! the fingertip centre meets the object, in the body frame, snapped to the nearest candidate.
+//! The grasp state also carries the joint angles it was estimated from (the hand's state, for
+//! the planner's way points and a restarted command node).
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
@@ -127,6 +129,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 health.refuse(format!("finger {}: joint angle not finite", f.id));
                 return Ok(());
             }
+            g.joints[slot][..q.len()].copy_from_slice(&q);
             let t = tip(f, &q);
             let was = contact[slot];
             streak[slot] = if touches(&t, f, r_o, TOUCH) {

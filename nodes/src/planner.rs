@@ -39,9 +39,10 @@ const STANDOFFS: [f64; 4] = [STANDOFF, 6e-3, 4.5e-3, 3e-3];
 /// Cap-angle changes tried at a stand-off pose (deg), the unchanged one first.
 const CAP_TURNS: [f64; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 35.0, -35.0];
 
-/// Distances of the detour pose tried when the straight move between a finger's free pose and
-/// its stand-off would cross the object (m).
-const DETOURS: [f64; 4] = [15e-3, 25e-3, 40e-3, 60e-3];
+/// How far beyond the contact distance a free finger's fingertip stays on its way between a
+/// stand-off and its free pose (m): farther than the estimator's release distance, so that
+/// no passing finger is taken for a contact.
+pub const CLEARANCE: f64 = crate::estimator::RELEASE + 0.5e-3;
 
 /// `step` with finger `slot` (not in contact in it) at a pose off the contact pose `q_deg`:
 /// the fingertip moved out along the line from the object's centre (the hand frame's origin)
@@ -82,18 +83,35 @@ fn radians(deg: &[f64]) -> Vec<f64> {
 /// Whether the fingertip of `f` stays at least `r` (less 0.2 mm) from the object's centre all
 /// along the straight joint-space line from `a` to `b`, as the hand moves between targets.
 fn outside(f: &icrflow_plan::hand::Finger, a: &[f64], b: &[f64], r: f64) -> bool {
-    (0..=32).all(|i| {
-        let s = i as f64 / 32.0;
-        let q: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + s * (y - x)).collect();
-        let p = f.fk(&q).tip_centre;
-        p.x.hypot(p.y) >= r - 2e-4
-    })
+    icrflow_plan::route::clear(f, a, b, r - 2e-4)
+}
+
+/// One target the planner node publishes: a step of the plan or a sub-target of one.
+#[derive(Debug, Clone)]
+struct Target {
+    step: Step,
+    /// A way point of a free finger (a stand-off pose, a pose on its route around the object,
+    /// or its free pose before it sets off): reached only when the estimated joints of every
+    /// free finger are at it, so that the finger goes from way point to way point along moves
+    /// checked to stay outside the object, and never cuts across.
+    way_point: bool,
+}
+
+impl Target {
+    fn new(step: Step) -> Self {
+        Self {
+            step,
+            way_point: false,
+        }
+    }
 }
 
 /// The plan's steps cut into sub-targets (see [`SUBSTEP`]). An attach step is preceded by
-/// the attaching finger at its stand-off pose, a detach step by the released finger at its
-/// stand-off pose ([`STANDOFF`]), so that a finger never crosses the object on its way.
-fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
+/// way points of the attaching finger (its free pose, its route around the object where
+/// needed ([`icrflow_plan::route`]), its stand-off pose), a detach step by those of the
+/// released finger (its stand-off pose, its route), so that a finger never crosses the object
+/// on its way.
+fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
     let mut out = Vec::with_capacity(steps.len() * 12);
     for (k, step) in steps.iter().enumerate() {
         if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
@@ -112,32 +130,54 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
                     continue;
                 };
                 let near_q = near.fingers[slot].joints_deg.clone();
-                // Between it and the free pose, a detour farther out where the straight move
-                // would cross the object.
-                let crosses = hand.finger(a.finger).is_some_and(|f| {
-                    let p = f.fk(&radians(contact)).tip_centre;
-                    !outside(f, &radians(free), &radians(&near_q), p.x.hypot(p.y))
+                // Between it and the free pose, around the object where the straight move
+                // would come close to it or cut through.
+                let Some(f) = hand.finger(a.finger) else {
+                    continue;
+                };
+                let reach = f.fk(&radians(contact)).tip_centre.xy().norm() + CLEARANCE;
+                let (start, end) = match step.phase {
+                    Phase::Attach => (radians(free), radians(&near_q)),
+                    _ => (radians(&near_q), radians(free)),
+                };
+                let way = icrflow_plan::route::route(f, &start, &end, reach).unwrap_or_else(|| {
+                    eprintln!(
+                        "icrflow-planner: step {}: no route found for finger {} around the \
+                         object; it moves straight",
+                        step.step, f.id
+                    );
+                    Vec::new()
                 });
-                let detour = crosses
-                    .then(|| standoff(base, slot, contact, &DETOURS, &[free, &near_q], hand))
-                    .flatten();
-                let mut legs = vec![near];
-                if let Some(d) = detour {
-                    legs.push(d);
+                let mut legs = Vec::with_capacity(way.len() + 2);
+                if step.phase == Phase::Attach {
+                    // Free pose -> way points -> stand-off -> contact: the finger sets off from
+                    // its free pose only once it is there (it may still be on its way back
+                    // from the last switch).
+                    legs.push(prev.clone());
+                }
+                for q in way {
+                    let mut t = base.clone();
+                    t.fingers[slot].contact = None;
+                    t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+                    legs.push(t);
                 }
                 if step.phase == Phase::Attach {
-                    // Free pose -> detour -> stand-off -> contact.
-                    legs.reverse();
+                    legs.push(near);
+                } else {
+                    legs.insert(0, near);
                 }
                 for mut via in legs {
                     via.step = step.step;
                     via.phase = step.phase;
-                    out.push(via);
+                    out.push(Target {
+                        step: via,
+                        way_point: true,
+                    });
                 }
             }
         }
         if k == 0 || step.phase != Phase::Rolling {
-            out.push(step.clone());
+            out.push(Target::new(step.clone()));
             continue;
         }
         let prev = &steps[k - 1];
@@ -173,7 +213,7 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Step> {
                     }
                 }
             }
-            out.push(t);
+            out.push(Target::new(t));
         }
     }
     out
@@ -210,18 +250,43 @@ fn same_contacts(step: &Step, g: &GraspState) -> bool {
     touching(g).eq(fingers_in_contact(step))
 }
 
-/// Whether the estimate has reached `step`: its fingers in contact, and for a rolling step its
+/// The largest difference between a free finger's estimated joint angles and its targets in
+/// `step` (rad; 0 if no finger is free).
+fn free_joint_error(step: &Step, g: &GraspState) -> f64 {
+    let n = (g.finger_count as usize).min(MAX_FINGERS);
+    step.fingers
+        .iter()
+        .filter(|f| f.contact.is_none())
+        .filter_map(|f| {
+            let slot = (0..n).find(|&s| g.fingers[s].finger == f.finger)?;
+            Some(
+                f.joints_deg
+                    .iter()
+                    .zip(&g.joints[slot])
+                    .fold(0.0_f64, |m, (d, q)| m.max((d.to_radians() - q).abs())),
+            )
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Whether the estimate has reached `target`: its fingers in contact; for a rolling step its
 /// rotation within [`ROTATION_TOLERANCE`] (attaching and releasing a finger do not turn the
 /// object), or, `settled`, the object has stopped turning within [`SETTLED_TOLERANCE`] of it
 /// (the rolling of the real hand never matches the plan exactly; waiting for the rest would
-/// wait for ever).
-fn reached(step: &Step, g: &GraspState, settled: bool) -> bool {
+/// wait for ever); for a way point, every free finger within `joint_tolerance` (rad) of it.
+fn reached(target: &Target, g: &GraspState, settled: bool, joint_tolerance: f64) -> bool {
+    let step = &target.step;
     let off = (g.rotation - step.rotation_deg.to_radians()).abs();
     same_contacts(step, g)
         && (step.phase != Phase::Rolling
             || off <= ROTATION_TOLERANCE
             || (settled && off <= SETTLED_TOLERANCE))
+        && (!target.way_point || free_joint_error(step, g) <= joint_tolerance)
 }
+
+/// How close a free finger's joints must come to a way point (rad), beyond the encoder noise
+/// (five standard deviations of `pipeline.joint_noise_deg` are added).
+pub const WAY_POINT_TOLERANCE: f64 = 1.0 * std::f64::consts::PI / 180.0;
 
 /// How far short of a rolling step the object may settle and the step still count as reached
 /// (rad); a hand held still farther away waits.
@@ -238,6 +303,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let scenario = ctx.setup.scenario(&ctx.config);
     let plan = scenario.plan(&mut |_| {}).context("planning")?;
     let steps = &targets(&plan.steps, &ctx.setup.hand);
+    let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.config.pipeline.joint_noise;
+    let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let problem = &ctx.setup.problem;
     let alpha = ctx.config.grasp.alpha;
     let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
@@ -259,7 +326,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut publish = |k: usize, input: Option<(Header, u64)>, seq: &mut Sequence| -> Result<()> {
         let done = k >= steps.len();
         let at = k.min(steps.len() - 1);
-        let step = &steps[at];
+        let step = &steps[at].step;
         let header = match input {
             Some((h, received)) => Header::after(Kind::PlanStep, seq.advance(), &h, received),
             None => Header::new(Kind::PlanStep, seq.advance(), 0, 0),
@@ -336,18 +403,26 @@ pub fn run(ctx: &Context) -> Result<()> {
                     Some(k) => k,
                     None => {
                         // First state seen: resume at the step nearest to it (the same
-                        // fingers in contact, the closest rotation; a fresh run is at the
-                        // start), so that a restarted planner never sends the hand back.
+                        // fingers in contact, the closest rotation, then the free fingers'
+                        // nearest way point; a fresh run is at the start), so that a restarted
+                        // planner never sends the hand back, and a free finger between two way
+                        // points goes on to one of them, along the move checked between them.
                         let k = (0..steps.len())
-                            .filter(|&k| same_contacts(&steps[k], &g))
+                            .filter(|&k| same_contacts(&steps[k].step, &g))
                             .min_by(|&a, &b| {
                                 let d = |k: usize| {
-                                    (g.rotation - steps[k].rotation_deg.to_radians()).abs()
+                                    (g.rotation - steps[k].step.rotation_deg.to_radians()).abs()
                                 };
-                                d(a).total_cmp(&d(b)).then(b.cmp(&a))
+                                let e = |k: usize| free_joint_error(&steps[k].step, &g);
+                                d(a).total_cmp(&d(b))
+                                    .then(e(a).total_cmp(&e(b)))
+                                    .then(b.cmp(&a))
                             })
                             .unwrap_or(0);
                         current = Some(k);
+                        if log_steps {
+                            eprintln!("icrflow-planner: starting at target {k}/{}", steps.len());
+                        }
                         publish(k, last_input, &mut seq)?;
                         k
                     }
@@ -358,8 +433,25 @@ pub fn run(ctx: &Context) -> Result<()> {
                     still = (t, g.rotation, k);
                 }
                 let settled = t.saturating_sub(still.0) >= SETTLED_NS;
-                if k < steps.len() && reached(&steps[k], &g, settled) {
+                if k < steps.len() && reached(&steps[k], &g, settled, joint_tolerance) {
                     current = Some(k + 1);
+                    // Logged: the switching targets (rolling ones are many and alike).
+                    if log_steps
+                        && let Some(next) = steps.get(k + 1)
+                        && (next.way_point || next.step.phase != Phase::Rolling)
+                    {
+                        eprintln!(
+                            "icrflow-planner: target {}/{}: step {} {:?}{}, fingers {:?} in \
+                             contact, {:.1} deg",
+                            k + 1,
+                            steps.len(),
+                            next.step.step,
+                            next.step.phase,
+                            if next.way_point { " (way point)" } else { "" },
+                            fingers_in_contact(&next.step).collect::<Vec<_>>(),
+                            next.step.rotation_deg
+                        );
+                    }
                     publish(k + 1, last_input, &mut seq)?;
                 }
             }
@@ -381,7 +473,8 @@ mod tests {
     use icrflow_scenario::{Config, Setup};
 
     /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
-    /// from the object, without crossing the object on those moves.
+    /// from the object; every move of a finger that is not rolling starts from a contact or a
+    /// way point (where the planner waits for it) and stays outside the object.
     #[test]
     fn fingers_approach_and_leave_along_the_normal() {
         let dir = std::env::var_os("CARGO_MANIFEST_DIR")
@@ -393,26 +486,44 @@ mod tests {
         let hand = &setup.hand;
         let r = setup.object.max_radius();
         let list = targets(&plan.steps, hand);
-        let (mut approaches, mut retreats) = (0, 0);
+        let (mut approaches, mut retreats, mut free_moves) = (0, 0, 0);
         for w in list.windows(2) {
-            let (a, b) = (&w[0], &w[1]);
+            let (a, b) = (&w[0].step, &w[1].step);
             for slot in 0..a.fingers.len() {
                 let f = hand.finger(a.fingers[slot].finger).unwrap();
                 let (qa, qb) = (
                     radians(&a.fingers[slot].joints_deg),
                     radians(&b.fingers[slot].joints_deg),
                 );
-                // The moves to and from a contact stay outside the object (the move between the
-                // free pose and a stand-off is not planned yet, see the module docs).
                 let touching = |t: &Step| t.fingers[slot].contact.is_some();
-                if qa != qb && touching(a) != touching(b) {
+                if qa != qb && !(touching(a) && touching(b)) {
+                    // Off the surface by the stand-off leg's tolerance next to a contact,
+                    // beyond the release distance everywhere else.
+                    let margin = if touching(a) || touching(b) {
+                        -2e-4
+                    } else {
+                        CLEARANCE - 1e-9
+                    };
                     assert!(
-                        outside(f, &qa, &qb, r + f.tip_radius),
-                        "steps {} -> {}: finger {} crosses the object",
+                        icrflow_plan::route::clear(f, &qa, &qb, r + f.tip_radius + margin),
+                        "steps {} -> {} ({:?} -> {:?}): finger {} comes within {margin} m of the \
+                         object, from {:?} to {:?}",
+                        a.step,
+                        b.step,
+                        a.phase,
+                        b.phase,
+                        f.id,
+                        a.fingers[slot].joints_deg,
+                        b.fingers[slot].joints_deg,
+                    );
+                    assert!(
+                        touching(a) || w[0].way_point,
+                        "steps {} -> {}: finger {} sets off from a pose it may not be at",
                         a.step,
                         b.step,
                         f.id
                     );
+                    free_moves += 1;
                 }
                 let gap = |q: &[f64]| tip(f, q).distance - r - f.tip_radius;
                 let standoff = |q: &[f64]| STANDOFFS.iter().any(|d| (gap(q) - d).abs() < 1e-6);
@@ -432,6 +543,11 @@ mod tests {
                 }
             }
         }
+        // At least: out to the stand-off and away from it, to it and in, per switch.
+        assert!(
+            free_moves >= 4 * plan.summary.switches,
+            "{free_moves} free moves"
+        );
         assert_eq!(
             approaches, plan.summary.switches,
             "an approach before every attach"

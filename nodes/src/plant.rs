@@ -2,13 +2,16 @@
 //! publishes noisy joint encoders at the loop rate and noisy, delayed object-pose
 //! measurements at a lower rate.
 //!
-//! Each tick (`pipeline.rate_hz`): the joints move toward the last tracked command at most
-//! `pipeline.joint_speed_deg_s`; a held command keeps them still. The fingers commanded with
+//! Each tick (`pipeline.rate_hz`): each finger's joints move toward the last tracked command
+//! along a straight line in joint space, the largest at `pipeline.joint_speed_deg_s` for the
+//! time since the last tick; a held command keeps them still. The fingers commanded with
 //! a force that touch the object before and after the move roll it ([`crate::rolling`]): the
 //! object's rotation is the mean of what each implies. Encoders get Gaussian noise
 //! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
 //! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
 //! A command older than `pipeline.max_input_age_ms` is not followed: the hand holds still.
+//! Fingertips pass through the object (collisions are not simulated); a fingertip that goes
+//! inside it, not in contact, is reported on stderr.
 //!
 //! The plant stands for the physical hand and object, whose state outlives any process: it
 //! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
@@ -57,6 +60,8 @@ pub fn run(ctx: &Context) -> Result<()> {
         .iter()
         .map(|f| contacts.iter().any(|c| c.finger == f.id))
         .collect();
+    // Fingers whose fingertip is inside the object without being in contact.
+    let mut intruding = vec![false; hand.fingers.len()];
     let mut theta = 0.0;
     let state_file = ctx.bus.config().root.join("plant.state");
     if let Ok(text) = std::fs::read_to_string(&state_file) {
@@ -88,7 +93,6 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut health = Health::new(ctx)?;
     let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
     let dt = 1.0 / p.rate_hz;
-    let max_step = p.joint_speed * dt;
     let pose_every = (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64;
     let latency_ns = (p.pose_latency * 1e9) as u64;
 
@@ -101,6 +105,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.
     let period = Duration::from_secs_f64(dt);
     let mut next = Instant::now();
+    let mut last_tick = next;
     loop {
         health.tick()?;
         next += period;
@@ -127,6 +132,14 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         ticks += 1;
         let t = now();
+        // The joints move for the time since the last tick (more than a period when this
+        // process was late), as a physical hand's would.
+        let at = Instant::now();
+        let max_step = p.joint_speed
+            * at.duration_since(last_tick)
+                .as_secs_f64()
+                .clamp(dt, 10.0 * dt);
+        last_tick = at;
         if target
             .as_ref()
             .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > max_age_ns)
@@ -144,14 +157,34 @@ pub fn run(ctx: &Context) -> Result<()> {
                 else {
                     continue;
                 };
-                let mut arrived = true;
-                for (j, a) in q[slot].iter_mut().enumerate() {
-                    let goal = c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
-                    *a += (goal - *a).clamp(-max_step, max_step);
-                    arrived &= (goal - *a).abs() < 1e-9;
+                // Along the straight line to the command in joint space, every joint scaled
+                // alike (a servo following a stream of set points along the same line).
+                let mut goal = [0.0; MAX_JOINTS];
+                let mut largest = 0.0_f64;
+                for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
+                    goal[j] = c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
+                    largest = largest.max((goal[j] - a).abs());
+                }
+                let arrived = largest <= max_step;
+                let scale = if arrived { 1.0 } else { max_step / largest };
+                for (j, a) in q[slot].iter_mut().enumerate().take(MAX_JOINTS) {
+                    *a += scale * (goal[j] - *a);
                 }
                 let pressing = c.forces[k].iter().any(|x| *x != 0.0);
                 let after = tip(f, &q[slot]);
+                // The simulation lets a fingertip pass through the object; a real one would
+                // hit it. Said on entering, always: it is a planning or tracking fault.
+                let depth = r_o + f.tip_radius - after.distance;
+                let inside = !contact[slot] && depth > TOUCH;
+                if inside && !intruding[slot] {
+                    eprintln!(
+                        "icrflow-plant: finger {} is inside the object ({:.2} mm deep): a real \
+                         hand would hit it here",
+                        f.id,
+                        depth * 1e3
+                    );
+                }
+                intruding[slot] = inside;
                 if contact[slot] && pressing {
                     turn += rotation(&before, &after, f, r_o);
                     rolling += 1;

@@ -272,6 +272,8 @@ pub struct PipelineSpec {
     pub max_input_age: Real,
     /// Smallest fingertip normal force commanded (N).
     pub min_normal_force: Real,
+    /// Longest hold a scenario run waits through before it gives up (s).
+    pub max_hold: Real,
     /// Seed of the simulated noise.
     pub seed: u64,
 }
@@ -653,6 +655,7 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
             raw.max_input_age_ms.unwrap_or(200.0),
         )? * 1e-3,
         min_normal_force: nonneg("pipeline.min_normal_force", raw.min_normal_force, 1.0)?,
+        max_hold: positive("pipeline.max_hold_s", raw.max_hold_s.unwrap_or(30.0))?,
         seed: raw.seed.unwrap_or(1),
     })
 }

@@ -28,6 +28,7 @@ pub struct RawPipeline {
     pub pose_latency_ms: Option<f64>,
     pub max_input_age_ms: Option<f64>,
     pub min_normal_force: Option<f64>,
+    pub max_hold_s: Option<f64>,
     pub seed: Option<u64>,
 }
 
