@@ -39,6 +39,20 @@ pub enum Command {
         #[arg(long)]
         summary_json: Option<PathBuf>,
     },
+    /// Watch a running pipeline over Zenoh (from this or another machine): phase, rotation,
+    /// quality against alpha, contacts, node health and latency, redrawn in place on a
+    /// terminal, one line per second otherwise. Read-only. Stops on Ctrl-C.
+    Monitor {
+        /// The Zenoh endpoint of the pipeline's bridge (`zenoh.listen` of its config).
+        #[arg(long, default_value = "tcp/127.0.0.1:7447")]
+        connect: String,
+        /// The rig to watch (`pipeline.rig` of its config).
+        #[arg(long, default_value = "sim")]
+        rig: String,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        seconds: Option<f64>,
+    },
     /// Check CONFIG and every file it names (mesh, URDF), build the object and the hand, and
     /// check the initial grasp (force closure, quality >= alpha, every finger reaching its
     /// contact). Exit status 1 with the first problem named; nothing is started or written.

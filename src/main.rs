@@ -2,6 +2,7 @@
 
 mod analyze;
 mod cli;
+mod monitor;
 mod plan;
 mod run;
 
@@ -15,6 +16,11 @@ fn main() -> ExitCode {
         cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
         cli::Command::Plan { config, out, json } => plan::run(&config, out, json),
         cli::Command::Validate { config } => plan::validate(&config).map(|()| 0),
+        cli::Command::Monitor {
+            connect,
+            rig,
+            seconds,
+        } => monitor::run(&connect, &rig, seconds),
         cli::Command::Run {
             config,
             live,

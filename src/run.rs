@@ -19,8 +19,10 @@ use serde::Serialize;
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
 
-/// The node processes, in start order.
+/// The node processes of the control loop, in start order.
 pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
+/// The Zenoh bridge's node name (started after them when `zenoh.enabled`).
+pub const BRIDGE: &str = "bridge";
 
 /// Latency percentiles (microseconds).
 #[derive(Debug, Serialize, Default, Clone, Copy)]
@@ -305,6 +307,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             program: node_program(n)?,
             args: vec!["--config".into(), config_path.display().to_string()],
             policy: RestartPolicy::default(),
+            essential: true,
+        });
+    }
+    if config.zenoh.enabled {
+        // Remote monitoring; the run goes on without it if it fails for good.
+        specs.push(NodeSpec {
+            name: BRIDGE.into(),
+            program: node_program(BRIDGE)?,
+            args: vec!["--config".into(), config_path.display().to_string()],
+            policy: RestartPolicy::default(),
+            essential: false,
         });
     }
     let pid = std::process::id();
@@ -435,7 +448,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     }
                     if Instant::now() >= next_sample {
                         next_sample += Duration::from_secs(1);
-                        for n in NODES {
+                        let bridge = config.zenoh.enabled.then_some(BRIDGE);
+                        for n in NODES.into_iter().chain(bridge) {
                             if let Some(kib) = supervisor.pid(n).and_then(resident_kib) {
                                 let m = memory.entry(n.to_string()).or_insert(Memory {
                                     first: kib,
@@ -655,6 +669,9 @@ fn report(e: &Event) {
             status,
             cleaned,
         } => eprintln!("run: node {name} exited ({status}); cleaned {cleaned} dead iceoryx2 nodes"),
+        Event::GaveUp { name, reason } if name == BRIDGE => eprintln!(
+            "run: giving up on {name}: {reason}; the run goes on without Zenoh monitoring"
+        ),
         Event::GaveUp { name, reason } => eprintln!("run: giving up on {name}: {reason}"),
     }
 }

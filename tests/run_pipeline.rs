@@ -117,6 +117,11 @@ fn run_refuses_a_bad_config_before_starting_anything() {
             format!("{good}\n[pipeline]\nrate_hz = 0.0\n"),
             "pipeline.rate_hz",
         ),
+        (
+            "zenoh",
+            format!("{good}\n[zenoh]\nlisten = [\"udp/127.0.0.1\"]\n"),
+            "zenoh.listen",
+        ),
     ] {
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).unwrap();

@@ -49,6 +49,9 @@ pub struct NodeSpec {
     pub args: Vec<String>,
     /// The restart policy.
     pub policy: RestartPolicy,
+    /// Whether the run depends on it: a node that is not (the Zenoh bridge: monitoring) may
+    /// fail for good without failing the run ([`Supervisor::failed`]).
+    pub essential: bool,
 }
 
 /// Something the supervisor did or saw.
@@ -265,7 +268,7 @@ impl Supervisor {
     pub fn failed(&self) -> Option<&str> {
         self.nodes
             .iter()
-            .find(|m| m.given_up)
+            .find(|m| m.given_up && m.spec.essential)
             .map(|m| m.spec.name.as_str())
     }
 

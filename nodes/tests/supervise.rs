@@ -22,6 +22,7 @@ fn sh(name: &str, script: &str, policy: RestartPolicy) -> NodeSpec {
         program: PathBuf::from("/bin/sh"),
         args: vec!["-c".into(), script.into()],
         policy,
+        essential: true,
     }
 }
 

@@ -14,7 +14,7 @@ use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::planner::Settings;
 use icrflow_plan::urdf::UrdfFinger;
 
-use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan};
+use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan, RawZenoh};
 
 /// Default number of friction-cone edges.
 pub const DEFAULT_CONE_EDGES: usize = 8;
@@ -249,7 +249,38 @@ pub struct Config {
     pub plan: Settings,
     /// Pipeline settings.
     pub pipeline: PipelineSpec,
+    /// The Zenoh bridge.
+    pub zenoh: ZenohSpec,
 }
+
+/// The validated `[zenoh]` section: the bridge between the run's local bus and Zenoh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZenohSpec {
+    /// Whether `icrflow run` starts the bridge.
+    pub enabled: bool,
+    /// Zenoh mode: `peer`, `client` or `router`.
+    pub mode: String,
+    /// Endpoints the bridge listens on (`tcp/HOST:PORT`).
+    pub listen: Vec<String>,
+    /// Endpoints it connects to.
+    pub connect: Vec<String>,
+    /// Multicast scouting (finding peers on the network without `connect`).
+    pub scouting: bool,
+    /// The local topics published for monitoring.
+    pub monitor: Vec<String>,
+}
+
+/// The local topics the bridge publishes for monitoring unless `zenoh.monitor` says otherwise.
+pub const DEFAULT_MONITOR: [&str; 6] = [
+    "joint_state",
+    "grasp_state",
+    "wrench_space",
+    "plan_step",
+    "hand_command",
+    "node_health",
+];
+/// Where the bridge listens unless `zenoh.listen` says otherwise: this machine only.
+pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
 
 /// The validated `[pipeline]` section: rates, noise and limits of `icrflow run`.
 #[derive(Debug, Clone, PartialEq)]
@@ -298,6 +329,7 @@ impl Config {
         };
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
+        let zenoh = zenoh_spec(raw.zenoh.unwrap_or_default())?;
         Ok(Self {
             path: path.to_path_buf(),
             object: object_spec(raw.object, base)?,
@@ -305,6 +337,7 @@ impl Config {
             hand,
             plan,
             pipeline,
+            zenoh,
         })
     }
 }
@@ -619,6 +652,50 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
             })
         }
     }
+}
+
+fn zenoh_spec(raw: RawZenoh) -> Result<ZenohSpec> {
+    let mode = raw.mode.unwrap_or_else(|| "peer".into());
+    if !matches!(mode.as_str(), "peer" | "client" | "router") {
+        bail!("zenoh.mode: one of \"peer\", \"client\", \"router\", got {mode:?}");
+    }
+    let endpoints = |key: &str, list: Vec<String>| -> Result<Vec<String>> {
+        for e in &list {
+            let Some((proto, address)) = e.split_once('/') else {
+                bail!("{key}: {e:?} is not an endpoint like \"tcp/127.0.0.1:7447\"");
+            };
+            if proto != "tcp" {
+                bail!("{key}: {e:?}: only tcp endpoints are built in, got {proto:?}");
+            }
+            let address = address.split('#').next().unwrap_or(address);
+            let ok = address
+                .rsplit_once(':')
+                .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok());
+            if !ok {
+                bail!("{key}: {e:?}: expected tcp/HOST:PORT");
+            }
+        }
+        Ok(list)
+    };
+    let monitor = raw
+        .monitor
+        .unwrap_or_else(|| DEFAULT_MONITOR.iter().map(|t| t.to_string()).collect());
+    for t in &monitor {
+        if !DEFAULT_MONITOR.contains(&t.as_str()) {
+            bail!("zenoh.monitor: unknown topic {t:?}; the topics are {DEFAULT_MONITOR:?}");
+        }
+    }
+    Ok(ZenohSpec {
+        enabled: raw.enabled.unwrap_or(true),
+        mode,
+        listen: endpoints(
+            "zenoh.listen",
+            raw.listen.unwrap_or_else(|| vec![DEFAULT_LISTEN.into()]),
+        )?,
+        connect: endpoints("zenoh.connect", raw.connect.unwrap_or_default())?,
+        scouting: raw.scouting.unwrap_or(false),
+        monitor,
+    })
 }
 
 fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {

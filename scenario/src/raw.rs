@@ -13,6 +13,19 @@ pub struct RawConfig {
     pub hand: Option<RawHand>,
     pub plan: Option<RawPlan>,
     pub pipeline: Option<RawPipeline>,
+    pub zenoh: Option<RawZenoh>,
+}
+
+/// `[zenoh]`: the bridge between the local bus and Zenoh.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RawZenoh {
+    pub enabled: Option<bool>,
+    pub mode: Option<String>,
+    pub listen: Option<Vec<String>>,
+    pub connect: Option<Vec<String>>,
+    pub scouting: Option<bool>,
+    pub monitor: Option<Vec<String>>,
 }
 
 /// `[pipeline]`: the processes of `icrflow run`.

@@ -1,0 +1,162 @@
+//! The Zenoh side of the pipeline: the bridge node (`icrflow-bridge`), which publishes the
+//! run's local iceoryx2 topics on Zenoh as JSON for monitoring from this or another machine,
+//! and the Zenoh session settings shared with `icrflow monitor`.
+//!
+//! Why not iceoryx2's own tunnel: the Zenoh backend of the iceoryx2 tunnel
+//! (`iceoryx2-tunnel-zenoh`) is released up to 0.8.1, built against iceoryx2 0.8, and iceoryx2
+//! refuses to connect processes of different versions; we use 0.10. It would also carry our
+//! `#[repr(C)]` messages as raw bytes, which only a client with our layouts can read, while
+//! monitoring needs a payload any Zenoh client can decode (JSON, [`json`]), and it tunnels
+//! every service both ways, where the pipeline must choose per topic and direction.
+//!
+//! The bridge is off the control loop: it polls its subscribers every
+//! [`icrflow_nodes::runtime::RESYNC`] (no publisher on the loop wakes it), and publishes with
+//! congestion control `Drop` at a low priority, so a slow or lost link drops monitoring
+//! messages instead of stalling anything local.
+
+pub mod json;
+
+/// The Zenoh crate, as this crate uses it (for `icrflow monitor`).
+pub use zenoh;
+
+use anyhow::{Context as _, Result, anyhow};
+use iceoryx2::prelude::*;
+use icrflow_interfaces::{
+    Facet, GraspState, HandCommand, JointState, NodeHealth, PlanStepHeader, WrenchSpaceHeader,
+    topics,
+};
+use icrflow_nodes::runtime::{Context, Health, serve};
+use icrflow_scenario::ZenohSpec;
+use zenoh::Wait;
+use zenoh::qos::{CongestionControl, Priority};
+
+/// The Zenoh key expression of `topic` on rig `rig`.
+pub fn key(rig: &str, topic: &str) -> String {
+    format!("icrflow/{rig}/{topic}")
+}
+
+/// A Zenoh session's settings from the config's `[zenoh]` section.
+pub fn session_config(z: &ZenohSpec) -> Result<zenoh::Config> {
+    let mut c = zenoh::Config::default();
+    let mut set = |key: &str, value: serde_json::Value| -> Result<()> {
+        c.insert_json5(key, &value.to_string())
+            .map_err(|e| anyhow!("zenoh setting {key}: {e}"))
+    };
+    set("mode", serde_json::json!(z.mode))?;
+    set("listen/endpoints", serde_json::json!(z.listen))?;
+    set("connect/endpoints", serde_json::json!(z.connect))?;
+    set("scouting/multicast/enabled", serde_json::json!(z.scouting))?;
+    Ok(c)
+}
+
+/// The settings of a client session that connects to `endpoint` only (`icrflow monitor`).
+pub fn client_config(endpoint: &str) -> Result<zenoh::Config> {
+    session_config(&ZenohSpec {
+        enabled: true,
+        mode: "client".into(),
+        listen: Vec::new(),
+        connect: vec![endpoint.into()],
+        scouting: false,
+        monitor: Vec::new(),
+    })
+}
+
+/// Opens a Zenoh session, naming the endpoints when that fails.
+pub fn open(config: zenoh::Config, what: &str) -> Result<zenoh::Session> {
+    zenoh::open(config)
+        .wait()
+        .map_err(|e| anyhow!("cannot open the Zenoh session ({what}): {e}"))
+}
+
+/// One monitored topic: its local subscriber and its Zenoh publisher.
+enum Forward {
+    Joints(icrflow_nodes::bus::Sub<JointState>),
+    Grasp(icrflow_nodes::bus::Sub<GraspState>),
+    Wrench(icrflow_nodes::bus::SliceSub<WrenchSpaceHeader, Facet>),
+    Plan(icrflow_nodes::bus::SliceSub<PlanStepHeader, u32>),
+    Command(icrflow_nodes::bus::Sub<HandCommand>),
+    Health(icrflow_nodes::bus::Sub<NodeHealth>),
+}
+
+/// Runs the bridge node.
+pub fn run(ctx: &Context) -> Result<()> {
+    let z = &ctx.config.zenoh;
+    let rig = ctx.config.pipeline.rig.as_str();
+    let session = open(
+        session_config(z)?,
+        &format!("listen {:?}, connect {:?}", z.listen, z.connect),
+    )?;
+    let mut forwards = Vec::with_capacity(z.monitor.len());
+    for topic in &z.monitor {
+        let forward = match topic.as_str() {
+            topics::JOINT_STATE => Forward::Joints(ctx.bus.subscriber(topic)?),
+            topics::GRASP_STATE => Forward::Grasp(ctx.bus.subscriber(topic)?),
+            topics::WRENCH_SPACE => Forward::Wrench(ctx.bus.slice_subscriber(topic)?),
+            topics::PLAN_STEP => Forward::Plan(ctx.bus.slice_subscriber(topic)?),
+            topics::HAND_COMMAND => Forward::Command(ctx.bus.subscriber(topic)?),
+            topics::NODE_HEALTH => Forward::Health(ctx.bus.subscriber(topic)?),
+            other => anyhow::bail!("zenoh.monitor: no such topic {other:?}"),
+        };
+        let publisher = session
+            .declare_publisher(key(rig, topic))
+            .congestion_control(CongestionControl::Drop)
+            .priority(Priority::DataLow)
+            .wait()
+            .map_err(|e| anyhow!("declaring the Zenoh publisher of {topic}: {e}"))?;
+        forwards.push((forward, publisher));
+    }
+    let mut health = Health::new(ctx)?;
+    let mut text: Vec<u8> = Vec::with_capacity(4096);
+    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
+    serve(&ws, |_| {
+        health.tick()?;
+        for (forward, publisher) in &forwards {
+            let mut send = |value: &dyn erased::Json| -> Result<()> {
+                text.clear();
+                value.write(&mut text)?;
+                publisher
+                    .put(text.as_slice())
+                    .wait()
+                    .map_err(|e| anyhow!("zenoh put: {e}"))
+            };
+            let mut failed = None;
+            let mut keep = |r: Result<()>| {
+                if let Err(e) = r {
+                    failed.get_or_insert(e);
+                }
+            };
+            let n = match forward {
+                Forward::Joints(s) => s.drain(|m| keep(send(&json::joint_state(rig, m))))?,
+                Forward::Grasp(s) => s.drain(|m| keep(send(&json::grasp_state(rig, m))))?,
+                Forward::Wrench(s) => {
+                    s.drain(|h, facets| keep(send(&json::wrench_space(rig, h, facets.len()))))?
+                }
+                Forward::Plan(s) => s.drain(|h, _| keep(send(&json::plan_step(rig, h))))?,
+                Forward::Command(s) => s.drain(|m| keep(send(&json::hand_command(rig, m))))?,
+                Forward::Health(s) => s.drain(|m| keep(send(&json::node_health(rig, m))))?,
+            };
+            health.processed += n as u64;
+            if let Some(e) = failed {
+                // A put that fails (the session closing) is counted, never fatal: monitoring
+                // must not take the pipeline down.
+                health.refuse(format!("{}: {e:#}", publisher.key_expr()));
+            }
+        }
+        Ok(())
+    })
+    .context("bridge loop")
+}
+
+/// Serializing the monitoring objects through one function.
+mod erased {
+    /// A monitoring object that writes itself as JSON.
+    pub trait Json {
+        fn write(&self, out: &mut Vec<u8>) -> anyhow::Result<()>;
+    }
+
+    impl<T: serde::Serialize> Json for T {
+        fn write(&self, out: &mut Vec<u8>) -> anyhow::Result<()> {
+            serde_json::to_writer(out, self).map_err(Into::into)
+        }
+    }
+}

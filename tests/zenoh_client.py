@@ -1,0 +1,76 @@
+"""An external Zenoh client of a running pipeline, as any user's would be: the Python
+`eclipse-zenoh` package (pinned in bench/requirements.txt to the Rust crate's version), no
+code of ours. Used by tests/zenoh.rs.
+
+    python tests/zenoh_client.py ENDPOINT RIG SECONDS TOPIC...
+
+Connects to ENDPOINT as a client, subscribes to icrflow/RIG/**, and decodes every sample as
+the monitoring JSON of the README (an object with schema 1, its topic and rig). Stops when
+every TOPIC has been received and decoded at least 20 times, or after SECONDS. Prints one JSON
+object: per key expression the samples received and decoded, and the decoding errors (at most
+ten). Exit 0 when every TOPIC arrived, decoded, 20 times; 1 otherwise.
+"""
+
+import json
+import sys
+import threading
+import time
+
+import zenoh
+
+WANTED = 20
+
+
+def main() -> int:
+    endpoint, rig, seconds, *topics = sys.argv[1:]
+    deadline = time.monotonic() + float(seconds)
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("client"))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    lock = threading.Lock()
+    received: dict[str, int] = {}
+    decoded: dict[str, int] = {}
+    errors: list[str] = []
+
+    def on_sample(sample: "zenoh.Sample") -> None:
+        key = str(sample.key_expr)
+        topic = key.rsplit("/", 1)[-1]
+        with lock:
+            received[key] = received.get(key, 0) + 1
+        try:
+            obj = json.loads(sample.payload.to_bytes())
+            if not isinstance(obj, dict):
+                raise ValueError("not a JSON object")
+            if obj.get("schema") != 1:
+                raise ValueError(f"schema {obj.get('schema')!r}")
+            if obj.get("topic") != topic or obj.get("rig") != rig:
+                raise ValueError(f"topic/rig {obj.get('topic')!r}/{obj.get('rig')!r}")
+            for field in ("sequence", "time_ns", "origin_ns"):
+                if not isinstance(obj.get(field), int):
+                    raise ValueError(f"{field} missing")
+        except Exception as e:  # noqa: BLE001 - every failure is reported
+            with lock:
+                if len(errors) < 10:
+                    errors.append(f"{key}: {e}")
+            return
+        with lock:
+            decoded[key] = decoded.get(key, 0) + 1
+
+    def done() -> bool:
+        with lock:
+            return all(decoded.get(f"icrflow/{rig}/{t}", 0) >= WANTED for t in topics)
+
+    with zenoh.open(config) as session:
+        subscriber = session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        while time.monotonic() < deadline and not done():
+            time.sleep(0.05)
+        subscriber.undeclare()
+    ok = done()
+    with lock:
+        print(json.dumps({"received": received, "decoded": decoded, "errors": errors, "ok": ok}))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
