@@ -53,10 +53,11 @@ fn free_port() -> u16 {
         .port()
 }
 
-#[test]
-fn a_zenoh_client_reads_every_monitoring_topic_of_a_run() {
-    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = scratch("zenoh");
+/// A run of the paper scenario with its bridge on a loopback port of its own (`extra` appended
+/// to its `[zenoh]` section), the Python client and `icrflow monitor` reading it meanwhile.
+/// Returns the run's stderr, the client's report and the monitor's last line.
+fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String) {
+    let dir = scratch(name);
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let rig = "ztest";
@@ -64,7 +65,9 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run() {
     let config = dir.join("zenoh.toml");
     std::fs::write(
         &config,
-        format!("{good}\n[pipeline]\nrig = \"{rig}\"\n\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
+        format!(
+            "{good}\n[pipeline]\nrig = \"{rig}\"\n\n[zenoh]\nlisten = [\"{endpoint}\"]\n{extra}\n"
+        ),
     )
     .unwrap();
     let summary = dir.join("summary.json");
@@ -100,8 +103,10 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run() {
         .unwrap();
     let monitor = monitor.wait_with_output().unwrap();
     let run = run.wait_with_output().unwrap();
-    let run_err = String::from_utf8_lossy(&run.stderr);
+    let run_err = String::from_utf8_lossy(&run.stderr).into_owned();
     assert!(run.status.success(), "run failed: {run_err}");
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    assert_eq!(s["completed"], true, "{s}");
 
     // The external client received and decoded every monitoring topic.
     let report = String::from_utf8_lossy(&client.stdout);
@@ -124,9 +129,16 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run() {
     let text = String::from_utf8_lossy(&monitor.stdout);
     let err = String::from_utf8_lossy(&monitor.stderr);
     assert!(monitor.status.success(), "monitor: {err}");
-    let lines: Vec<&str> = text.lines().collect();
-    assert!(lines.len() >= 2, "monitor printed: {text}\n{err}");
-    let last = lines.last().unwrap();
+    let last = text.lines().last().unwrap_or_default().to_string();
+    assert!(text.lines().count() >= 2, "monitor printed: {text}\n{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+    (run_err, report, last)
+}
+
+#[test]
+fn a_zenoh_client_reads_every_monitoring_topic_of_a_run_and_cannot_write() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let (run_err, report, last) = watched_run("zenoh", "");
     for part in [
         "phase ",
         "rotation ",
@@ -143,7 +155,31 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run() {
     );
     // Every part of the view has data ("(no plan step yet)" and the like are gone).
     assert!(!last.contains(" yet)"), "{last}");
-    let _ = std::fs::remove_dir_all(&dir);
+    // The client's puts on the hand command key were sent, and the access control dropped
+    // them: the bridge, the only way from Zenoh to the local bus, never saw one (it logs
+    // every remote message it gets; the next test shows it does when writes are allowed).
+    assert_eq!(report["put"]["icrflow/ztest/hand_command"], 3, "{report}");
+    assert!(!run_err.contains("remote message"), "{run_err}");
+}
+
+#[test]
+fn without_access_control_remote_writes_reach_the_bridge_which_ignores_them_and_says_why() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let (run_err, report, _) = watched_run("zenoh-open", "read_only = false");
+    assert_eq!(report["put"]["icrflow/ztest/hand_command"], 3, "{report}");
+    let key = "icrflow/ztest/hand_command";
+    for why in [
+        "the bridge takes no input on it",
+        "malformed monitoring JSON",
+        "monitoring schema 99, expected 1",
+    ] {
+        assert!(
+            run_err.contains(&format!(
+                "icrflow-bridge: ignored a remote message on {key}: {why}"
+            )),
+            "{why}: {run_err}"
+        );
+    }
 }
 
 #[test]

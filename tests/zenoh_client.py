@@ -6,9 +6,12 @@ code of ours. Used by tests/zenoh.rs.
 
 Connects to ENDPOINT as a client, subscribes to icrflow/RIG/**, and decodes every sample as
 the monitoring JSON of the README (an object with schema 1, its topic and rig). Stops when
-every TOPIC has been received and decoded at least 20 times, or after SECONDS. Prints one JSON
-object: per key expression the samples received and decoded, and the decoding errors (at most
-ten). Exit 0 when every TOPIC arrived, decoded, 20 times; 1 otherwise.
+every TOPIC has been received and decoded at least 20 times, or after SECONDS. Then it tries
+to write, as a hostile or mistaken client would: it declares a queryable on
+icrflow/RIG/hand_command, puts a well-formed hand command there, then a malformed one and one
+of another schema, and waits a second. Prints one JSON object: per key expression the samples
+received and decoded, the decoding errors (at most ten), and what it put. Exit 0 when every
+TOPIC arrived, decoded, 20 times; 1 otherwise.
 """
 
 import json
@@ -61,14 +64,29 @@ def main() -> int:
         with lock:
             return all(decoded.get(f"icrflow/{rig}/{t}", 0) >= WANTED for t in topics)
 
+    command = f"icrflow/{rig}/hand_command"
+    hold = {
+        "schema": 1, "topic": "hand_command", "rig": rig, "sequence": 2**62,
+        "time_ns": time.time_ns(), "origin_ns": 0, "mode": "track", "reason": "",
+        "quality": 1.0, "latency_us": 0.0, "fingers": [],
+    }
+    puts = [json.dumps(hold), "{not json", json.dumps({**hold, "schema": 99})]
     with zenoh.open(config) as session:
         subscriber = session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
         while time.monotonic() < deadline and not done():
             time.sleep(0.05)
         subscriber.undeclare()
+        queryable = session.declare_queryable(command, lambda query: query.reply(command, "{}"))
+        for payload in puts:
+            session.put(command, payload)
+        time.sleep(1.0)
+        queryable.undeclare()
     ok = done()
     with lock:
-        print(json.dumps({"received": received, "decoded": decoded, "errors": errors, "ok": ok}))
+        print(json.dumps({
+            "received": received, "decoded": decoded, "errors": errors, "ok": ok,
+            "put": {command: len(puts)},
+        }))
     return 0 if ok else 1
 
 

@@ -13,6 +13,11 @@
 //! [`icrflow_nodes::runtime::RESYNC`] (no publisher on the loop wakes it), and publishes with
 //! congestion control `Drop` at a low priority, so a slow or lost link drops monitoring
 //! messages instead of stalling anything local.
+//!
+//! Remote peers only read: with `zenoh.read_only` (the default) the session's access control
+//! ([`read_only_acl`]) lets them subscribe to the rig's key expressions and nothing else. The
+//! bridge takes no input from Zenoh yet; whatever remote message reaches it (read-only off) is
+//! checked ([`json::envelope`]), logged with the reason, counted as refused, and dropped.
 
 pub mod json;
 
@@ -29,14 +34,48 @@ use icrflow_nodes::runtime::{Context, Health, serve};
 use icrflow_scenario::ZenohSpec;
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Locality;
 
 /// The Zenoh key expression of `topic` on rig `rig`.
 pub fn key(rig: &str, topic: &str) -> String {
     format!("icrflow/{rig}/{topic}")
 }
 
-/// A Zenoh session's settings from the config's `[zenoh]` section.
-pub fn session_config(z: &ZenohSpec) -> Result<zenoh::Config> {
+/// The access control of a read-only pipeline session on rig `rig`: every remote peer may
+/// subscribe to the rig's key expressions and receive what the session publishes there;
+/// everything else a remote peer sends (a put, a delete, a query, a queryable, on any key) is
+/// denied by default.
+pub fn read_only_acl(rig: &str) -> serde_json::Value {
+    let keys = [key(rig, "**")];
+    serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": [
+            {
+                "id": "monitoring-out",
+                "messages": ["put"],
+                "flows": ["egress"],
+                "permission": "allow",
+                "key_exprs": keys,
+            },
+            {
+                "id": "monitoring-subscribe",
+                "messages": ["declare_subscriber"],
+                "flows": ["ingress", "egress"],
+                "permission": "allow",
+                "key_exprs": keys,
+            },
+        ],
+        "subjects": [{ "id": "every-peer" }],
+        "policies": [{
+            "rules": ["monitoring-out", "monitoring-subscribe"],
+            "subjects": ["every-peer"],
+        }],
+    })
+}
+
+/// A Zenoh session's settings from the config's `[zenoh]` section, for rig `rig`.
+pub fn session_config(z: &ZenohSpec, rig: &str) -> Result<zenoh::Config> {
     let mut c = zenoh::Config::default();
     let mut set = |key: &str, value: serde_json::Value| -> Result<()> {
         c.insert_json5(key, &value.to_string())
@@ -46,19 +85,26 @@ pub fn session_config(z: &ZenohSpec) -> Result<zenoh::Config> {
     set("listen/endpoints", serde_json::json!(z.listen))?;
     set("connect/endpoints", serde_json::json!(z.connect))?;
     set("scouting/multicast/enabled", serde_json::json!(z.scouting))?;
+    if z.read_only {
+        set("access_control", read_only_acl(rig))?;
+    }
     Ok(c)
 }
 
 /// The settings of a client session that connects to `endpoint` only (`icrflow monitor`).
 pub fn client_config(endpoint: &str) -> Result<zenoh::Config> {
-    session_config(&ZenohSpec {
-        enabled: true,
-        mode: "client".into(),
-        listen: Vec::new(),
-        connect: vec![endpoint.into()],
-        scouting: false,
-        monitor: Vec::new(),
-    })
+    session_config(
+        &ZenohSpec {
+            enabled: true,
+            mode: "client".into(),
+            listen: Vec::new(),
+            connect: vec![endpoint.into()],
+            scouting: false,
+            read_only: false,
+            monitor: Vec::new(),
+        },
+        "",
+    )
 }
 
 /// Opens a Zenoh session, naming the endpoints when that fails.
@@ -83,7 +129,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let z = &ctx.config.zenoh;
     let rig = ctx.config.pipeline.rig.as_str();
     let session = open(
-        session_config(z)?,
+        session_config(z, rig)?,
         &format!("listen {:?}, connect {:?}", z.listen, z.connect),
     )?;
     let mut forwards = Vec::with_capacity(z.monitor.len());
@@ -105,11 +151,33 @@ pub fn run(ctx: &Context) -> Result<()> {
             .map_err(|e| anyhow!("declaring the Zenoh publisher of {topic}: {e}"))?;
         forwards.push((forward, publisher));
     }
+    // Whatever a remote peer puts on the rig's key expressions. Read-only (the default), the
+    // access control drops it before it gets here; otherwise it is checked and ignored, as
+    // the bridge takes no input yet.
+    let inbound_keys = key(rig, "**");
+    let inbound = session
+        .declare_subscriber(&inbound_keys)
+        .allowed_origin(Locality::Remote)
+        .wait()
+        .map_err(|e| anyhow!("declaring the Zenoh subscriber of {inbound_keys}: {e}"))?;
+    let mut said = std::collections::BTreeSet::new();
     let mut health = Health::new(ctx)?;
     let mut text: Vec<u8> = Vec::with_capacity(4096);
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     serve(&ws, |_| {
         health.tick()?;
+        while let Ok(Some(sample)) = inbound.try_recv() {
+            let key = sample.key_expr().as_str().to_string();
+            let why = match json::envelope(&sample.payload().to_bytes()) {
+                Err(e) => e.to_string(),
+                Ok(_) => "the bridge takes no input on it (remote peers only read)".to_string(),
+            };
+            // Said once per key and reason (at most a hundred), counted always.
+            if said.len() < 100 && said.insert((key.clone(), why.clone())) {
+                eprintln!("icrflow-bridge: ignored a remote message on {key}: {why}");
+            }
+            health.refuse(format!("remote message on {key}: {why}"));
+        }
         for (forward, publisher) in &forwards {
             let mut send = |value: &dyn erased::Json| -> Result<()> {
                 text.clear();

@@ -266,6 +266,9 @@ pub struct ZenohSpec {
     pub connect: Vec<String>,
     /// Multicast scouting (finding peers on the network without `connect`).
     pub scouting: bool,
+    /// Remote peers may only subscribe to the rig's key expressions (Zenoh access control):
+    /// no put, delete, query or queryable of theirs gets through.
+    pub read_only: bool,
     /// The local topics published for monitoring.
     pub monitor: Vec<String>,
 }
@@ -694,6 +697,7 @@ fn zenoh_spec(raw: RawZenoh) -> Result<ZenohSpec> {
         )?,
         connect: endpoints("zenoh.connect", raw.connect.unwrap_or_default())?,
         scouting: raw.scouting.unwrap_or(false),
+        read_only: raw.read_only.unwrap_or(true),
         monitor,
     })
 }

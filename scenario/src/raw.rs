@@ -25,6 +25,7 @@ pub struct RawZenoh {
     pub listen: Option<Vec<String>>,
     pub connect: Option<Vec<String>>,
     pub scouting: Option<bool>,
+    pub read_only: Option<bool>,
     pub monitor: Option<Vec<String>>,
 }
 
