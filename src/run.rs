@@ -9,7 +9,8 @@ use anyhow::{Context, Result, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, JointState, PlanPhase, PlanStepHeader, read_text, topics,
+    CommandMode, GraspState, HandCommand, JointState, NodeHealth, PlanPhase, PlanStepHeader,
+    read_text, topics,
 };
 use icrflow_nodes::bus::{Bus, BusConfig};
 use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
@@ -145,6 +146,8 @@ pub struct RunSummary {
     pub plan_steps: PlanStream,
     /// Resident memory of each node process, sampled every second (KiB).
     pub memory_kib: std::collections::BTreeMap<String, Memory>,
+    /// Per node: heap allocations in the steady state (from its health reports).
+    pub allocations: std::collections::BTreeMap<String, Allocations>,
 }
 
 /// Latency percentiles of the tracking commands: from the plant's joint measurement to the
@@ -205,6 +208,63 @@ pub struct Memory {
     pub max: u64,
     /// Samples.
     pub samples: usize,
+}
+
+/// A node's heap allocations in its steady state, from its health reports: counted from its
+/// first report [`WARM_UP`] after its process started (each incarnation of a restarted node
+/// on its own), to its last.
+#[derive(Debug, Serialize, Default, Clone, Copy)]
+pub struct Allocations {
+    /// Allocations (and reallocations) in the steady state.
+    pub steady: u64,
+    /// Messages the node processed meanwhile.
+    pub processed: u64,
+    /// Seconds of steady state observed.
+    pub seconds: f64,
+}
+
+/// How long after a node process starts its allocations are not counted as steady state
+/// (setup: planning, buffers, the first contact sets).
+pub const WARM_UP: Duration = Duration::from_secs(2);
+
+/// Per node: the running process's first health report, its baseline (the first report after
+/// [`WARM_UP`]: allocations, processed, when) and its last; plus the finished incarnations'
+/// steady-state figures.
+#[derive(Default)]
+struct AllocationTrack {
+    pid: u32,
+    first: Option<Instant>,
+    base: Option<(u64, u64, Instant)>,
+    last: Option<(u64, u64, Instant)>,
+    done: Allocations,
+}
+
+impl AllocationTrack {
+    fn report(&mut self, pid: u32, allocations: u64, processed: u64, now: Instant) {
+        if pid != self.pid {
+            self.done = self.total();
+            *self = Self {
+                pid,
+                first: Some(now),
+                done: self.done,
+                ..Self::default()
+            };
+        }
+        if self.base.is_none() && self.first.is_some_and(|f| now.duration_since(f) >= WARM_UP) {
+            self.base = Some((allocations, processed, now));
+        }
+        self.last = Some((allocations, processed, now));
+    }
+
+    fn total(&self) -> Allocations {
+        let mut a = self.done;
+        if let (Some((allocations, processed, when)), Some(last)) = (self.base, self.last) {
+            a.steady += last.0.saturating_sub(allocations);
+            a.processed += last.1.saturating_sub(processed);
+            a.seconds += last.2.duration_since(when).as_secs_f64();
+        }
+        a
+    }
 }
 
 /// The resident set size of process `pid` (KiB), from `/proc`.
@@ -347,6 +407,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         // restarted plant starts higher up).
         let (mut measurements, mut last_joint) = (0u64, 0u64);
         let commands = bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+        // Read on the run's tick: the nodes' allocation counts.
+        let healths = bus.subscriber::<NodeHealth>(topics::NODE_HEALTH)?;
+        let mut tracks = std::collections::BTreeMap::<String, AllocationTrack>::new();
         for e in supervisor.start()? {
             report(&e);
         }
@@ -443,6 +506,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     if let Some(g) = grasps.latest()? {
                         rotation = g.rotation;
                     }
+                    let now = Instant::now();
+                    healths.drain(|h| {
+                        let name = read_text(&h.node);
+                        if let Some(t) = tracks.get_mut(&name) {
+                            t.report(h.pid, h.allocations, h.processed, now);
+                        } else {
+                            let mut t = AllocationTrack::default();
+                            t.report(h.pid, h.allocations, h.processed, now);
+                            tracks.insert(name, t);
+                        }
+                    })?;
                     for e in supervisor.poll(Instant::now())? {
                         report(&e);
                     }
@@ -531,6 +605,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                 compute_us: plan_compute.percentiles(),
             },
             memory,
+            allocations: tracks.iter().map(|(n, t)| (n.clone(), t.total())).collect(),
         }
     };
     remove_run_files(&bus_config);
@@ -560,6 +635,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         latency_us: stats.latencies,
         plan_steps: stats.plan_steps,
         memory_kib: stats.memory,
+        allocations: stats.allocations,
     };
     let mut o = std::io::stdout().lock();
     writeln!(
@@ -615,6 +691,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         .map(|(n, m)| format!("{n} {}->{} KiB", m.first, m.last))
         .collect();
     writeln!(o, "memory     {}", grew.join(", "))?;
+    let allocs: Vec<String> = summary
+        .allocations
+        .iter()
+        .map(|(n, a)| format!("{n} {} in {:.0} s", a.steady, a.seconds))
+        .collect();
+    writeln!(
+        o,
+        "allocs     steady state (from {} s after each start): {}",
+        WARM_UP.as_secs(),
+        allocs.join(", ")
+    )?;
     if let Some(p) = summary_json {
         let text = serde_json::to_string_pretty(&summary)?;
         std::fs::write(&p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
@@ -643,6 +730,7 @@ struct Stats {
     latencies: Latencies,
     plan_steps: PlanStream,
     memory: std::collections::BTreeMap<String, Memory>,
+    allocations: std::collections::BTreeMap<String, Allocations>,
 }
 
 /// Removes what iceoryx2 leaves of a finished run: its root directory (empty directories by

@@ -92,6 +92,19 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
         assert!(m["max"].as_u64().unwrap() >= m["last"].as_u64().unwrap());
     }
     assert_eq!(s["stale_tracked"], 0, "{s}");
+    // Every node's steady-state heap allocations were counted, from its health reports; the
+    // plant's loop allocates at most about once per tick (iceoryx2's send; forward
+    // kinematics allocated eight times a tick before `fk_tip`).
+    for node in ["plant", "estimator", "wrench", "planner", "command"] {
+        let a = &s["allocations"][node];
+        assert!(a["seconds"].as_f64().unwrap() > 2.0, "{node}: {a}");
+        assert!(a["processed"].as_u64().unwrap() > 1000, "{node}: {a}");
+    }
+    let plant = &s["allocations"]["plant"];
+    assert!(
+        plant["steady"].as_u64().unwrap() <= 2 * plant["processed"].as_u64().unwrap(),
+        "{plant}"
+    );
     // No fingertip went through the object (the plant reports every one that does).
     assert!(!err.contains("inside the object"), "{err}");
     // Nothing of the run's iceoryx2 bus is left behind.

@@ -526,6 +526,8 @@ pub struct NodeHealth {
     pub processed: u64,
     /// Messages refused since start.
     pub refused: u64,
+    /// Heap allocations (and reallocations) of the process since it started.
+    pub allocations: u64,
     /// Last problem (UTF-8, zero-padded).
     pub message: [u8; TEXT_BYTES],
 }
@@ -539,6 +541,7 @@ impl Default for NodeHealth {
             pid: 0,
             processed: 0,
             refused: 0,
+            allocations: 0,
             message: [0; TEXT_BYTES],
         }
     }

@@ -24,11 +24,11 @@ pub struct Tip {
 
 /// The fingertip of `finger` at joint angles `q`.
 pub fn tip(finger: &Finger, q: &[f64]) -> Tip {
-    let pose = finger.fk(q);
+    let (centre, cap) = finger.fk_tip(q);
     Tip {
-        psi: pose.tip_centre.y.atan2(pose.tip_centre.x),
-        phi: pose.cap_axis.y.atan2(pose.cap_axis.x),
-        distance: pose.tip_centre.xy().norm(),
+        psi: centre.y.atan2(centre.x),
+        phi: cap.y.atan2(cap.x),
+        distance: centre.xy().norm(),
     }
 }
 

@@ -182,6 +182,7 @@ impl Health {
             pid: std::process::id(),
             processed: self.processed,
             refused: self.refused,
+            allocations: allocations(),
             ..Default::default()
         };
         write_text(&mut h.node, self.name);
@@ -191,6 +192,19 @@ impl Health {
             .context("publishing health")
             .map(|_| ())
     }
+}
+
+/// The allocator every node binary installs (`#[global_allocator]`), so that its health
+/// reports count its heap allocations: the steady-state loops are meant to make none.
+pub use stats_alloc::INSTRUMENTED_SYSTEM as COUNTING_ALLOCATOR;
+/// The type of [`COUNTING_ALLOCATOR`].
+pub type CountingAllocator = stats_alloc::StatsAlloc<std::alloc::System>;
+
+/// Heap allocations and reallocations of this process so far (0 if its binary does not
+/// install [`COUNTING_ALLOCATOR`]).
+pub fn allocations() -> u64 {
+    let s = COUNTING_ALLOCATOR.stats();
+    (s.allocations + s.reallocations) as u64
 }
 
 /// Nanoseconds as seconds.

@@ -253,23 +253,38 @@ impl Finger {
 
     /// Forward kinematics.
     pub fn fk(&self, q: &[Real]) -> FingerPose {
-        let mut t = self.base;
         let mut joints = Vec::with_capacity(self.joints.len());
+        let t = self.chain(q, |origin| joints.push(origin));
+        FingerPose {
+            joints,
+            tip_centre: (t * nalgebra::Point3::from(self.tip)).coords,
+            tip_rotation: t.rotation,
+            cap_axis: t.rotation * self.tip.normalize(),
+        }
+    }
+
+    /// The fingertip sphere's centre and the unit cap axis at `q` (as [`Finger::fk`] gives
+    /// them), without allocating: for loops that run at the pipeline's rate.
+    pub fn fk_tip(&self, q: &[Real]) -> (Vec3, Vec3) {
+        let t = self.chain(q, |_| {});
+        (
+            (t * nalgebra::Point3::from(self.tip)).coords,
+            t.rotation * self.tip.normalize(),
+        )
+    }
+
+    /// The last joint frame at `q`, calling `at_joint` with each joint frame's origin.
+    fn chain(&self, q: &[Real], mut at_joint: impl FnMut(Vec3)) -> Isometry3 {
+        let mut t = self.base;
         for (j, &qi) in self.joints.iter().zip(q) {
             t *= j.origin;
-            joints.push(t.translation.vector);
+            at_joint(t.translation.vector);
             t *= Isometry3::from_parts(
                 Translation3::identity(),
                 UnitQuaternion::from_axis_angle(&j.axis, qi),
             );
         }
-        let tip_centre = t * nalgebra::Point3::from(self.tip);
-        FingerPose {
-            joints,
-            tip_centre: tip_centre.coords,
-            tip_rotation: t.rotation,
-            cap_axis: t.rotation * self.tip.normalize(),
-        }
+        t
     }
 
     /// The first joint whose limits `q` violates (beyond `slack` rad), if any.

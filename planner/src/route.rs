@@ -45,7 +45,7 @@ pub fn clear(finger: &Finger, a: &[Real], b: &[Real], distance: Real) -> bool {
         for ((x, y), out) in a.iter().zip(b).zip(q.iter_mut()) {
             *out = x + s * (y - x);
         }
-        let p = finger.fk(&q).tip_centre;
+        let (p, _) = finger.fk_tip(&q);
         p.x.hypot(p.y) >= distance
     })
 }
