@@ -217,3 +217,55 @@ fn a_run_goes_on_when_its_bridge_cannot_listen() {
     drop(taken);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_remote_peer_that_stops_reading_does_not_stall_the_run() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-stall");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join("stall.toml");
+    std::fs::write(
+        &config,
+        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
+    )
+    .unwrap();
+    let summary = dir.join("summary.json");
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap(), "--summary-json"])
+        .arg(&summary)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(1));
+    // A peer that takes the first sample and then never reads again, for longer than the run.
+    let mut stalled = Command::new(python())
+        .arg(root().join("tests/zenoh_client.py"))
+        .args(["--stall", &endpoint, "sim", "120"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let run = run.wait_with_output().unwrap();
+    // The run is over and the peer is still stuck in its callback.
+    let still_stuck = stalled.try_wait().unwrap().is_none();
+    let _ = stalled.kill();
+    let stalled = stalled.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["stale_tracked"], 0, "{s}");
+    // The run finished while the peer was stuck, and the bridge neither died nor was
+    // restarted on its account.
+    assert!(still_stuck, "the stalled peer ended before the run");
+    let report = String::from_utf8_lossy(&stalled.stdout);
+    assert!(
+        report.contains("\"stalled\": true"),
+        "the peer never got a sample: {report}"
+    );
+    assert_eq!(s["restarts"], 0, "{s}");
+    assert!(!err.contains("node bridge exited"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

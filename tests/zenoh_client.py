@@ -3,6 +3,10 @@
 code of ours. Used by tests/zenoh.rs.
 
     python tests/zenoh_client.py ENDPOINT RIG SECONDS TOPIC...
+    python tests/zenoh_client.py --stall ENDPOINT RIG SECONDS
+
+The second form is a peer that stops reading: its subscriber's callback blocks on the first
+sample, for SECONDS, while the run keeps publishing at the loop rate.
 
 Connects to ENDPOINT as a client, subscribes to icrflow/RIG/**, and decodes every sample as
 the monitoring JSON of the README (an object with schema 1, its topic and rig). Stops when
@@ -24,7 +28,28 @@ import zenoh
 WANTED = 20
 
 
+def stall(endpoint: str, rig: str, seconds: float) -> int:
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("client"))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    got = threading.Event()
+
+    def on_sample(sample: "zenoh.Sample") -> None:
+        if not got.is_set():
+            got.set()
+            print(json.dumps({"stalled": True}), flush=True)
+        time.sleep(seconds)  # never returns in time: the session's receive path is stuck
+
+    with zenoh.open(config) as session:
+        session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        time.sleep(seconds)
+    return 0 if got.is_set() else 1
+
+
 def main() -> int:
+    if sys.argv[1] == "--stall":
+        return stall(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     endpoint, rig, seconds, *topics = sys.argv[1:]
     deadline = time.monotonic() + float(seconds)
     config = zenoh.Config()
