@@ -49,6 +49,10 @@ pub enum Command {
         /// The rig to watch (`pipeline.rig` of its config).
         #[arg(long, default_value = "sim")]
         rig: String,
+        /// Authenticate as this user (`zenoh.users_file` of the pipeline's config); the
+        /// password comes from the environment variable ICRFLOW_ZENOH_PASSWORD.
+        #[arg(long)]
+        user: Option<String>,
         /// Stop after this many seconds.
         #[arg(long)]
         seconds: Option<f64>,

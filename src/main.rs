@@ -19,8 +19,9 @@ fn main() -> ExitCode {
         cli::Command::Monitor {
             connect,
             rig,
+            user,
             seconds,
-        } => monitor::run(&connect, &rig, seconds),
+        } => monitor::run(&connect, &rig, user.as_deref(), seconds),
         cli::Command::Run {
             config,
             live,

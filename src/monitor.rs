@@ -15,6 +15,9 @@ use icrflow_bridge::json::{
 };
 use icrflow_bridge::zenoh::Wait;
 
+/// The environment variable `--user`'s password is read from (never from the command line,
+/// where other users of the machine could read it).
+pub const PASSWORD_ENV: &str = "ICRFLOW_ZENOH_PASSWORD";
 /// How often the view is redrawn on a terminal.
 const REFRESH: Duration = Duration::from_millis(200);
 /// How often a plain line is printed when not on a terminal.
@@ -159,9 +162,16 @@ impl View {
 }
 
 /// Runs the monitor until Ctrl-C, or for `seconds` if given.
-pub fn run(endpoint: &str, rig: &str, seconds: Option<f64>) -> Result<u8> {
+pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) -> Result<u8> {
+    let password = match user {
+        None => None,
+        Some(u) => Some(std::env::var(PASSWORD_ENV).map_err(|_| {
+            anyhow!("--user {u}: set the password in the environment variable {PASSWORD_ENV}")
+        })?),
+    };
+    let login = user.zip(password.as_deref());
     let session = icrflow_bridge::open(
-        icrflow_bridge::client_config(endpoint)?,
+        icrflow_bridge::client_config(endpoint, login)?,
         &format!("connect {endpoint}"),
     )?;
     let keys = icrflow_bridge::key(rig, "**");

@@ -135,6 +135,11 @@ fn run_refuses_a_bad_config_before_starting_anything() {
             format!("{good}\n[zenoh]\nlisten = [\"udp/127.0.0.1\"]\n"),
             "zenoh.listen",
         ),
+        (
+            "users",
+            format!("{good}\n[zenoh]\nusers_file = \"no-such-users.txt\"\n"),
+            "zenoh.users_file",
+        ),
     ] {
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).unwrap();

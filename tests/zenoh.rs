@@ -269,3 +269,70 @@ fn a_remote_peer_that_stops_reading_does_not_stall_the_run() {
     assert!(!err.contains("node bridge exited"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn with_a_users_file_only_peers_that_log_in_read_the_run() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-users");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let password = format!("pw-{}", std::process::id());
+    std::fs::write(dir.join("users.txt"), format!("monitor:{password}\n")).unwrap();
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join("users.toml");
+    std::fs::write(
+        &config,
+        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\nusers_file = \"users.txt\"\n"),
+    )
+    .unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap()])
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    let client = |login: Option<(&str, &str)>, seconds: &str| {
+        let mut c = Command::new(python());
+        c.arg(root().join("tests/zenoh_client.py"))
+            .args([&endpoint, "sim", seconds])
+            .args(["grasp_state", "hand_command"]);
+        if let Some((user, password)) = login {
+            c.env("ZENOH_USER", user).env("ZENOH_PASSWORD", password);
+        }
+        let o = c.output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+        )
+    };
+    let (anonymous_ok, anonymous) = client(None, "5");
+    let (wrong_ok, wrong) = client(Some(("monitor", "not-the-password")), "5");
+    let (user_ok, user) = client(Some(("monitor", &password)), "20");
+    let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["monitor", "--connect", &endpoint, "--user", "monitor"])
+        .args(["--seconds", "3"])
+        .env("ICRFLOW_ZENOH_PASSWORD", &password)
+        .output()
+        .unwrap();
+    let run = run.wait_with_output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // Without the password, or with a wrong one, nothing is read; with it, everything.
+    assert!(
+        !anonymous_ok && !anonymous.contains("icrflow/sim/"),
+        "{anonymous}"
+    );
+    assert!(!wrong_ok && !wrong.contains("icrflow/sim/"), "{wrong}");
+    assert!(user_ok, "{user}");
+    let text = String::from_utf8_lossy(&monitor.stdout);
+    assert!(
+        monitor.status.success() && text.contains("rotation "),
+        "{text}\n{}",
+        String::from_utf8_lossy(&monitor.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

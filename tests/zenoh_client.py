@@ -5,7 +5,8 @@ code of ours. Used by tests/zenoh.rs.
     python tests/zenoh_client.py ENDPOINT RIG SECONDS TOPIC...
     python tests/zenoh_client.py --stall ENDPOINT RIG SECONDS
 
-The second form is a peer that stops reading: its subscriber's callback blocks on the first
+With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
+(the pipeline's zenoh.users_file). The second form is a peer that stops reading: its subscriber's callback blocks on the first
 sample, for SECONDS, while the run keeps publishing at the loop rate.
 
 Connects to ENDPOINT as a client, subscribes to icrflow/RIG/**, and decodes every sample as
@@ -19,6 +20,7 @@ TOPIC arrived, decoded, 20 times; 1 otherwise.
 """
 
 import json
+import os
 import sys
 import threading
 import time
@@ -28,11 +30,20 @@ import zenoh
 WANTED = 20
 
 
+def login(config: "zenoh.Config") -> None:
+    """Authenticates with ZENOH_USER / ZENOH_PASSWORD when both are set."""
+    user, password = os.environ.get("ZENOH_USER"), os.environ.get("ZENOH_PASSWORD")
+    if user and password:
+        config.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
+        config.insert_json5("transport/auth/usrpwd/password", json.dumps(password))
+
+
 def stall(endpoint: str, rig: str, seconds: float) -> int:
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps("client"))
     config.insert_json5("connect/endpoints", json.dumps([endpoint]))
     config.insert_json5("scouting/multicast/enabled", "false")
+    login(config)
     got = threading.Event()
 
     def on_sample(sample: "zenoh.Sample") -> None:
@@ -56,6 +67,7 @@ def main() -> int:
     config.insert_json5("mode", json.dumps("client"))
     config.insert_json5("connect/endpoints", json.dumps([endpoint]))
     config.insert_json5("scouting/multicast/enabled", "false")
+    login(config)
     lock = threading.Lock()
     received: dict[str, int] = {}
     decoded: dict[str, int] = {}
@@ -96,7 +108,12 @@ def main() -> int:
         "quality": 1.0, "latency_us": 0.0, "fingers": [],
     }
     puts = [json.dumps(hold), "{not json", json.dumps({**hold, "schema": 99})]
-    with zenoh.open(config) as session:
+    try:
+        opened = zenoh.open(config)
+    except Exception as e:  # noqa: BLE001 - a refused connection is a result, not a crash
+        print(json.dumps({"received": {}, "decoded": {}, "errors": [f"open: {e}"], "ok": False}))
+        return 1
+    with opened as session:
         subscriber = session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
         while time.monotonic() < deadline and not done():
             time.sleep(0.05)

@@ -88,12 +88,19 @@ pub fn session_config(z: &ZenohSpec, rig: &str) -> Result<zenoh::Config> {
     if z.read_only {
         set("access_control", read_only_acl(rig))?;
     }
+    if let Some(file) = &z.users_file {
+        set(
+            "transport/auth/usrpwd/dictionary_file",
+            serde_json::json!(file.display().to_string()),
+        )?;
+    }
     Ok(c)
 }
 
-/// The settings of a client session that connects to `endpoint` only (`icrflow monitor`).
-pub fn client_config(endpoint: &str) -> Result<zenoh::Config> {
-    session_config(
+/// The settings of a client session that connects to `endpoint` only (`icrflow monitor`),
+/// authenticating as `user` with `password` if given.
+pub fn client_config(endpoint: &str, login: Option<(&str, &str)>) -> Result<zenoh::Config> {
+    let mut c = session_config(
         &ZenohSpec {
             enabled: true,
             mode: "client".into(),
@@ -101,10 +108,21 @@ pub fn client_config(endpoint: &str) -> Result<zenoh::Config> {
             connect: vec![endpoint.into()],
             scouting: false,
             read_only: false,
+            users_file: None,
             monitor: Vec::new(),
         },
         "",
-    )
+    )?;
+    if let Some((user, password)) = login {
+        for (key, value) in [("user", user), ("password", password)] {
+            c.insert_json5(
+                &format!("transport/auth/usrpwd/{key}"),
+                &serde_json::json!(value).to_string(),
+            )
+            .map_err(|e| anyhow!("zenoh setting transport/auth/usrpwd/{key}: {e}"))?;
+        }
+    }
+    Ok(c)
 }
 
 /// Opens a Zenoh session, naming the endpoints when that fails.

@@ -269,6 +269,9 @@ pub struct ZenohSpec {
     /// Remote peers may only subscribe to the rig's key expressions (Zenoh access control):
     /// no put, delete, query or queryable of theirs gets through.
     pub read_only: bool,
+    /// A file of `user:password` lines: when given, only peers that authenticate with one of
+    /// them may connect (Zenoh's user/password authentication).
+    pub users_file: Option<PathBuf>,
     /// The local topics published for monitoring.
     pub monitor: Vec<String>,
 }
@@ -332,7 +335,7 @@ impl Config {
         };
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
-        let zenoh = zenoh_spec(raw.zenoh.unwrap_or_default())?;
+        let zenoh = zenoh_spec(raw.zenoh.unwrap_or_default(), base)?;
         Ok(Self {
             path: path.to_path_buf(),
             object: object_spec(raw.object, base)?,
@@ -657,7 +660,36 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
     }
 }
 
-fn zenoh_spec(raw: RawZenoh) -> Result<ZenohSpec> {
+fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
+    let users_file = match raw.users_file {
+        None => None,
+        Some(file) => {
+            let full = base.join(&file);
+            let text = std::fs::read_to_string(&full)
+                .with_context(|| format!("zenoh.users_file: cannot read {}", full.display()))?;
+            let mut users = 0;
+            for (i, line) in text.lines().enumerate() {
+                // Zenoh's format: one `user:password` per line, blank lines skipped, no
+                // comments.
+                let line = line.trim();
+                if line.is_empty() {
+                    continue;
+                }
+                match line.split_once(':') {
+                    Some((u, p)) if !u.trim().is_empty() && !p.trim().is_empty() => users += 1,
+                    _ => bail!(
+                        "zenoh.users_file: {} line {}: expected user:password",
+                        full.display(),
+                        i + 1
+                    ),
+                }
+            }
+            if users == 0 {
+                bail!("zenoh.users_file: {} names no user", full.display());
+            }
+            Some(full)
+        }
+    };
     let mode = raw.mode.unwrap_or_else(|| "peer".into());
     if !matches!(mode.as_str(), "peer" | "client" | "router") {
         bail!("zenoh.mode: one of \"peer\", \"client\", \"router\", got {mode:?}");
@@ -698,6 +730,7 @@ fn zenoh_spec(raw: RawZenoh) -> Result<ZenohSpec> {
         connect: endpoints("zenoh.connect", raw.connect.unwrap_or_default())?,
         scouting: raw.scouting.unwrap_or(false),
         read_only: raw.read_only.unwrap_or(true),
+        users_file,
         monitor,
     })
 }

@@ -26,6 +26,8 @@ pub struct RawZenoh {
     pub connect: Option<Vec<String>>,
     pub scouting: Option<bool>,
     pub read_only: Option<bool>,
+    /// `user:password` lines, relative to the config file.
+    pub users_file: Option<PathBuf>,
     pub monitor: Option<Vec<String>>,
 }
 
