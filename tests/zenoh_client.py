@@ -4,8 +4,11 @@ code of ours. Used by tests/zenoh.rs.
 
     python tests/zenoh_client.py ENDPOINT RIG SECONDS TOPIC...
     python tests/zenoh_client.py --stall ENDPOINT RIG SECONDS
+    python tests/zenoh_client.py --measure ENDPOINT RIG SECONDS
 
-With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
+The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
+each message's publication on the local bus (its time_ns) to its arrival here, and prints them
+as JSON. With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
 (the pipeline's zenoh.users_file). The second form is a peer that stops reading: its subscriber's callback blocks on the first
 sample, for SECONDS, while the run keeps publishing at the loop rate.
 
@@ -58,7 +61,40 @@ def stall(endpoint: str, rig: str, seconds: float) -> int:
     return 0 if got.is_set() else 1
 
 
+def measure(endpoint: str, rig: str, seconds: float) -> int:
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("client"))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    login(config)
+    lock = threading.Lock()
+    delays: dict[str, list[float]] = {}
+
+    def on_sample(sample: "zenoh.Sample") -> None:
+        now = time.time_ns()
+        obj = json.loads(sample.payload.to_bytes())
+        with lock:
+            delays.setdefault(obj["topic"], []).append((now - obj["time_ns"]) * 1e-3)
+
+    with zenoh.open(config) as session:
+        session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        time.sleep(seconds)
+    out = {}
+    with lock:
+        for topic, d in sorted(delays.items()):
+            d.sort()
+            out[topic] = {
+                "messages": len(d),
+                "rate_hz": len(d) / seconds,
+                "delay_us": {"p50": d[len(d) // 2], "p99": d[int(0.99 * (len(d) - 1))], "max": d[-1]},
+            }
+    print(json.dumps(out))
+    return 0 if out else 1
+
+
 def main() -> int:
+    if sys.argv[1] == "--measure":
+        return measure(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     if sys.argv[1] == "--stall":
         return stall(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     endpoint, rig, seconds, *topics = sys.argv[1:]
