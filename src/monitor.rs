@@ -38,6 +38,8 @@ struct View {
     latencies: std::collections::VecDeque<f64>,
     received: u64,
     ignored: u64,
+    /// When the last message came.
+    last: Option<Instant>,
 }
 
 impl View {
@@ -64,6 +66,7 @@ impl View {
             _ => {}
         }
         self.received += 1;
+        self.last = Some(Instant::now());
         Ok(())
     }
 
@@ -82,6 +85,15 @@ impl View {
             "icrflow monitor  rig {rig}  via {endpoint}  ({} messages, {} ignored)",
             self.received, self.ignored
         )];
+        // Silence: the link, the bridge or the run is gone; what follows is the last state.
+        match self.last.map(|t| t.elapsed()) {
+            Some(d) if d > SILENT => out.push(format!(
+                "NO DATA for {:.1} s: the last state received follows",
+                d.as_secs_f64()
+            )),
+            None => out.push("waiting for data".into()),
+            Some(_) => {}
+        }
         out.push(match &self.plan {
             Some(p) => format!(
                 "phase     {} (step {}), target {:.1} deg",

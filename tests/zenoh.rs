@@ -336,3 +336,81 @@ fn with_a_users_file_only_peers_that_log_in_read_the_run() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_killed_bridge_is_restarted_and_the_monitor_reconnects() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-kill");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join("kill.toml");
+    std::fs::write(
+        &config,
+        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
+    )
+    .unwrap();
+    let summary = dir.join("summary.json");
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap(), "--summary-json"])
+        .arg(&summary)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["monitor", "--connect", &endpoint, "--seconds", "10"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(3));
+    // The bridge of this run (the only one whose command line names this config).
+    let bridge = std::fs::read_dir("/proc")
+        .unwrap()
+        .flatten()
+        .find_map(|e| {
+            let pid: u32 = e.file_name().to_string_lossy().parse().ok()?;
+            let cmd = std::fs::read(e.path().join("cmdline")).ok()?;
+            let cmd = String::from_utf8_lossy(&cmd);
+            (cmd.contains("icrflow-bridge") && cmd.contains(config.to_str().unwrap()))
+                .then_some(pid)
+        })
+        .expect("the bridge is running");
+    assert!(
+        Command::new("kill")
+            .args(["-9", &bridge.to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let monitor = monitor.wait_with_output().unwrap();
+    let run = run.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("node bridge exited (killed by SIGKILL)"),
+        "{err}"
+    );
+    assert!(err.contains("run: restarted bridge"), "{err}");
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    assert_eq!(s["completed"], true, "{s}");
+    // The rotation the monitor shows went on growing after the kill: it reconnected to the
+    // restarted bridge (a monitor left without data would repeat the last state).
+    let text = String::from_utf8_lossy(&monitor.stdout);
+    assert!(text.lines().count() >= 8, "{text}");
+    let rotations: Vec<f64> = text
+        .lines()
+        .filter_map(|l| {
+            let r = l.split("rotation").nth(1)?;
+            r.split_whitespace().next()?.parse().ok()
+        })
+        .collect();
+    let (early, late) = (rotations[2], *rotations.last().unwrap());
+    assert!(
+        late > early + 20.0,
+        "no progress seen after the kill: {text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
