@@ -55,8 +55,10 @@ fn free_port() -> u16 {
 
 /// A run of the paper scenario with its bridge on a loopback port of its own (`extra` appended
 /// to its `[zenoh]` section), the Python client and `icrflow monitor` reading it meanwhile.
-/// Returns the run's stderr, the client's report and the monitor's last line.
-fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String) {
+/// Meanwhile a second client answers queries on the hand command key and a third asks it.
+/// Returns the run's stderr, the client's report, the monitor's last line and the replies the
+/// third client got.
+fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u64) {
     let dir = scratch(name);
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -95,12 +97,29 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let mut answering = Command::new(python())
+        .arg(root().join("tests/zenoh_client.py"))
+        .args(["--answer", &endpoint, rig, "60"])
+        .spawn()
+        .unwrap();
     let client = Command::new(python())
         .arg(root().join("tests/zenoh_client.py"))
         .args([&endpoint, rig, "20"])
         .args(TOPICS)
         .output()
         .unwrap();
+    let asked = Command::new(python())
+        .arg(root().join("tests/zenoh_client.py"))
+        .args(["--ask", &endpoint, rig])
+        .output()
+        .unwrap();
+    let asked: serde_json::Value =
+        serde_json::from_slice(&asked.stdout).unwrap_or_else(|_| serde_json::json!({}));
+    let replies = asked["replies"]
+        .as_u64()
+        .expect("the asking client's report");
+    let _ = answering.kill();
+    let _ = answering.wait();
     let monitor = monitor.wait_with_output().unwrap();
     let run = run.wait_with_output().unwrap();
     let run_err = String::from_utf8_lossy(&run.stderr).into_owned();
@@ -132,13 +151,13 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String) {
     let last = text.lines().last().unwrap_or_default().to_string();
     assert!(text.lines().count() >= 2, "monitor printed: {text}\n{err}");
     let _ = std::fs::remove_dir_all(&dir);
-    (run_err, report, last)
+    (run_err, report, last, replies)
 }
 
 #[test]
 fn a_zenoh_client_reads_every_monitoring_topic_of_a_run_and_cannot_write() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (run_err, report, last) = watched_run("zenoh", "");
+    let (run_err, report, last, replies) = watched_run("zenoh", "");
     for part in [
         "phase ",
         "rotation ",
@@ -160,12 +179,22 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run_and_cannot_write() {
     // every remote message it gets; the next test shows it does when writes are allowed).
     assert_eq!(report["put"]["icrflow/ztest/hand_command"], 3, "{report}");
     assert!(!run_err.contains("remote message"), "{run_err}");
+    // A remote queryable on the hand command key answers nobody through the pipeline.
+    assert_eq!(
+        replies, 0,
+        "a remote queryable answered for the hand command"
+    );
 }
 
 #[test]
 fn without_access_control_remote_writes_reach_the_bridge_which_ignores_them_and_says_why() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (run_err, report, _) = watched_run("zenoh-open", "read_only = false");
+    let (run_err, report, _, replies) = watched_run("zenoh-open", "read_only = false");
+    // Without access control the pipeline's session routes a query to a remote queryable.
+    assert_eq!(
+        replies, 1,
+        "the control case: the query should have been answered"
+    );
     assert_eq!(report["put"]["icrflow/ztest/hand_command"], 3, "{report}");
     let key = "icrflow/ztest/hand_command";
     for why in [

@@ -5,8 +5,12 @@ code of ours. Used by tests/zenoh.rs.
     python tests/zenoh_client.py ENDPOINT RIG SECONDS TOPIC...
     python tests/zenoh_client.py --stall ENDPOINT RIG SECONDS
     python tests/zenoh_client.py --measure ENDPOINT RIG SECONDS
+    python tests/zenoh_client.py --answer ENDPOINT RIG SECONDS
+    python tests/zenoh_client.py --ask ENDPOINT RIG
 
-The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
+--answer declares a queryable on icrflow/RIG/hand_command for SECONDS, as a peer pretending
+to speak for the hand would; --ask queries that key expression through the pipeline's
+session and prints how many replies came. The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
 each message's publication on the local bus (its time_ns) to its arrival here, and prints them
 as JSON. With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
 (the pipeline's zenoh.users_file). The second form is a peer that stops reading: its subscriber's callback blocks on the first
@@ -92,7 +96,38 @@ def measure(endpoint: str, rig: str, seconds: float) -> int:
     return 0 if out else 1
 
 
+def client_config(endpoint: str) -> "zenoh.Config":
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("client"))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    login(config)
+    return config
+
+
+def answer(endpoint: str, rig: str, seconds: float) -> int:
+    key = f"icrflow/{rig}/hand_command"
+    with zenoh.open(client_config(endpoint)) as session:
+        queryable = session.declare_queryable(key, lambda query: query.reply(key, "{}"))
+        time.sleep(seconds)
+        queryable.undeclare()
+    return 0
+
+
+def ask(endpoint: str, rig: str) -> int:
+    key = f"icrflow/{rig}/hand_command"
+    with zenoh.open(client_config(endpoint)) as session:
+        replies = list(session.get(key, timeout=2.0))
+        ok = sum(1 for r in replies if r.ok is not None)
+    print(json.dumps({"replies": ok}))
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1] == "--answer":
+        return answer(sys.argv[2], sys.argv[3], float(sys.argv[4]))
+    if sys.argv[1] == "--ask":
+        return ask(sys.argv[2], sys.argv[3])
     if sys.argv[1] == "--measure":
         return measure(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     if sys.argv[1] == "--stall":
