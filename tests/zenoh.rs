@@ -13,14 +13,7 @@ use common::{root, scratch};
 static PIPELINE: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// The monitoring topics the bridge publishes by default.
-const TOPICS: [&str; 6] = [
-    "joint_state",
-    "grasp_state",
-    "wrench_space",
-    "plan_step",
-    "hand_command",
-    "node_health",
-];
+const TOPICS: [&str; 6] = icrflow_scenario::DEFAULT_MONITOR;
 
 /// The Python interpreter of the test venv (scripts/setup-python.sh installs eclipse-zenoh).
 fn python() -> String {
@@ -44,6 +37,33 @@ fn python() -> String {
         .to_string()
 }
 
+/// The paper scenario's config with `extra` appended, written as `dir/name.toml`.
+fn paper_config(dir: &std::path::Path, name: &str, extra: &str) -> std::path::PathBuf {
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join(format!("{name}.toml"));
+    std::fs::write(&config, format!("{good}\n{extra}\n")).unwrap();
+    config
+}
+
+/// `icrflow run CONFIG --summary-json` beside it, its stderr piped; and the summary's path.
+fn spawn_run(config: &std::path::Path) -> (std::process::Child, std::path::PathBuf) {
+    let summary = config.with_extension("json");
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap(), "--summary-json"])
+        .arg(&summary)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    (run, summary)
+}
+
+/// A run's summary.
+fn read_summary(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
 /// A loopback TCP port nobody listens on now.
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -63,24 +83,12 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let rig = "ztest";
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let config = dir.join("zenoh.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "{good}\n[pipeline]\nrig = \"{rig}\"\n\n[zenoh]\nlisten = [\"{endpoint}\"]\n{extra}\n"
-        ),
-    )
-    .unwrap();
-    let summary = dir.join("summary.json");
-    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["run", config.to_str().unwrap(), "--summary-json"])
-        .arg(&summary)
-        .current_dir(root())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let config = paper_config(
+        &dir,
+        "zenoh",
+        &format!("[pipeline]\nrig = \"{rig}\"\n\n[zenoh]\nlisten = [\"{endpoint}\"]\n{extra}"),
+    );
+    let (run, summary) = spawn_run(&config);
     // The client and the monitor connect while the run goes on (it takes ~15 s).
     std::thread::sleep(Duration::from_secs(2));
     let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
@@ -124,7 +132,7 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u
     let run = run.wait_with_output().unwrap();
     let run_err = String::from_utf8_lossy(&run.stderr).into_owned();
     assert!(run.status.success(), "run failed: {run_err}");
-    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let s = read_summary(&summary);
     assert_eq!(s["completed"], true, "{s}");
 
     // The external client received and decoded every monitoring topic.
@@ -218,23 +226,16 @@ fn a_run_goes_on_when_its_bridge_cannot_listen() {
     // Someone else holds the bridge's port.
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let endpoint = format!("tcp/{}", taken.local_addr().unwrap());
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let config = dir.join("taken.toml");
-    std::fs::write(
-        &config,
-        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
-    )
-    .unwrap();
-    let summary = dir.join("summary.json");
-    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["run", config.to_str().unwrap(), "--summary-json"])
-        .arg(&summary)
-        .current_dir(root())
-        .output()
-        .unwrap();
+    let config = paper_config(
+        &dir,
+        "taken",
+        &format!("[zenoh]\nlisten = [\"{endpoint}\"]"),
+    );
+    let (run, summary) = spawn_run(&config);
+    let run = run.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "{err}");
-    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let s = read_summary(&summary);
     assert_eq!(s["completed"], true, "{s}");
     // The bridge said why it could not start, naming its endpoint, and the run went on.
     assert!(
@@ -252,22 +253,12 @@ fn a_remote_peer_that_stops_reading_does_not_stall_the_run() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("zenoh-stall");
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let config = dir.join("stall.toml");
-    std::fs::write(
-        &config,
-        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
-    )
-    .unwrap();
-    let summary = dir.join("summary.json");
-    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["run", config.to_str().unwrap(), "--summary-json"])
-        .arg(&summary)
-        .current_dir(root())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let config = paper_config(
+        &dir,
+        "stall",
+        &format!("[zenoh]\nlisten = [\"{endpoint}\"]"),
+    );
+    let (run, summary) = spawn_run(&config);
     std::thread::sleep(Duration::from_secs(1));
     // A peer that takes the first sample and then never reads again, for longer than the run.
     let mut stalled = Command::new(python())
@@ -283,7 +274,7 @@ fn a_remote_peer_that_stops_reading_does_not_stall_the_run() {
     let stalled = stalled.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "{err}");
-    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let s = read_summary(&summary);
     assert_eq!(s["completed"], true, "{s}");
     assert_eq!(s["stale_tracked"], 0, "{s}");
     // The run finished while the peer was stuck, and the bridge neither died nor was
@@ -306,20 +297,12 @@ fn with_a_users_file_only_peers_that_log_in_read_the_run() {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let password = format!("pw-{}", std::process::id());
     std::fs::write(dir.join("users.txt"), format!("monitor:{password}\n")).unwrap();
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let config = dir.join("users.toml");
-    std::fs::write(
-        &config,
-        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\nusers_file = \"users.txt\"\n"),
-    )
-    .unwrap();
-    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["run", config.to_str().unwrap()])
-        .current_dir(root())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let config = paper_config(
+        &dir,
+        "users",
+        &format!("[zenoh]\nlisten = [\"{endpoint}\"]\nusers_file = \"users.txt\""),
+    );
+    let (run, _) = spawn_run(&config);
     std::thread::sleep(Duration::from_secs(2));
     let client = |login: Option<(&str, &str)>, seconds: &str| {
         let mut c = Command::new(python());
@@ -371,22 +354,8 @@ fn a_killed_bridge_is_restarted_and_the_monitor_reconnects() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("zenoh-kill");
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let config = dir.join("kill.toml");
-    std::fs::write(
-        &config,
-        format!("{good}\n[zenoh]\nlisten = [\"{endpoint}\"]\n"),
-    )
-    .unwrap();
-    let summary = dir.join("summary.json");
-    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["run", config.to_str().unwrap(), "--summary-json"])
-        .arg(&summary)
-        .current_dir(root())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let config = paper_config(&dir, "kill", &format!("[zenoh]\nlisten = [\"{endpoint}\"]"));
+    let (run, summary) = spawn_run(&config);
     std::thread::sleep(Duration::from_secs(2));
     let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
         .args(["monitor", "--connect", &endpoint, "--seconds", "10"])
@@ -423,7 +392,7 @@ fn a_killed_bridge_is_restarted_and_the_monitor_reconnects() {
         "{err}"
     );
     assert!(err.contains("run: restarted bridge"), "{err}");
-    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let s = read_summary(&summary);
     assert_eq!(s["completed"], true, "{s}");
     // The rotation the monitor shows went on growing after the kill: it reconnected to the
     // restarted bridge (a monitor left without data would repeat the last state).

@@ -46,11 +46,7 @@ def login(config: "zenoh.Config") -> None:
 
 
 def stall(endpoint: str, rig: str, seconds: float) -> int:
-    config = zenoh.Config()
-    config.insert_json5("mode", json.dumps("client"))
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    login(config)
+    config = client_config(endpoint)
     got = threading.Event()
 
     def on_sample(sample: "zenoh.Sample") -> None:
@@ -66,11 +62,7 @@ def stall(endpoint: str, rig: str, seconds: float) -> int:
 
 
 def measure(endpoint: str, rig: str, seconds: float) -> int:
-    config = zenoh.Config()
-    config.insert_json5("mode", json.dumps("client"))
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    login(config)
+    config = client_config(endpoint)
     lock = threading.Lock()
     delays: dict[str, list[float]] = {}
 
@@ -134,11 +126,7 @@ def main() -> int:
         return stall(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     endpoint, rig, seconds, *topics = sys.argv[1:]
     deadline = time.monotonic() + float(seconds)
-    config = zenoh.Config()
-    config.insert_json5("mode", json.dumps("client"))
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    login(config)
+    config = client_config(endpoint)
     lock = threading.Lock()
     received: dict[str, int] = {}
     decoded: dict[str, int] = {}
