@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Idempotent machine setup for building and testing icrflow.
 # - Debian's libclang-dev: the qhull crate generates its bindings with bindgen at build time.
-# - A Python venv with numpy + scipy for the Qhull cross-check (bench/reference_qhull.py).
+# - A Python venv with numpy + scipy for the Qhull cross-check (bench/reference_qhull.py) and
+#   eclipse-zenoh for the external Zenoh client of the tests (tests/zenoh_client.py).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 need_apt=()
