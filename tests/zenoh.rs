@@ -304,29 +304,46 @@ fn with_a_users_file_only_peers_that_log_in_read_the_run() {
     );
     let (run, _) = spawn_run(&config);
     std::thread::sleep(Duration::from_secs(2));
+    // All while the run goes on (~13 s): the clients without the right password at once, in
+    // parallel, then the one with it and the monitors.
     let client = |login: Option<(&str, &str)>, seconds: &str| {
         let mut c = Command::new(python());
         c.arg(root().join("tests/zenoh_client.py"))
             .args([&endpoint, "sim", seconds])
-            .args(["grasp_state", "hand_command"]);
+            .args(["grasp_state", "hand_command"])
+            .stdout(Stdio::piped());
         if let Some((user, password)) = login {
             c.env("ZENOH_USER", user).env("ZENOH_PASSWORD", password);
         }
-        let o = c.output().unwrap();
-        (
-            o.status.success(),
-            String::from_utf8_lossy(&o.stdout).into_owned(),
-        )
+        c.spawn().unwrap()
     };
-    let (anonymous_ok, anonymous) = client(None, "5");
-    let (wrong_ok, wrong) = client(Some(("monitor", "not-the-password")), "5");
-    let (user_ok, user) = client(Some(("monitor", &password)), "20");
+    let result = |c: std::process::Child| {
+        let o = c.wait_with_output().unwrap();
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        (o.status.success(), text)
+    };
+    let anonymous = client(None, "5");
+    let wrong = client(Some(("monitor", "not-the-password")), "5");
+    let (user_ok, user) = result(client(Some(("monitor", &password)), "20"));
     let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
         .args(["monitor", "--connect", &endpoint, "--user", "monitor"])
-        .args(["--seconds", "3"])
+        .args(["--seconds", "2"])
         .env("ICRFLOW_ZENOH_PASSWORD", &password)
         .output()
         .unwrap();
+    // On a terminal (util-linux `script` gives it one) the view is redrawn in place.
+    let on_terminal = Command::new("script")
+        .arg("-qec")
+        .arg(format!(
+            "{} monitor --connect {endpoint} --user monitor --seconds 2",
+            env!("CARGO_BIN_EXE_icrflow")
+        ))
+        .arg("/dev/null")
+        .env("ICRFLOW_ZENOH_PASSWORD", &password)
+        .output()
+        .unwrap();
+    let (anonymous_ok, anonymous) = result(anonymous);
+    let (wrong_ok, wrong) = result(wrong);
     let run = run.wait_with_output().unwrap();
     assert!(
         run.status.success(),
@@ -340,11 +357,23 @@ fn with_a_users_file_only_peers_that_log_in_read_the_run() {
     );
     assert!(!wrong_ok && !wrong.contains("icrflow/sim/"), "{wrong}");
     assert!(user_ok, "{user}");
+    // The monitors showed live data: a rotation in degrees, not "(no grasp state yet)".
+    let live = |text: &str| {
+        text.split("rotation  ")
+            .skip(1)
+            .any(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
+    };
     let text = String::from_utf8_lossy(&monitor.stdout);
     assert!(
-        monitor.status.success() && text.contains("rotation "),
+        monitor.status.success() && live(&text),
         "{text}\n{}",
         String::from_utf8_lossy(&monitor.stderr)
+    );
+    let screen = String::from_utf8_lossy(&on_terminal.stdout);
+    assert!(on_terminal.status.success(), "{screen}");
+    assert!(
+        screen.matches("\x1b[H").count() >= 5 && live(&screen),
+        "not redrawn in place with live data: {screen:?}"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
