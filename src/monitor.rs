@@ -70,13 +70,15 @@ impl View {
         Ok(())
     }
 
-    fn percentile(&self, q: f64) -> Option<f64> {
+    /// The latencies' p50 and p99, from one sort.
+    fn percentiles(&self) -> Option<(f64, f64)> {
         let mut v: Vec<f64> = self.latencies.iter().copied().collect();
         if v.is_empty() {
             return None;
         }
         v.sort_by(f64::total_cmp);
-        Some(v[((v.len() - 1) as f64 * q).round() as usize])
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        Some((at(0.5), at(0.99)))
     }
 
     /// The view as lines.
@@ -141,12 +143,12 @@ impl View {
             Some(_) => "command   tracking".into(),
             None => "command   (none yet)".into(),
         });
-        out.push(match (self.percentile(0.5), self.percentile(0.99)) {
-            (Some(p50), Some(p99)) => format!(
+        out.push(match self.percentiles() {
+            Some((p50, p99)) => format!(
                 "latency   measurement to command p50 {p50:.0} us, p99 {p99:.0} us (last {})",
                 self.latencies.len()
             ),
-            _ => "latency   -".into(),
+            None => "latency   -".into(),
         });
         let nodes: Vec<String> = self
             .health
@@ -186,7 +188,7 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
         icrflow_bridge::client_config(endpoint, login)?,
         &format!("connect {endpoint}"),
     )?;
-    let keys = icrflow_bridge::key(rig, "**");
+    let keys = icrflow_interfaces::topics::service(rig, "**");
     let subscriber = session
         .declare_subscriber(&keys)
         .wait()

@@ -508,14 +508,12 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     }
                     let now = Instant::now();
                     healths.drain(|h| {
-                        let name = read_text(&h.node);
-                        if let Some(t) = tracks.get_mut(&name) {
-                            t.report(h.pid, h.allocations, h.processed, now);
-                        } else {
-                            let mut t = AllocationTrack::default();
-                            t.report(h.pid, h.allocations, h.processed, now);
-                            tracks.insert(name, t);
-                        }
+                        tracks.entry(read_text(&h.node)).or_default().report(
+                            h.pid,
+                            h.allocations,
+                            h.processed,
+                            now,
+                        );
                     })?;
                     for e in supervisor.poll(Instant::now())? {
                         report(&e);

@@ -36,17 +36,12 @@ use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 
-/// The Zenoh key expression of `topic` on rig `rig`.
-pub fn key(rig: &str, topic: &str) -> String {
-    format!("icrflow/{rig}/{topic}")
-}
-
 /// The access control of a read-only pipeline session on rig `rig`: every remote peer may
 /// subscribe to the rig's key expressions and receive what the session publishes there;
 /// everything else a remote peer sends (a put, a delete, a query, a queryable, on any key) is
 /// denied by default.
 pub fn read_only_acl(rig: &str) -> serde_json::Value {
-    let keys = [key(rig, "**")];
+    let keys = [topics::service(rig, "**")];
     serde_json::json!({
         "enabled": true,
         "default_permission": "deny",
@@ -162,7 +157,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             other => anyhow::bail!("zenoh.monitor: no such topic {other:?}"),
         };
         let publisher = session
-            .declare_publisher(key(rig, topic))
+            .declare_publisher(topics::service(rig, topic))
             .congestion_control(CongestionControl::Drop)
             .priority(Priority::DataLow)
             .wait()
@@ -172,7 +167,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     // Whatever a remote peer puts on the rig's key expressions. Read-only (the default), the
     // access control drops it before it gets here; otherwise it is checked and ignored, as
     // the bridge takes no input yet.
-    let inbound_keys = key(rig, "**");
+    let inbound_keys = topics::service(rig, "**");
     let inbound = session
         .declare_subscriber(&inbound_keys)
         .allowed_origin(Locality::Remote)
@@ -197,14 +192,6 @@ pub fn run(ctx: &Context) -> Result<()> {
             health.refuse(format!("remote message on {key}: {why}"));
         }
         for (forward, publisher) in &forwards {
-            let mut send = |value: &dyn erased::Json| -> Result<()> {
-                text.clear();
-                value.write(&mut text)?;
-                publisher
-                    .put(text.as_slice())
-                    .wait()
-                    .map_err(|e| anyhow!("zenoh put: {e}"))
-            };
             let mut failed = None;
             let mut keep = |r: Result<()>| {
                 if let Err(e) = r {
@@ -212,14 +199,28 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
             };
             let n = match forward {
-                Forward::Joints(s) => s.drain(|m| keep(send(&json::joint_state(rig, m))))?,
-                Forward::Grasp(s) => s.drain(|m| keep(send(&json::grasp_state(rig, m))))?,
-                Forward::Wrench(s) => {
-                    s.drain(|h, facets| keep(send(&json::wrench_space(rig, h, facets.len()))))?
+                Forward::Joints(s) => {
+                    s.drain(|m| keep(put(publisher, &mut text, &json::joint_state(rig, m))))?
                 }
-                Forward::Plan(s) => s.drain(|h, _| keep(send(&json::plan_step(rig, h))))?,
-                Forward::Command(s) => s.drain(|m| keep(send(&json::hand_command(rig, m))))?,
-                Forward::Health(s) => s.drain(|m| keep(send(&json::node_health(rig, m))))?,
+                Forward::Grasp(s) => {
+                    s.drain(|m| keep(put(publisher, &mut text, &json::grasp_state(rig, m))))?
+                }
+                Forward::Wrench(s) => s.drain(|h, facets| {
+                    keep(put(
+                        publisher,
+                        &mut text,
+                        &json::wrench_space(rig, h, facets.len()),
+                    ))
+                })?,
+                Forward::Plan(s) => {
+                    s.drain(|h, _| keep(put(publisher, &mut text, &json::plan_step(rig, h))))?
+                }
+                Forward::Command(s) => {
+                    s.drain(|m| keep(put(publisher, &mut text, &json::hand_command(rig, m))))?
+                }
+                Forward::Health(s) => {
+                    s.drain(|m| keep(put(publisher, &mut text, &json::node_health(rig, m))))?
+                }
             };
             health.processed += n as u64;
             if let Some(e) = failed {
@@ -233,16 +234,16 @@ pub fn run(ctx: &Context) -> Result<()> {
     .context("bridge loop")
 }
 
-/// Serializing the monitoring objects through one function.
-mod erased {
-    /// A monitoring object that writes itself as JSON.
-    pub trait Json {
-        fn write(&self, out: &mut Vec<u8>) -> anyhow::Result<()>;
-    }
-
-    impl<T: serde::Serialize> Json for T {
-        fn write(&self, out: &mut Vec<u8>) -> anyhow::Result<()> {
-            serde_json::to_writer(out, self).map_err(Into::into)
-        }
-    }
+/// Publishes `value` as JSON, written into the reused buffer `text`.
+fn put(
+    publisher: &zenoh::pubsub::Publisher<'_>,
+    text: &mut Vec<u8>,
+    value: &impl serde::Serialize,
+) -> Result<()> {
+    text.clear();
+    serde_json::to_writer(&mut *text, value)?;
+    publisher
+        .put(text.as_slice())
+        .wait()
+        .map_err(|e| anyhow!("zenoh put: {e}"))
 }
