@@ -17,7 +17,7 @@ use icrflow_bridge::zenoh::Wait;
 
 /// The environment variable `--user`'s password is read from (never from the command line,
 /// where other users of the machine could read it).
-pub const PASSWORD_ENV: &str = "ICRFLOW_ZENOH_PASSWORD";
+pub use icrflow_scenario::PASSWORD_ENV;
 /// How often the view is redrawn on a terminal.
 const REFRESH: Duration = Duration::from_millis(200);
 /// How often a plain line is printed when not on a terminal.
@@ -188,7 +188,8 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
         icrflow_bridge::client_config(endpoint, login)?,
         &format!("connect {endpoint}"),
     )?;
-    let keys = icrflow_interfaces::topics::service(rig, "**");
+    // The monitoring topics (one chunk each; a split pipeline's `link/` topics are not JSON).
+    let keys = icrflow_interfaces::topics::service(rig, "*");
     let subscriber = session
         .declare_subscriber(&keys)
         .wait()

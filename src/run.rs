@@ -20,9 +20,7 @@ use serde::Serialize;
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
 
-/// The node processes of the control loop, in start order.
-pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
-/// The Zenoh bridge's node name (started after them when `zenoh.enabled`).
+/// The Zenoh bridge's node name (started after the loop's nodes when `zenoh.enabled`).
 pub const BRIDGE: &str = "bridge";
 
 /// Latency percentiles (microseconds).
@@ -361,7 +359,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
     let mut specs = Vec::new();
-    for n in NODES {
+    for n in &config.pipeline.nodes {
         specs.push(NodeSpec {
             name: n.into(),
             program: node_program(n)?,
@@ -371,15 +369,27 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         });
     }
     if config.zenoh.enabled {
-        // Remote monitoring; the run goes on without it if it fails for good.
+        // Remote monitoring, and the loop topics of the nodes on other hosts when
+        // `pipeline.nodes` runs only some here. Monitoring alone, the run goes on without the
+        // bridge if it fails for good; a split loop cannot.
         specs.push(NodeSpec {
             name: BRIDGE.into(),
             program: node_program(BRIDGE)?,
             args: vec!["--config".into(), config_path.display().to_string()],
             policy: RestartPolicy::default(),
-            essential: false,
+            essential: config.pipeline.split(),
         });
     }
+    if config.pipeline.split() {
+        let links = topics::links(&config.pipeline.nodes);
+        eprintln!(
+            "run: this host runs {}; the others are joined over Zenoh (sending {:?}, taking {:?})",
+            config.pipeline.nodes.join(", "),
+            links.export,
+            links.import
+        );
+    }
+    let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
     let pid = std::process::id();
     let bus_config = BusConfig::new(
         &config.pipeline.rig,
@@ -520,10 +530,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     }
                     if Instant::now() >= next_sample {
                         next_sample += Duration::from_secs(1);
-                        let bridge = config.zenoh.enabled.then_some(BRIDGE);
-                        for n in NODES.into_iter().chain(bridge) {
+                        for n in &names {
                             if let Some(kib) = supervisor.pid(n).and_then(resident_kib) {
-                                let m = memory.entry(n.to_string()).or_insert(Memory {
+                                let m = memory.entry(n.clone()).or_insert(Memory {
                                     first: kib,
                                     ..Memory::default()
                                 });
@@ -647,37 +656,44 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         "rotation   {:.1} deg of {:.1} deg, {} plan steps, {} finger switches",
         summary.rotation_deg, summary.goal_deg, summary.steps, summary.switches
     )?;
-    writeln!(
-        o,
-        "quality    minimum alpha* while tracking = {:.6} (alpha = {alpha})",
-        summary.min_quality
-    )?;
-    writeln!(
-        o,
-        "commands   {} sent ({:.0} Hz; {:.0} Hz of joint measurements), {} holds; {} node restarts; {:.1} s",
-        summary.commands,
-        summary.command_rate_hz,
-        summary.measurement_rate_hz,
-        summary.holds,
-        summary.restarts,
-        summary.seconds
-    )?;
-    let l = &summary.latency_us;
-    writeln!(
-        o,
-        "latency    joint measurement to hand command p50 {:.0} us, p99 {:.0} us, max {:.0} us ({} commands)",
-        l.end_to_end.p50, l.end_to_end.p99, l.end_to_end.max, l.end_to_end.samples
-    )?;
-    writeln!(
-        o,
-        "           hops p50 {:.0} / {:.0} / {:.0} us, compute p50 {:.0} / {:.0} / {:.0} us (estimator, wrench space, command)",
-        l.transport.joint_state.p50,
-        l.transport.grasp_state.p50,
-        l.transport.wrench_space.p50,
-        l.compute.estimator.p50,
-        l.compute.wrench.p50,
-        l.compute.command.p50
-    )?;
+    if config.pipeline.nodes.iter().any(|n| n == "command") {
+        writeln!(
+            o,
+            "quality    minimum alpha* while tracking = {:.6} (alpha = {alpha})",
+            summary.min_quality
+        )?;
+        writeln!(
+            o,
+            "commands   {} sent ({:.0} Hz; {:.0} Hz of joint measurements), {} holds; {} node restarts; {:.1} s",
+            summary.commands,
+            summary.command_rate_hz,
+            summary.measurement_rate_hz,
+            summary.holds,
+            summary.restarts,
+            summary.seconds
+        )?;
+        let l = &summary.latency_us;
+        writeln!(
+            o,
+            "latency    joint measurement to hand command p50 {:.0} us, p99 {:.0} us, max {:.0} us ({} commands)",
+            l.end_to_end.p50, l.end_to_end.p99, l.end_to_end.max, l.end_to_end.samples
+        )?;
+        writeln!(
+            o,
+            "           hops p50 {:.0} / {:.0} / {:.0} us, compute p50 {:.0} / {:.0} / {:.0} us (estimator, wrench space, command)",
+            l.transport.joint_state.p50,
+            l.transport.grasp_state.p50,
+            l.transport.wrench_space.p50,
+            l.compute.estimator.p50,
+            l.compute.wrench.p50,
+            l.compute.command.p50
+        )?;
+    } else {
+        writeln!(
+            o,
+            "commands   none here: the hand command node runs on another host (its run reports them)"
+        )?;
+    }
     writeln!(
         o,
         "plan       {} plan steps published, {:.0} Hz",

@@ -7,35 +7,13 @@ mod common;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use common::{root, scratch};
+use common::{python, root, scratch};
 
 /// One pipeline at a time (each is six processes on this machine's cores).
 static PIPELINE: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// The monitoring topics the bridge publishes by default.
 const TOPICS: [&str; 6] = icrflow_scenario::DEFAULT_MONITOR;
-
-/// The Python interpreter of the test venv (scripts/setup-python.sh installs eclipse-zenoh).
-fn python() -> String {
-    if let Ok(py) = std::env::var("ICRFLOW_PYTHON") {
-        return py;
-    }
-    let out = Command::new(root().join("scripts/setup-python.sh"))
-        .output()
-        .expect("running scripts/setup-python.sh");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .last()
-        .unwrap()
-        .trim()
-        .to_string()
-}
 
 /// The paper scenario's config with `extra` appended, written as `dir/name.toml`.
 fn paper_config(dir: &std::path::Path, name: &str, extra: &str) -> std::path::PathBuf {

@@ -7,16 +7,18 @@ code of ours. Used by tests/zenoh.rs.
     python tests/zenoh_client.py --measure ENDPOINT RIG SECONDS
     python tests/zenoh_client.py --answer ENDPOINT RIG SECONDS
     python tests/zenoh_client.py --ask ENDPOINT RIG
+    python tests/zenoh_client.py --put ENDPOINT KEY HEX
 
 --answer declares a queryable on icrflow/RIG/hand_command for SECONDS, as a peer pretending
 to speak for the hand would; --ask queries that key expression through the pipeline's
-session and prints how many replies came. The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
+session and prints how many replies came; --put puts the bytes HEX (hex digits) on KEY and
+waits a second (tests/two_hosts.rs: bad input on a split pipeline's link topics). The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
 each message's publication on the local bus (its time_ns) to its arrival here, and prints them
 as JSON. With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
 (the pipeline's zenoh.users_file). The second form is a peer that stops reading: its subscriber's callback blocks on the first
 sample, for SECONDS, while the run keeps publishing at the loop rate.
 
-Connects to ENDPOINT as a client, subscribes to icrflow/RIG/**, and decodes every sample as
+Connects to ENDPOINT as a client, subscribes to icrflow/RIG/* (the monitoring topics), and decodes every sample as
 the monitoring JSON of the README (an object with schema 1, its topic and rig). Stops when
 every TOPIC has been received and decoded at least 20 times, or after SECONDS. Then it tries
 to write, as a hostile or mistaken client would: it declares a queryable on
@@ -56,7 +58,7 @@ def stall(endpoint: str, rig: str, seconds: float) -> int:
         time.sleep(seconds)  # never returns in time: the session's receive path is stuck
 
     with zenoh.open(config) as session:
-        session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        session.declare_subscriber(f"icrflow/{rig}/*", on_sample)
         time.sleep(seconds)
     return 0 if got.is_set() else 1
 
@@ -73,7 +75,7 @@ def measure(endpoint: str, rig: str, seconds: float) -> int:
             delays.setdefault(obj["topic"], []).append((now - obj["time_ns"]) * 1e-3)
 
     with zenoh.open(config) as session:
-        session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        session.declare_subscriber(f"icrflow/{rig}/*", on_sample)
         time.sleep(seconds)
     out = {}
     with lock:
@@ -115,7 +117,17 @@ def ask(endpoint: str, rig: str) -> int:
     return 0
 
 
+def put(endpoint: str, key: str, payload: str) -> int:
+    with zenoh.open(client_config(endpoint)) as session:
+        session.put(key, bytes.fromhex(payload))
+        time.sleep(1.0)
+    print(json.dumps({"put": key}))
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1] == "--put":
+        return put(sys.argv[2], sys.argv[3], sys.argv[4])
     if sys.argv[1] == "--answer":
         return answer(sys.argv[2], sys.argv[3], float(sys.argv[4]))
     if sys.argv[1] == "--ask":
@@ -173,7 +185,7 @@ def main() -> int:
         print(json.dumps({"received": {}, "decoded": {}, "errors": [f"open: {e}"], "ok": False}))
         return 1
     with opened as session:
-        subscriber = session.declare_subscriber(f"icrflow/{rig}/**", on_sample)
+        subscriber = session.declare_subscriber(f"icrflow/{rig}/*", on_sample)
         while time.monotonic() < deadline and not done():
             time.sleep(0.05)
         subscriber.undeclare()

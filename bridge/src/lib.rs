@@ -20,6 +20,7 @@
 //! checked ([`json::envelope`]), logged with the reason, counted as refused, and dropped.
 
 pub mod json;
+pub mod link;
 
 /// The Zenoh crate, as this crate uses it (for `icrflow monitor`).
 pub use zenoh;
@@ -37,40 +38,63 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 
 /// The access control of a read-only pipeline session on rig `rig`: every remote peer may
-/// subscribe to the rig's key expressions and receive what the session publishes there;
+/// subscribe to the rig's key expressions and receive what the session publishes there; the
+/// loop topics in `imports` (a split pipeline's topics this host takes from the others) may
+/// be put by the peers logged in as one of `link_users` (by any peer when that is empty);
 /// everything else a remote peer sends (a put, a delete, a query, a queryable, on any key) is
 /// denied by default.
-pub fn read_only_acl(rig: &str) -> serde_json::Value {
+pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serde_json::Value {
     let keys = [topics::service(rig, "**")];
+    let mut rules = vec![
+        serde_json::json!({
+            "id": "monitoring-out",
+            "messages": ["put"],
+            "flows": ["egress"],
+            "permission": "allow",
+            "key_exprs": keys,
+        }),
+        serde_json::json!({
+            "id": "monitoring-subscribe",
+            "messages": ["declare_subscriber"],
+            "flows": ["ingress", "egress"],
+            "permission": "allow",
+            "key_exprs": keys,
+        }),
+    ];
+    let mut subjects = vec![serde_json::json!({ "id": "every-peer" })];
+    let mut policies = vec![serde_json::json!({
+        "rules": ["monitoring-out", "monitoring-subscribe"],
+        "subjects": ["every-peer"],
+    })];
+    if !imports.is_empty() {
+        let links: Vec<String> = imports.iter().map(|t| topics::link(rig, t)).collect();
+        rules.push(serde_json::json!({
+            "id": "link-in",
+            "messages": ["put"],
+            "flows": ["ingress"],
+            "permission": "allow",
+            "key_exprs": links,
+        }));
+        let subject = if link_users.is_empty() {
+            "every-peer"
+        } else {
+            subjects.push(serde_json::json!({ "id": "link-peers", "usernames": link_users }));
+            "link-peers"
+        };
+        policies.push(serde_json::json!({ "rules": ["link-in"], "subjects": [subject] }));
+    }
     serde_json::json!({
         "enabled": true,
         "default_permission": "deny",
-        "rules": [
-            {
-                "id": "monitoring-out",
-                "messages": ["put"],
-                "flows": ["egress"],
-                "permission": "allow",
-                "key_exprs": keys,
-            },
-            {
-                "id": "monitoring-subscribe",
-                "messages": ["declare_subscriber"],
-                "flows": ["ingress", "egress"],
-                "permission": "allow",
-                "key_exprs": keys,
-            },
-        ],
-        "subjects": [{ "id": "every-peer" }],
-        "policies": [{
-            "rules": ["monitoring-out", "monitoring-subscribe"],
-            "subjects": ["every-peer"],
-        }],
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
     })
 }
 
-/// A Zenoh session's settings from the config's `[zenoh]` section, for rig `rig`.
-pub fn session_config(z: &ZenohSpec, rig: &str) -> Result<zenoh::Config> {
+/// A Zenoh session's settings from the config's `[zenoh]` section, for rig `rig` on a host
+/// that takes the loop topics `imports` from other hosts.
+pub fn session_config(z: &ZenohSpec, rig: &str, imports: &[&str]) -> Result<zenoh::Config> {
     let mut c = zenoh::Config::default();
     let mut set = |key: &str, value: serde_json::Value| -> Result<()> {
         c.insert_json5(key, &value.to_string())
@@ -81,7 +105,20 @@ pub fn session_config(z: &ZenohSpec, rig: &str) -> Result<zenoh::Config> {
     set("connect/endpoints", serde_json::json!(z.connect))?;
     set("scouting/multicast/enabled", serde_json::json!(z.scouting))?;
     if z.read_only {
-        set("access_control", read_only_acl(rig))?;
+        set("access_control", read_only_acl(rig, imports, &z.link_users))?;
+    }
+    if let Some(user) = &z.user {
+        let password = std::env::var(icrflow_scenario::PASSWORD_ENV).map_err(|_| {
+            anyhow!(
+                "zenoh.user {user:?}: its password is read from {}, which is not set",
+                icrflow_scenario::PASSWORD_ENV
+            )
+        })?;
+        set("transport/auth/usrpwd/user", serde_json::json!(user))?;
+        set(
+            "transport/auth/usrpwd/password",
+            serde_json::json!(password),
+        )?;
     }
     if let Some(file) = &z.users_file {
         set(
@@ -104,9 +141,12 @@ pub fn client_config(endpoint: &str, login: Option<(&str, &str)>) -> Result<zeno
             scouting: false,
             read_only: false,
             users_file: None,
+            link_users: Vec::new(),
+            user: None,
             monitor: Vec::new(),
         },
         "",
+        &[],
     )?;
     if let Some((user, password)) = login {
         for (key, value) in [("user", user), ("password", password)] {
@@ -141,10 +181,32 @@ enum Forward {
 pub fn run(ctx: &Context) -> Result<()> {
     let z = &ctx.config.zenoh;
     let rig = ctx.config.pipeline.rig.as_str();
+    let links = topics::links(&ctx.config.pipeline.nodes);
     let session = open(
-        session_config(z, rig)?,
+        session_config(z, rig, &links.import)?,
         &format!("listen {:?}, connect {:?}", z.listen, z.connect),
     )?;
+    // A split pipeline's loop topics: out as soon as they are published here, in on a thread.
+    let exports = links
+        .export
+        .iter()
+        .map(|t| link::Export::new(&ctx.bus, &session, t))
+        .collect::<Result<Vec<_>>>()?;
+    let importer = if links.import.is_empty() {
+        None
+    } else {
+        Some(link::Importer::start(
+            &session,
+            ctx.bus.config(),
+            &links.import,
+        )?)
+    };
+    if !links.export.is_empty() || !links.import.is_empty() {
+        eprintln!(
+            "icrflow-bridge: this host runs {:?}; to other hosts: {:?}; from them: {:?}",
+            ctx.config.pipeline.nodes, links.export, links.import
+        );
+    }
     let mut forwards = Vec::with_capacity(z.monitor.len());
     for topic in &z.monitor {
         let forward = match topic.as_str() {
@@ -164,10 +226,10 @@ pub fn run(ctx: &Context) -> Result<()> {
             .map_err(|e| anyhow!("declaring the Zenoh publisher of {topic}: {e}"))?;
         forwards.push((forward, publisher));
     }
-    // Whatever a remote peer puts on the rig's key expressions. Read-only (the default), the
-    // access control drops it before it gets here; otherwise it is checked and ignored, as
-    // the bridge takes no input yet.
-    let inbound_keys = topics::service(rig, "**");
+    // Whatever a remote peer puts on the rig's monitoring key expressions. Read-only (the
+    // default), the access control drops it before it gets here; otherwise it is checked and
+    // ignored: the bridge takes no input there (the loop topics come in on `link/`).
+    let inbound_keys = topics::service(rig, "*");
     let inbound = session
         .declare_subscriber(&inbound_keys)
         .allowed_origin(Locality::Remote)
@@ -176,8 +238,32 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut said = std::collections::BTreeSet::new();
     let mut health = Health::new(ctx)?;
     let mut text: Vec<u8> = Vec::with_capacity(4096);
+    let mut bytes: Vec<u8> = Vec::with_capacity(1 << 16);
+    let mut imported = 0;
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    serve(&ws, |_| {
+    let _wake = exports
+        .iter()
+        .map(|e| ws.attach_notification(e.listener()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let served = serve(&ws, |_| {
+        for export in &exports {
+            // A blocked link blocks here (congestion control `Block`), never the nodes.
+            match export.forward(&mut bytes) {
+                Ok(n) => health.processed += n as u64,
+                Err(e) => health.refuse(format!("{e:#}")),
+            }
+        }
+        if let Some(importer) = &importer {
+            let n = importer.imported.load(std::sync::atomic::Ordering::Relaxed);
+            health.processed += n - imported;
+            imported = n;
+            while let Ok(why) = importer.refusals.try_recv() {
+                health.refuse(why);
+            }
+            if importer.ended() {
+                anyhow::bail!("the link import thread ended");
+            }
+        }
         health.tick()?;
         while let Ok(Some(sample)) = inbound.try_recv() {
             let key = sample.key_expr().as_str().to_string();
@@ -231,7 +317,9 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         Ok(())
     })
-    .context("bridge loop")
+    .context("bridge loop");
+    let stopped = importer.map_or(Ok(()), link::Importer::stop);
+    stopped.and(served)
 }
 
 /// Publishes `value` as JSON, written into the reused buffer `text`.

@@ -18,6 +18,11 @@
 #![allow(unsafe_code)]
 
 use iceoryx2::prelude::ZeroCopySend;
+// Byte views of the messages, checked at compile time (no padding, every bit pattern valid),
+// for the Zenoh link between hosts ([`wire`]).
+use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
+
+pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
@@ -67,7 +72,19 @@ pub enum Kind {
 }
 
 /// The header every message starts with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.Header.v3")]
 #[repr(C)]
 pub struct Header {
@@ -99,7 +116,19 @@ pub const TRACE_STAMPS: usize = 7;
 /// estimator out, wrench in, wrench out, command in, command out]`: the differences are the
 /// transport hops (out to in) and the computations (in to out). Stamps beyond
 /// [`TRACE_STAMPS`] are dropped (`len` stays at the limit).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.Trace.v3")]
 #[repr(C)]
 pub struct Trace {
@@ -249,13 +278,21 @@ impl Header {
 /// A message type: a [`Header`] first, then its fields (for the fixed user header of a slice
 /// topic, the header of the whole sample).
 pub trait Message {
+    /// The kind its header carries.
+    const KIND: Kind;
+    /// The header.
+    fn header(&self) -> &Header;
     /// The header, for the bus to [`Header::stamp`] at publication.
     fn header_mut(&mut self) -> &mut Header;
 }
 
 macro_rules! messages {
-    ($($t:ty),*) => {$(
+    ($($t:ident => $kind:ident),*) => {$(
         impl Message for $t {
+            const KIND: Kind = Kind::$kind;
+            fn header(&self) -> &Header {
+                &self.header
+            }
             fn header_mut(&mut self) -> &mut Header {
                 &mut self.header
             }
@@ -264,17 +301,28 @@ macro_rules! messages {
 }
 
 messages!(
-    JointState,
-    ObjectPose,
-    GraspState,
-    WrenchSpaceHeader,
-    PlanStepHeader,
-    HandCommand,
-    NodeHealth
+    JointState => JointState,
+    ObjectPose => ObjectPose,
+    GraspState => GraspState,
+    WrenchSpaceHeader => WrenchSpace,
+    PlanStepHeader => PlanStep,
+    HandCommand => HandCommand,
+    NodeHealth => NodeHealth
 );
 
 /// Joint encoder readings of the hand.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.JointState.v3")]
 #[repr(C)]
 pub struct JointState {
@@ -293,7 +341,18 @@ pub struct JointState {
 }
 
 /// An object-pose measurement (e.g. from vision): noisy, delayed, lower rate.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.ObjectPose.v3")]
 #[repr(C)]
 pub struct ObjectPose {
@@ -309,7 +368,18 @@ pub struct ObjectPose {
 }
 
 /// One finger's contact in a [`GraspState`].
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.FingerContact.v3")]
 #[repr(C)]
 pub struct FingerContact {
@@ -330,7 +400,18 @@ pub struct FingerContact {
 }
 
 /// The estimated object pose, contact state and hand joints.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.GraspState.v3")]
 #[repr(C)]
 pub struct GraspState {
@@ -356,7 +437,18 @@ pub struct GraspState {
 }
 
 /// User header of the wrench-space topic; the payload is a slice of [`Facet`].
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.WrenchSpaceHeader.v3")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
@@ -375,7 +467,18 @@ pub struct WrenchSpaceHeader {
 }
 
 /// One facet `normal . w <= offset` of the grasp wrench space's hull.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.Facet.v3")]
 #[repr(C)]
 pub struct Facet {
@@ -402,7 +505,18 @@ pub enum PlanPhase {
 }
 
 /// One finger's target in a [`PlanStepHeader`].
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.FingerTarget.v3")]
 #[repr(C)]
 pub struct FingerTarget {
@@ -424,7 +538,18 @@ pub struct FingerTarget {
 
 /// User header of the plan-step topic; the payload is the ICR regions, candidate indices of
 /// every finger in slot order (`region_lengths` long each).
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
 #[type_name("icrflow.PlanStepHeader.v3")]
 #[repr(C)]
 pub struct PlanStepHeader {
@@ -457,7 +582,9 @@ pub enum CommandMode {
 }
 
 /// A command to the hand.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
+)]
 #[type_name("icrflow.HandCommand.v3")]
 #[repr(C)]
 pub struct HandCommand {
@@ -510,7 +637,9 @@ pub enum NodeState {
 }
 
 /// A node's periodic health report.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
+)]
 #[type_name("icrflow.NodeHealth.v3")]
 #[repr(C)]
 pub struct NodeHealth {
@@ -595,6 +724,66 @@ pub mod topics {
     pub fn service(rig: &str, topic: &str) -> String {
         format!("icrflow/{rig}/{topic}")
     }
+
+    /// The Zenoh key expression that carries `topic` of rig `rig` between hosts, as bytes
+    /// ([`crate::wire`]), beside the JSON one of monitoring ([`service`]).
+    pub fn link(rig: &str, topic: &str) -> String {
+        format!("icrflow/{rig}/link/{topic}")
+    }
+
+    /// The node processes of the control loop, in start order.
+    pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
+
+    /// Each node's loop topics: what it publishes, and what it subscribes to (every node also
+    /// publishes [`NODE_HEALTH`]).
+    const GRAPH: [(&str, &[&str], &[&str]); 5] = [
+        ("plant", &[JOINT_STATE, OBJECT_POSE], &[HAND_COMMAND]),
+        ("estimator", &[GRASP_STATE], &[JOINT_STATE, OBJECT_POSE]),
+        ("wrench", &[WRENCH_SPACE], &[GRASP_STATE]),
+        ("planner", &[PLAN_STEP], &[GRASP_STATE]),
+        (
+            "command",
+            &[HAND_COMMAND],
+            &[PLAN_STEP, GRASP_STATE, WRENCH_SPACE],
+        ),
+    ];
+
+    /// The loop topics that cross between a host running the nodes `local` and the host(s)
+    /// running the others.
+    #[derive(Debug, Clone, PartialEq, Eq, Default)]
+    pub struct Links {
+        /// Published here, read by a node elsewhere.
+        pub export: Vec<&'static str>,
+        /// Read here, published by a node elsewhere.
+        pub import: Vec<&'static str>,
+    }
+
+    /// The links of a host running `local` (names from [`NODES`]; others are ignored).
+    pub fn links(local: &[impl AsRef<str>]) -> Links {
+        let here = |node: &str| local.iter().any(|n| n.as_ref() == node);
+        let mut links = Links::default();
+        for topic in ALL {
+            let published_here = GRAPH
+                .iter()
+                .any(|(n, out, _)| here(n) && out.contains(&topic));
+            let published_elsewhere = GRAPH
+                .iter()
+                .any(|(n, out, _)| !here(n) && out.contains(&topic));
+            let read_here = GRAPH
+                .iter()
+                .any(|(n, _, inputs)| here(n) && inputs.contains(&topic));
+            let read_elsewhere = GRAPH
+                .iter()
+                .any(|(n, _, inputs)| !here(n) && inputs.contains(&topic));
+            if published_here && read_elsewhere {
+                links.export.push(topic);
+            }
+            if read_here && published_elsewhere {
+                links.import.push(topic);
+            }
+        }
+        links
+    }
 }
 
 #[cfg(test)]
@@ -669,6 +858,23 @@ mod tests {
         assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v3");
         assert_eq!(type_name::<Trace>(), "icrflow.Trace.v3");
         assert_eq!(SCHEMA_VERSION, 3);
+    }
+
+    #[test]
+    fn a_split_pipeline_links_exactly_the_topics_that_cross_hosts() {
+        use topics::*;
+        let robot = links(&["plant", "estimator", "command"]);
+        assert_eq!(robot.export, [GRASP_STATE]);
+        assert_eq!(robot.import, [WRENCH_SPACE, PLAN_STEP]);
+        let workstation = links(&["wrench", "planner"]);
+        assert_eq!(workstation.export, [WRENCH_SPACE, PLAN_STEP]);
+        assert_eq!(workstation.import, [GRASP_STATE]);
+        // One host: nothing crosses.
+        assert_eq!(links(&NODES), Links::default());
+        // The plant alone: commands in, measurements out.
+        let plant = links(&["plant"]);
+        assert_eq!(plant.export, [JOINT_STATE, OBJECT_POSE]);
+        assert_eq!(plant.import, [HAND_COMMAND]);
     }
 
     #[test]

@@ -298,6 +298,9 @@ pub const SETTLED_NS: u64 = 500_000_000;
 /// Rotation change below which the object counts as still (rad).
 pub const STILL: f64 = 0.05 * std::f64::consts::PI / 180.0;
 
+/// Most ICR points a plan step carries (all fingers' regions together).
+pub const MAX_REGION_POINTS: usize = 4096;
+
 /// Runs the planner node.
 pub fn run(ctx: &Context) -> Result<()> {
     let scenario = ctx.setup.scenario(&ctx.config);
@@ -310,7 +313,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
     let out = ctx
         .bus
-        .slice_publisher::<PlanStepHeader, u32>(topics::PLAN_STEP, 4096)?;
+        .slice_publisher::<PlanStepHeader, u32>(topics::PLAN_STEP, MAX_REGION_POINTS)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last_grasp = 0;
@@ -346,7 +349,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         };
         if icrs.as_ref().is_none_or(|(of, _, _)| *of != at) {
             // The step's ICRs, computed once per step.
-            let mut members = Vec::with_capacity(4096);
+            let mut members = Vec::with_capacity(MAX_REGION_POINTS);
             let mut lengths = [0u32; MAX_FINGERS];
             let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
             let regions = problem

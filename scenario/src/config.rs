@@ -272,6 +272,13 @@ pub struct ZenohSpec {
     /// A file of `user:password` lines: when given, only peers that authenticate with one of
     /// them may connect (Zenoh's user/password authentication).
     pub users_file: Option<PathBuf>,
+    /// Users (from `users_file`) whose hosts run the pipeline's other nodes: the only remote
+    /// peers allowed to put the loop topics this host takes from Zenoh (read-only sessions).
+    /// Empty without a users file: then any peer that connects may.
+    pub link_users: Vec<String>,
+    /// The user the bridge logs in as where it connects (`connect`), with the password in
+    /// [`PASSWORD_ENV`]: a split pipeline's host that connects to one with a users file.
+    pub user: Option<String>,
     /// The local topics published for monitoring.
     pub monitor: Vec<String>,
 }
@@ -285,6 +292,9 @@ pub const DEFAULT_MONITOR: [&str; 6] = [
     "hand_command",
     "node_health",
 ];
+/// The environment variable holding the password of `zenoh.user` (and of `icrflow monitor
+/// --user`), so that it is in no file and no command line.
+pub const PASSWORD_ENV: &str = "ICRFLOW_ZENOH_PASSWORD";
 /// Where the bridge listens unless `zenoh.listen` says otherwise: this machine only.
 pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
 
@@ -313,6 +323,16 @@ pub struct PipelineSpec {
     pub max_hold: Real,
     /// Seed of the simulated noise.
     pub seed: u64,
+    /// The nodes this host runs ([`icrflow_interfaces::topics::NODES`] by default); the
+    /// others run on other hosts, joined over Zenoh.
+    pub nodes: Vec<String>,
+}
+
+impl PipelineSpec {
+    /// Whether some of the loop's nodes run on another host.
+    pub fn split(&self) -> bool {
+        self.nodes.len() < icrflow_interfaces::topics::NODES.len()
+    }
 }
 
 impl Config {
@@ -336,6 +356,18 @@ impl Config {
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         let zenoh = zenoh_spec(raw.zenoh.unwrap_or_default(), base)?;
+        if pipeline.split() {
+            if !zenoh.enabled {
+                bail!(
+                    "pipeline.nodes: the other nodes' topics cross over Zenoh, so zenoh.enabled must be true"
+                );
+            }
+            if zenoh.users_file.is_some() && zenoh.link_users.is_empty() && zenoh.read_only {
+                bail!(
+                    "zenoh.link_users: name the users the other hosts log in as (with zenoh.users_file, only they may put the loop topics this host takes)"
+                );
+            }
+        }
         Ok(Self {
             path: path.to_path_buf(),
             object: object_spec(raw.object, base)?,
@@ -661,6 +693,7 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
 }
 
 fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
+    let mut names = Vec::new();
     let users_file = match raw.users_file {
         None => None,
         Some(file) => {
@@ -676,7 +709,10 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
                     continue;
                 }
                 match line.split_once(':') {
-                    Some((u, p)) if !u.trim().is_empty() && !p.trim().is_empty() => users += 1,
+                    Some((u, p)) if !u.trim().is_empty() && !p.trim().is_empty() => {
+                        users += 1;
+                        names.push(u.trim().to_string());
+                    }
                     _ => bail!(
                         "zenoh.users_file: {} line {}: expected user:password",
                         full.display(),
@@ -720,7 +756,23 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
             bail!("zenoh.monitor: unknown topic {t:?}; the topics are {DEFAULT_MONITOR:?}");
         }
     }
+    let link_users = raw.link_users.unwrap_or_default();
+    for u in &link_users {
+        if users_file.is_none() {
+            bail!("zenoh.link_users: needs zenoh.users_file (the users peers log in as)");
+        }
+        if !names.contains(u) {
+            bail!("zenoh.link_users: {u:?} is not a user of zenoh.users_file");
+        }
+    }
+    if let Some(u) = &raw.user
+        && (u.is_empty() || u.contains(':'))
+    {
+        bail!("zenoh.user: a user name without ':', got {u:?}");
+    }
     Ok(ZenohSpec {
+        link_users,
+        user: raw.user,
         enabled: raw.enabled.unwrap_or(true),
         mode,
         listen: endpoints(
@@ -771,7 +823,32 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         min_normal_force: nonneg("pipeline.min_normal_force", raw.min_normal_force, 1.0)?,
         max_hold: positive("pipeline.max_hold_s", raw.max_hold_s.unwrap_or(30.0))?,
         seed: raw.seed.unwrap_or(1),
+        nodes: nodes_spec(raw.nodes)?,
     })
+}
+
+fn nodes_spec(raw: Option<Vec<String>>) -> Result<Vec<String>> {
+    use icrflow_interfaces::topics::NODES;
+    let Some(nodes) = raw else {
+        return Ok(NODES.iter().map(|n| n.to_string()).collect());
+    };
+    if nodes.is_empty() {
+        bail!("pipeline.nodes: names no node; the nodes are {NODES:?}");
+    }
+    for (i, n) in nodes.iter().enumerate() {
+        if !NODES.contains(&n.as_str()) {
+            bail!("pipeline.nodes: unknown node {n:?}; the nodes are {NODES:?}");
+        }
+        if nodes[..i].contains(n) {
+            bail!("pipeline.nodes: {n:?} is named twice");
+        }
+    }
+    // Start order, whatever the order written.
+    Ok(NODES
+        .iter()
+        .filter(|n| nodes.iter().any(|m| m == *n))
+        .map(|n| n.to_string())
+        .collect())
 }
 
 /// Planner defaults.
@@ -874,6 +951,38 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
             .contains("object.path")
         );
         assert!(err(&GOOD.replace("radius", "radios")).contains("radios"));
+    }
+
+    #[test]
+    fn a_split_pipeline_names_known_nodes_and_needs_zenoh() {
+        let with = |extra: &str| format!("{GOOD}\n{extra}");
+        let split = "[pipeline]\nnodes = [\"planner\", \"wrench\"]\n";
+        let c = Config::parse(&with(split), Path::new("t.toml")).unwrap();
+        // Start order, whatever the order written.
+        assert_eq!(c.pipeline.nodes, ["wrench", "planner"]);
+        assert!(c.pipeline.split());
+        let all = Config::parse(GOOD, Path::new("t.toml")).unwrap();
+        assert_eq!(all.pipeline.nodes.len(), 5);
+        assert!(!all.pipeline.split());
+        for (extra, says) in [
+            ("[pipeline]\nnodes = []", "names no node"),
+            (
+                "[pipeline]\nnodes = [\"plant\", \"mixer\"]",
+                "unknown node \"mixer\"",
+            ),
+            ("[pipeline]\nnodes = [\"plant\", \"plant\"]", "named twice"),
+            (
+                &format!("{split}[zenoh]\nenabled = false"),
+                "zenoh.enabled must be true",
+            ),
+            (
+                "[zenoh]\nlink_users = [\"robot\"]",
+                "zenoh.link_users: needs zenoh.users_file",
+            ),
+        ] {
+            let e = err(&with(extra));
+            assert!(e.contains(says), "{extra}: {e}");
+        }
     }
 
     /// The same hand written with link lengths in TOML and as a URDF gives the same forward

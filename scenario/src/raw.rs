@@ -28,6 +28,8 @@ pub struct RawZenoh {
     pub read_only: Option<bool>,
     /// `user:password` lines, relative to the config file.
     pub users_file: Option<PathBuf>,
+    pub link_users: Option<Vec<String>>,
+    pub user: Option<String>,
     pub monitor: Option<Vec<String>>,
 }
 
@@ -46,6 +48,7 @@ pub struct RawPipeline {
     pub min_normal_force: Option<f64>,
     pub max_hold_s: Option<f64>,
     pub seed: Option<u64>,
+    pub nodes: Option<Vec<String>>,
 }
 
 /// `[object]`: the shape is chosen by `shape`.

@@ -31,3 +31,25 @@ pub fn scratch(name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// The Python interpreter of the test venv (scripts/setup-python.sh installs eclipse-zenoh).
+pub fn python() -> String {
+    if let Ok(py) = std::env::var("ICRFLOW_PYTHON") {
+        return py;
+    }
+    let out = Command::new(root().join("scripts/setup-python.sh"))
+        .output()
+        .expect("running scripts/setup-python.sh");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .last()
+        .unwrap()
+        .trim()
+        .to_string()
+}

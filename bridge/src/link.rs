@@ -1,0 +1,304 @@
+//! The loop topics between hosts: when `pipeline.nodes` runs only some of the nodes here, the
+//! bridge carries the topics that cross ([`topics::links`]) as bytes ([`icrflow_interfaces::wire`])
+//! on `icrflow/<rig>/link/<topic>`:
+//! - **out** ([`Export`]): a topic published here and read on another host is taken off the
+//!   local bus as soon as it is published (the bridge sleeps on its event, no polling) and put
+//!   on Zenoh with congestion control `Block`, express, at real-time priority: the loop loses
+//!   no message to a slow link (a link that stays blocked is closed by Zenoh, and the hand
+//!   command node holds on the missing input);
+//! - **in** ([`Importer`]): a topic read here and published on another host is received on a
+//!   thread of its own, checked (format, schema version, kind, sizes, header) and published
+//!   on the local bus exactly as it was sent: sequence numbers, times and trace included, so
+//!   the receiving nodes check its order and age as for a local message. What fails a check
+//!   is logged (once per reason) and counted in the bridge's health, never published.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use anyhow::{Result, anyhow};
+use icrflow_interfaces::{
+    Facet, GraspState, HandCommand, JointState, Message, ObjectPose, PlanStepHeader,
+    WrenchSpaceHeader, topics, wire,
+};
+use icrflow_nodes::bus::{Bus, BusConfig, Pub, SlicePub, SliceSub, Sub};
+use zenoh::Wait;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Locality;
+
+/// Most facets a wrench space carries.
+const MAX_FACETS: usize = icrflow_nodes::wrench::MAX_FACETS;
+/// Most ICR points a plan step carries.
+const MAX_REGION_POINTS: usize = icrflow_nodes::planner::MAX_REGION_POINTS;
+
+/// A loop topic's local subscriber, for export.
+enum Source {
+    Joints(Sub<JointState>),
+    Pose(Sub<ObjectPose>),
+    Grasp(Sub<GraspState>),
+    Wrench(SliceSub<WrenchSpaceHeader, Facet>),
+    Plan(SliceSub<PlanStepHeader, u32>),
+    Command(Sub<HandCommand>),
+}
+
+/// A topic published here and read on another host: its local subscriber and Zenoh publisher.
+pub struct Export {
+    source: Source,
+    publisher: zenoh::pubsub::Publisher<'static>,
+}
+
+impl Export {
+    /// The export of `topic` (a loop topic) from `bus` through `session`.
+    pub fn new(bus: &Bus, session: &zenoh::Session, topic: &str) -> Result<Self> {
+        let source = match topic {
+            topics::JOINT_STATE => Source::Joints(bus.subscriber(topic)?),
+            topics::OBJECT_POSE => Source::Pose(bus.subscriber(topic)?),
+            topics::GRASP_STATE => Source::Grasp(bus.subscriber(topic)?),
+            topics::WRENCH_SPACE => Source::Wrench(bus.slice_subscriber(topic)?),
+            topics::PLAN_STEP => Source::Plan(bus.slice_subscriber(topic)?),
+            topics::HAND_COMMAND => Source::Command(bus.subscriber(topic)?),
+            other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
+        };
+        let key = topics::link(&bus.config().rig, topic);
+        let publisher = session
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Block)
+            .priority(Priority::RealTime)
+            .express(true)
+            .wait()
+            .map_err(|e| anyhow!("declaring the Zenoh publisher of {key}: {e}"))?;
+        Ok(Self { source, publisher })
+    }
+
+    /// The listener that wakes the bridge when the topic is published.
+    pub fn listener(&self) -> &iceoryx2::port::listener::Listener<iceoryx2::prelude::ipc::Service> {
+        match &self.source {
+            Source::Joints(s) => s.listener(),
+            Source::Pose(s) => s.listener(),
+            Source::Grasp(s) => s.listener(),
+            Source::Wrench(s) => s.listener(),
+            Source::Plan(s) => s.listener(),
+            Source::Command(s) => s.listener(),
+        }
+    }
+
+    /// Puts every queued message on Zenoh (bytes written into the reused `buf`); returns how
+    /// many, or the first failure.
+    pub fn forward(&self, buf: &mut Vec<u8>) -> Result<usize> {
+        let mut failed = None;
+        let publisher = &self.publisher;
+        let mut put = |bytes: &[u8]| {
+            if let Err(e) = publisher.put(bytes).wait() {
+                failed.get_or_insert_with(|| anyhow!("zenoh put on {}: {e}", publisher.key_expr()));
+            }
+        };
+        let none: &[u8] = &[];
+        let n = match &self.source {
+            Source::Joints(s) => s.drain(|m| {
+                wire::encode(m, none, buf);
+                put(buf)
+            })?,
+            Source::Pose(s) => s.drain(|m| {
+                wire::encode(m, none, buf);
+                put(buf)
+            })?,
+            Source::Grasp(s) => s.drain(|m| {
+                wire::encode(m, none, buf);
+                put(buf)
+            })?,
+            Source::Wrench(s) => s.drain(|h, facets| {
+                wire::encode(h, facets, buf);
+                put(buf)
+            })?,
+            Source::Plan(s) => s.drain(|h, regions| {
+                wire::encode(h, regions, buf);
+                put(buf)
+            })?,
+            Source::Command(s) => s.drain(|m| {
+                wire::encode(m, none, buf);
+                put(buf)
+            })?,
+        };
+        failed.map_or(Ok(n), Err)
+    }
+}
+
+/// A loop topic's local publisher, for import.
+enum Sink {
+    Joints(Pub<JointState>),
+    Pose(Pub<ObjectPose>),
+    Grasp(Pub<GraspState>),
+    Wrench(SlicePub<WrenchSpaceHeader, Facet>, Vec<Facet>),
+    Plan(SlicePub<PlanStepHeader, u32>, Vec<u32>),
+    Command(Pub<HandCommand>),
+}
+
+impl Sink {
+    fn new(bus: &Bus, topic: &str) -> Result<Self> {
+        Ok(match topic {
+            topics::JOINT_STATE => Self::Joints(bus.publisher(topic)?),
+            topics::OBJECT_POSE => Self::Pose(bus.publisher(topic)?),
+            topics::GRASP_STATE => Self::Grasp(bus.publisher(topic)?),
+            topics::WRENCH_SPACE => Self::Wrench(
+                bus.slice_publisher(topic, MAX_FACETS)?,
+                Vec::with_capacity(MAX_FACETS),
+            ),
+            topics::PLAN_STEP => Self::Plan(
+                bus.slice_publisher(topic, MAX_REGION_POINTS)?,
+                Vec::with_capacity(MAX_REGION_POINTS),
+            ),
+            topics::HAND_COMMAND => Self::Command(bus.publisher(topic)?),
+            other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
+        })
+    }
+
+    /// Checks `bytes` and publishes the message they hold, unchanged.
+    fn publish(&mut self, bytes: &[u8]) -> Result<()> {
+        fn one<M>(p: &Pub<M>, bytes: &[u8]) -> Result<()>
+        where
+            M: Message + zerocopy::FromBytes + iceoryx2::prelude::ZeroCopySend + std::fmt::Debug,
+        {
+            let m: M = wire::decode(bytes, 0, &mut Vec::<u8>::new())?;
+            m.header().check(M::KIND)?;
+            p.send(m)?;
+            Ok(())
+        }
+        fn sliced<H, T>(
+            p: &SlicePub<H, T>,
+            items: &mut Vec<T>,
+            max: usize,
+            bytes: &[u8],
+        ) -> Result<()>
+        where
+            H: Message
+                + zerocopy::FromBytes
+                + iceoryx2::prelude::ZeroCopySend
+                + std::fmt::Debug
+                + Default,
+            T: zerocopy::FromBytes + iceoryx2::prelude::ZeroCopySend + std::fmt::Debug + Copy,
+        {
+            let h: H = wire::decode(bytes, max, items)?;
+            h.header().check(H::KIND)?;
+            p.send(h, items)?;
+            Ok(())
+        }
+        match self {
+            Self::Joints(p) => one(p, bytes),
+            Self::Pose(p) => one(p, bytes),
+            Self::Grasp(p) => one(p, bytes),
+            Self::Wrench(p, items) => sliced(p, items, MAX_FACETS, bytes),
+            Self::Plan(p, items) => sliced(p, items, MAX_REGION_POINTS, bytes),
+            Self::Command(p) => one(p, bytes),
+        }
+    }
+}
+
+/// How long the import thread waits for a message before it checks whether to stop.
+const POLL_STOP: Duration = Duration::from_millis(100);
+
+/// The thread that takes the loop topics other hosts publish and publishes them locally.
+pub struct Importer {
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<Result<()>>>,
+    /// Messages published locally.
+    pub imported: Arc<AtomicU64>,
+    /// Why messages were refused (one entry per refusal).
+    pub refusals: mpsc::Receiver<String>,
+}
+
+impl Importer {
+    /// Starts importing `imports` (loop topics) from Zenoh into the bus of `config`.
+    pub fn start(session: &zenoh::Session, config: &BusConfig, imports: &[&str]) -> Result<Self> {
+        let rig = config.rig.clone();
+        let keys = topics::link(&rig, "*");
+        let subscriber = session
+            .declare_subscriber(&keys)
+            .allowed_origin(Locality::Remote)
+            .wait()
+            .map_err(|e| anyhow!("declaring the Zenoh subscriber of {keys}: {e}"))?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let imported = Arc::new(AtomicU64::new(0));
+        let (tell, refusals) = mpsc::channel();
+        let config = config.clone();
+        let imports: Vec<String> = imports.iter().map(|t| t.to_string()).collect();
+        let (stopping, count) = (stop.clone(), imported.clone());
+        // The ports are made on the thread that uses them (iceoryx2 ports stay on theirs).
+        let (ready_tx, ready_rx) = mpsc::channel();
+        let thread = std::thread::Builder::new()
+            .name("link-in".into())
+            .spawn(move || -> Result<()> {
+                let setup = || -> Result<_> {
+                    let bus = Bus::new("bridge-link", &config)?;
+                    let mut sinks = Vec::new();
+                    for t in &imports {
+                        sinks.push((topics::link(&rig, t), Sink::new(&bus, t)?));
+                    }
+                    Ok((bus, sinks))
+                };
+                let (_bus, mut sinks) = match setup() {
+                    Ok(s) => {
+                        let _ = ready_tx.send(Ok(()));
+                        s
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                        return Ok(());
+                    }
+                };
+                let mut said = std::collections::BTreeSet::new();
+                while !stopping.load(Ordering::Relaxed) {
+                    let sample = match subscriber.recv_timeout(POLL_STOP) {
+                        Ok(Some(sample)) => sample,
+                        Ok(None) => continue,
+                        Err(e) => return Err(anyhow!("the Zenoh subscriber of {keys}: {e}")),
+                    };
+                    let key = sample.key_expr().as_str();
+                    let result = match sinks.iter_mut().find(|(k, _)| k == key) {
+                        Some((_, sink)) => sink.publish(&sample.payload().to_bytes()),
+                        None => Err(anyhow!("this host does not take that topic from others")),
+                    };
+                    match result {
+                        Ok(()) => {
+                            count.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(e) => {
+                            let why = format!("{e:#}");
+                            // Said once per key and reason (at most a hundred), counted always.
+                            if said.len() < 100 && said.insert((key.to_string(), why.clone())) {
+                                eprintln!("icrflow-bridge: refused a message on {key}: {why}");
+                            }
+                            let _ = tell.send(format!("{key}: {why}"));
+                        }
+                    }
+                }
+                Ok(())
+            })
+            .map_err(|e| anyhow!("starting the link import thread: {e}"))?;
+        ready_rx
+            .recv()
+            .map_err(|_| anyhow!("the link import thread ended while starting"))??;
+        Ok(Self {
+            stop,
+            thread: Some(thread),
+            imported,
+            refusals,
+        })
+    }
+
+    /// Whether the thread has ended (its subscriber failed).
+    pub fn ended(&self) -> bool {
+        self.thread.as_ref().is_none_or(|t| t.is_finished())
+    }
+
+    /// Stops the thread and returns its error, if it failed.
+    pub fn stop(mut self) -> Result<()> {
+        self.stop.store(true, Ordering::Relaxed);
+        match self.thread.take() {
+            Some(t) => t
+                .join()
+                .map_err(|_| anyhow!("the link import thread panicked"))?,
+            None => Ok(()),
+        }
+    }
+}
