@@ -63,6 +63,16 @@ pub fn validate(path: &Path) -> Result<()> {
         contacts.iter().map(|c| c.finger).collect::<Vec<_>>(),
         config.grasp.alpha
     )?;
+    if config.pipeline.split() {
+        let links = icrflow_interfaces::topics::links(&config.pipeline.nodes);
+        writeln!(
+            o,
+            "nodes      {} on this host; the others over Zenoh (sending {:?}, taking {:?})",
+            config.pipeline.nodes.join(", "),
+            links.export,
+            links.import
+        )?;
+    }
     Ok(())
 }
 

@@ -4,6 +4,9 @@
 //! on the "workstation" host, each `icrflow run` with its own bus and bridge; the loop closes
 //! over Zenoh on the veth link only.
 //!
+//! The hosts run the example configs config/split_robot.toml and config/split_workstation.toml
+//! (the robot's address replaced by its address on the link).
+//!
 //! Needs root (network namespaces, mounts) and iproute2 and util-linux (`ip`, `unshare`):
 //! where they are missing or not permitted, each test says so on stderr (not captured) and
 //! returns without asserting anything: SKIPPED, never a silent pass.
@@ -184,47 +187,27 @@ impl Drop for Hosts {
     }
 }
 
-/// The paper scenario for one host: rig `twohost`, the nodes `nodes`, and `zenoh` as its
-/// `[zenoh]` section.
-fn config(dir: &Path, name: &str, nodes: &str, zenoh: &str) -> PathBuf {
-    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
-    let path = dir.join(format!("{name}.toml"));
-    std::fs::write(
-        &path,
-        format!("{good}\n[pipeline]\nrig = \"twohost\"\nnodes = {nodes}\n\n[zenoh]\n{zenoh}\n"),
-    )
-    .unwrap();
-    path
-}
-
-/// The robot's and the workstation's configs: the workstation connects to the robot and logs
-/// in as `workstation`, the one user the robot takes loop topics from.
+/// The example configs (config/split_robot.toml, config/split_workstation.toml) with the
+/// robot's documentation address replaced by its address on the veth link, written into `dir`
+/// with the users file they name.
 fn configs(dir: &Path) -> (PathBuf, PathBuf) {
-    std::fs::write(
-        dir.join("users.txt"),
-        "workstation:ws-secret\nmonitor:watch-only\n",
+    std::fs::copy(
+        root().join("config/zenoh_users.example"),
+        dir.join("zenoh_users.example"),
     )
     .unwrap();
-    let robot = config(
-        dir,
-        "robot",
-        r#"["plant", "estimator", "command"]"#,
-        &format!(
-            "listen = [\"tcp/{ROBOT_IP}:7447\"]\nusers_file = \"users.txt\"\nlink_users = [\"workstation\"]"
-        ),
-    );
-    let workstation = config(
-        dir,
-        "workstation",
-        r#"["wrench", "planner"]"#,
-        &format!(
-            "listen = [\"tcp/{WORKSTATION_IP}:7447\"]\nconnect = [\"tcp/{ROBOT_IP}:7447\"]\nuser = \"workstation\""
-        ),
-    );
-    (robot, workstation)
+    let write = |name: &str| {
+        let text = std::fs::read_to_string(root().join(format!("config/{name}.toml"))).unwrap();
+        assert!(text.contains("192.0.2.10"), "{name}");
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text.replace("192.0.2.10", ROBOT_IP)).unwrap();
+        path
+    };
+    (write("split_robot"), write("split_workstation"))
 }
 
-const PASSWORD: (&str, &str) = ("ICRFLOW_ZENOH_PASSWORD", "ws-secret");
+/// The workstation's login (config/zenoh_users.example).
+const PASSWORD: (&str, &str) = ("ICRFLOW_ZENOH_PASSWORD", "change-me-too");
 
 fn summary(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap_or_default())
@@ -311,7 +294,7 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
     // Bad input on a link topic, from the workstation's host: from the link user, garbage
     // and a message of another schema version (refused by the robot's bridge, which says
     // why); from the monitoring user, garbage the access control drops before the bridge.
-    let key = "icrflow/twohost/link/plan_step";
+    let key = "icrflow/paper/link/plan_step";
     let mut other_schema = Vec::new();
     icrflow_interfaces::wire::encode(
         &icrflow_interfaces::PlanStepHeader::default(),
@@ -320,9 +303,9 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
     );
     other_schema[8..12].copy_from_slice(&99u32.to_ne_bytes());
     for (user, password, bytes) in [
-        ("workstation", "ws-secret", b"GARBAGE!".repeat(8)),
-        ("workstation", "ws-secret", other_schema),
-        ("monitor", "watch-only", b"MONITOR!".repeat(8)),
+        ("workstation", "change-me-too", b"GARBAGE!".repeat(8)),
+        ("workstation", "change-me-too", other_schema),
+        ("monitor", "change-me", b"MONITOR!".repeat(8)),
     ] {
         let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
         let out = Command::new("ip")
