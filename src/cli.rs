@@ -38,6 +38,20 @@ pub enum Command {
         /// Also write the summary as JSON to this file.
         #[arg(long)]
         summary_json: Option<PathBuf>,
+        /// Save the Rerun recording to this file (default: `visualizer.rrd` of the config,
+        /// else out/<config name>.rrd).
+        #[arg(long, conflicts_with_all = ["spawn_viewer", "connect_viewer", "no_visualizer"])]
+        rrd: Option<PathBuf>,
+        /// Stream the recording to a Rerun viewer started for it (`rerun` 0.36 on the PATH).
+        #[arg(long, conflicts_with_all = ["connect_viewer", "no_visualizer"])]
+        spawn_viewer: bool,
+        /// Stream the recording to the Rerun viewer at this URL
+        /// (e.g. rerun+http://127.0.0.1:9876/proxy).
+        #[arg(long, value_name = "URL", conflicts_with = "no_visualizer")]
+        connect_viewer: Option<String>,
+        /// Run without the visualizer node.
+        #[arg(long)]
+        no_visualizer: bool,
     },
     /// Watch a running pipeline over Zenoh (from this or another machine): phase, rotation,
     /// quality against alpha, contacts, node health and latency, redrawn in place on a

@@ -26,7 +26,21 @@ fn main() -> ExitCode {
             config,
             live,
             summary_json,
-        } => run::run(&config, live, summary_json),
+            rrd,
+            spawn_viewer,
+            connect_viewer,
+            no_visualizer,
+        } => run::run(
+            &config,
+            live,
+            summary_json,
+            run::Viewer {
+                rrd,
+                spawn: spawn_viewer,
+                connect: connect_viewer,
+                off: no_visualizer,
+            },
+        ),
     };
     match result {
         Ok(code) => ExitCode::from(code),

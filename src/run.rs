@@ -14,11 +14,67 @@ use icrflow_interfaces::{
 };
 use icrflow_nodes::bus::{Bus, BusConfig};
 use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
-use icrflow_scenario::{Config, Setup};
+use icrflow_scenario::{Config, Recording, Setup};
 use serde::Serialize;
 
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
+
+/// The visualizer's node name (started last when the visualizer is on).
+pub const VISUALIZER: &str = "visualizer";
+
+/// Where `run`'s flags send the Rerun recording (over `[visualizer]` of the config).
+#[derive(Debug, Default)]
+pub struct Viewer {
+    /// `--rrd PATH`.
+    pub rrd: Option<PathBuf>,
+    /// `--spawn-viewer`.
+    pub spawn: bool,
+    /// `--connect-viewer URL`.
+    pub connect: Option<String>,
+    /// `--no-visualizer`.
+    pub off: bool,
+}
+
+impl Viewer {
+    /// The recording target, or `None` without the visualizer.
+    fn recording(self, config: &Config) -> Result<Option<Recording>> {
+        if self.off || !config.visualizer.enabled {
+            return Ok(None);
+        }
+        let r = if let Some(p) = self.rrd {
+            Recording::Rrd(p)
+        } else if self.spawn {
+            Recording::Spawn
+        } else if let Some(url) = self.connect {
+            icrflow_scenario::viewer_url(&url).context("--connect-viewer")?;
+            Recording::Connect(url)
+        } else {
+            config.visualizer.recording.clone()
+        };
+        Ok(Some(match r {
+            Recording::Rrd(p) if p.is_relative() => Recording::Rrd(
+                std::env::current_dir()
+                    .context("the current directory")?
+                    .join(p),
+            ),
+            other => other,
+        }))
+    }
+}
+
+/// The run's Rerun recording.
+#[derive(Debug, Serialize, Default)]
+pub struct RecordingSummary {
+    /// The `.rrd` file (or `spawned viewer`, or the viewer's URL).
+    pub target: String,
+    /// The recording id.
+    pub id: String,
+    /// Frames the visualizer recorded (plan steps, scene and time-series frames).
+    pub frames: u64,
+    /// Frames it dropped because the recording lagged.
+    pub dropped: u64,
+}
 
 /// The Zenoh bridge's node name (started after the loop's nodes when `zenoh.enabled`).
 pub const BRIDGE: &str = "bridge";
@@ -146,6 +202,8 @@ pub struct RunSummary {
     pub memory_kib: std::collections::BTreeMap<String, Memory>,
     /// Per node: heap allocations in the steady state (from its health reports).
     pub allocations: std::collections::BTreeMap<String, Allocations>,
+    /// The Rerun recording (absent without the visualizer).
+    pub recording: Option<RecordingSummary>,
 }
 
 /// Latency percentiles of the tracking commands: from the plant's joint measurement to the
@@ -343,8 +401,9 @@ fn node_program(name: &str) -> Result<PathBuf> {
 }
 
 /// Runs the verb; returns the exit code.
-pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8> {
+pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
     let config = Config::load(path)?;
+    let recording = viewer.recording(&config)?;
     if !matches!(config.object, icrflow_scenario::ObjectSpec::Sphere { .. }) {
         bail!(
             "object.shape: the pipeline's plant and estimator model a sphere for now; `plan` handles {}",
@@ -366,6 +425,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             args: vec!["--config".into(), config_path.display().to_string()],
             policy: RestartPolicy::default(),
             essential: true,
+            env: Vec::new(),
         });
     }
     if config.zenoh.enabled {
@@ -378,6 +438,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             args: vec!["--config".into(), config_path.display().to_string()],
             policy: RestartPolicy::default(),
             essential: config.pipeline.split(),
+            env: Vec::new(),
         });
     }
     if config.pipeline.split() {
@@ -388,6 +449,36 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             links.export,
             links.import
         );
+    }
+    let recording_id = format!(
+        "icrflow-{}-{}-{}",
+        config.pipeline.rig,
+        std::process::id(),
+        icrflow_interfaces::now_ns() / 1_000_000
+    );
+    if let Some(r) = &recording {
+        if let Recording::Rrd(p) = r {
+            // This run's output: an older file of that name is replaced (the visualizer
+            // writes beside it only when it restarts).
+            if p.is_file() {
+                std::fs::remove_file(p).with_context(|| format!("replacing {}", p.display()))?;
+            }
+        }
+        // It never holds the run: it may fail for good without failing it.
+        specs.push(NodeSpec {
+            name: VISUALIZER.into(),
+            program: node_program(VISUALIZER)?,
+            args: vec!["--config".into(), config_path.display().to_string()],
+            policy: RestartPolicy::default(),
+            essential: false,
+            env: vec![
+                (icrflow_scenario::ENV_RECORDING.into(), r.to_env()),
+                (
+                    icrflow_scenario::ENV_RECORDING_ID.into(),
+                    recording_id.clone(),
+                ),
+            ],
+        });
     }
     let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
     let pid = std::process::id();
@@ -420,6 +511,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         // Read on the run's tick: the nodes' allocation counts.
         let healths = bus.subscriber::<NodeHealth>(topics::NODE_HEALTH)?;
         let mut tracks = std::collections::BTreeMap::<String, AllocationTrack>::new();
+        // The visualizer's frames recorded and dropped, per process (a restart counts anew).
+        let mut frames = std::collections::BTreeMap::<u32, (u64, u64)>::new();
         for e in supervisor.start()? {
             report(&e);
         }
@@ -518,7 +611,11 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                     }
                     let now = Instant::now();
                     healths.drain(|h| {
-                        tracks.entry(read_text(&h.node)).or_default().report(
+                        let node = read_text(&h.node);
+                        if node == VISUALIZER {
+                            frames.insert(h.pid, (h.processed, h.refused));
+                        }
+                        tracks.entry(node).or_default().report(
                             h.pid,
                             h.allocations,
                             h.processed,
@@ -587,10 +684,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
                 other => format!("{other:?}"),
             };
         }
-        let killed = supervisor.shutdown(Duration::from_secs(2));
+        // The grace period lets the visualizer write the end of its recording.
+        let killed = supervisor.shutdown(Duration::from_secs(5));
         if !killed.is_empty() {
             eprintln!("run: killed after the grace period: {killed:?}");
         }
+        // The visualizer's last report, as it stopped.
+        healths.drain(|h| {
+            if read_text(&h.node) == VISUALIZER {
+                frames.insert(h.pid, (h.processed, h.refused));
+            }
+        })?;
         if let Some(e) = failure {
             return Err(e);
         }
@@ -613,6 +717,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
             },
             memory,
             allocations: tracks.iter().map(|(n, t)| (n.clone(), t.total())).collect(),
+            frames: frames
+                .values()
+                .fold((0, 0), |(a, b), (p, r)| (a + p, b + r)),
         }
     };
     remove_run_files(&bus_config);
@@ -643,6 +750,16 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         plan_steps: stats.plan_steps,
         memory_kib: stats.memory,
         allocations: stats.allocations,
+        recording: recording.as_ref().map(|r| RecordingSummary {
+            target: match r {
+                Recording::Rrd(p) => p.display().to_string(),
+                Recording::Spawn => "spawned viewer".into(),
+                Recording::Connect(url) => url.clone(),
+            },
+            id: recording_id.clone(),
+            frames: stats.frames.0,
+            dropped: stats.frames.1,
+        }),
     };
     let mut o = std::io::stdout().lock();
     writeln!(
@@ -716,6 +833,31 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
         WARM_UP.as_secs(),
         allocs.join(", ")
     )?;
+    if let Some(r) = &summary.recording {
+        let open = match &recording {
+            Some(Recording::Rrd(p)) => {
+                let mut files = vec![p.clone()];
+                let stem = p.with_extension("");
+                files.extend(
+                    (2..)
+                        .map(|n| stem.with_extension(format!("{n}.rrd")))
+                        .take_while(|f| f.is_file()),
+                );
+                let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+                format!(
+                    "saved to {} (open it: rerun {})",
+                    names.join(", "),
+                    names.join(" ")
+                )
+            }
+            _ => format!("streamed to the {}", r.target),
+        };
+        writeln!(
+            o,
+            "recording  {open}; {} frames, {} dropped",
+            r.frames, r.dropped
+        )?;
+    }
     if let Some(p) = summary_json {
         let text = serde_json::to_string_pretty(&summary)?;
         std::fs::write(&p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
@@ -731,6 +873,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>) -> Result<u8>
 
 /// What the run saw.
 struct Stats {
+    /// The visualizer's frames recorded and dropped.
+    frames: (u64, u64),
     done: bool,
     reason: String,
     rotation: f64,

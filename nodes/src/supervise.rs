@@ -52,6 +52,8 @@ pub struct NodeSpec {
     /// Whether the run depends on it: a node that is not (the Zenoh bridge: monitoring) may
     /// fail for good without failing the run ([`Supervisor::failed`]).
     pub essential: bool,
+    /// Environment variables it gets besides the bus's.
+    pub env: Vec<(String, String)>,
 }
 
 /// Something the supervisor did or saw.
@@ -168,6 +170,7 @@ impl Supervisor {
         let mut cmd = Command::new(&spec.program);
         cmd.args(&spec.args)
             .envs(self.bus.env())
+            .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null());
         if self.quiet {
             cmd.stdout(Stdio::null()).stderr(Stdio::null());

@@ -14,7 +14,9 @@ use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::planner::Settings;
 use icrflow_plan::urdf::UrdfFinger;
 
-use crate::raw::{self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan, RawZenoh};
+use crate::raw::{
+    self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan, RawVisualizer, RawZenoh,
+};
 
 /// Default number of friction-cone edges.
 pub const DEFAULT_CONE_EDGES: usize = 8;
@@ -251,6 +253,126 @@ pub struct Config {
     pub pipeline: PipelineSpec,
     /// The Zenoh bridge.
     pub zenoh: ZenohSpec,
+    /// The Rerun visualizer.
+    pub visualizer: VisualizerSpec,
+}
+
+/// Where the visualizer's recording goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Recording {
+    /// Saved to an `.rrd` file (relative paths: to the directory `run` is started in).
+    Rrd(PathBuf),
+    /// Streamed to a Rerun viewer the visualizer spawns (`rerun` on the PATH).
+    Spawn,
+    /// Streamed to a running viewer at this URL (`rerun+http://HOST:PORT/proxy`).
+    Connect(String),
+}
+
+/// The validated `[visualizer]` section: the Rerun recording of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisualizerSpec {
+    /// Whether `icrflow run` starts the visualizer node.
+    pub enabled: bool,
+    /// Where the recording goes.
+    pub recording: Recording,
+    /// Frames per second of the 3D scene and the time series (plan steps are logged each).
+    pub rate_hz: Real,
+    /// Frames waiting for the recording at most; beyond, frames are dropped and counted.
+    pub queue: usize,
+}
+
+/// Environment variable handing the recording target to the visualizer node
+/// ([`Recording::to_env`]).
+pub const ENV_RECORDING: &str = "ICRFLOW_RECORDING";
+/// Environment variable carrying the run's recording id to the visualizer node.
+pub const ENV_RECORDING_ID: &str = "ICRFLOW_RECORDING_ID";
+
+impl Recording {
+    /// The value of [`ENV_RECORDING`]: `rrd:PATH`, `spawn` or `connect:URL`.
+    pub fn to_env(&self) -> String {
+        match self {
+            Self::Rrd(p) => format!("rrd:{}", p.display()),
+            Self::Spawn => "spawn".into(),
+            Self::Connect(url) => format!("connect:{url}"),
+        }
+    }
+
+    /// Reads a value of [`ENV_RECORDING`].
+    pub fn from_env(value: &str) -> Result<Self> {
+        if let Some(p) = value.strip_prefix("rrd:") {
+            Ok(Self::Rrd(p.into()))
+        } else if let Some(url) = value.strip_prefix("connect:") {
+            viewer_url(url)?;
+            Ok(Self::Connect(url.into()))
+        } else if value == "spawn" {
+            Ok(Self::Spawn)
+        } else {
+            bail!("{ENV_RECORDING}={value:?}: expected rrd:PATH, spawn or connect:URL")
+        }
+    }
+}
+
+/// The default recording file of a config: `out/<config file stem>.rrd`.
+pub fn default_rrd(config: &Path) -> PathBuf {
+    let stem = config
+        .file_stem()
+        .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
+    PathBuf::from("out").join(format!("{stem}.rrd"))
+}
+
+/// The viewer URL `rerun` listens on by default.
+pub const DEFAULT_VIEWER_URL: &str = "rerun+http://127.0.0.1:9876/proxy";
+
+fn visualizer_spec(raw: RawVisualizer, path: &Path) -> Result<VisualizerSpec> {
+    let mode = raw.mode.unwrap_or_else(|| "rrd".into());
+    let recording = match mode.as_str() {
+        "rrd" => Recording::Rrd(raw.rrd.unwrap_or_else(|| default_rrd(path))),
+        "spawn" => Recording::Spawn,
+        "connect" => {
+            let url = raw.url.unwrap_or_else(|| DEFAULT_VIEWER_URL.into());
+            viewer_url(&url).context("visualizer.url")?;
+            Recording::Connect(url)
+        }
+        other => bail!("visualizer.mode: one of \"rrd\", \"spawn\", \"connect\", got {other:?}"),
+    };
+    let rate_hz = positive("visualizer.rate_hz", raw.rate_hz.unwrap_or(30.0))?;
+    if rate_hz > 1000.0 {
+        bail!("visualizer.rate_hz: at most 1000 (the loop's rate), got {rate_hz}");
+    }
+    let queue = raw.queue.unwrap_or(256);
+    if queue == 0 {
+        bail!("visualizer.queue: must be >= 1, got 0");
+    }
+    Ok(VisualizerSpec {
+        enabled: raw.enabled.unwrap_or(true),
+        recording,
+        rate_hz,
+        queue,
+    })
+}
+
+/// The host and port of a viewer URL `rerun+http://HOST:PORT/proxy` (or `http://`).
+pub fn viewer_url(url: &str) -> Result<(String, u16)> {
+    let rest = url
+        .strip_prefix("rerun+http://")
+        .or_else(|| url.strip_prefix("http://"))
+        .with_context(|| format!("{url:?}: expected rerun+http://HOST:PORT/proxy"))?;
+    let authority = rest.split('/').next().unwrap_or_default();
+    let (host, port) = authority
+        .rsplit_once(':')
+        .with_context(|| format!("{url:?}: no port (rerun+http://HOST:PORT/proxy)"))?;
+    let port: u16 = port
+        .parse()
+        .with_context(|| format!("{url:?}: port {port:?} is not a number"))?;
+    if host.is_empty() {
+        bail!("{url:?}: no host");
+    }
+    Ok((
+        host.trim_start_matches('[')
+            .trim_end_matches(']')
+            .to_string(),
+        port,
+    ))
 }
 
 /// The validated `[zenoh]` section: the bridge between the run's local bus and Zenoh.
@@ -356,6 +478,7 @@ impl Config {
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         let zenoh = zenoh_spec(raw.zenoh.unwrap_or_default(), base)?;
+        let visualizer = visualizer_spec(raw.visualizer.unwrap_or_default(), path)?;
         if pipeline.split() {
             if !zenoh.enabled {
                 bail!(
@@ -376,6 +499,7 @@ impl Config {
             plan,
             pipeline,
             zenoh,
+            visualizer,
         })
     }
 }

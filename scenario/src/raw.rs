@@ -14,6 +14,19 @@ pub struct RawConfig {
     pub plan: Option<RawPlan>,
     pub pipeline: Option<RawPipeline>,
     pub zenoh: Option<RawZenoh>,
+    pub visualizer: Option<RawVisualizer>,
+}
+
+/// `[visualizer]`: the Rerun recording of a run.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RawVisualizer {
+    pub enabled: Option<bool>,
+    pub mode: Option<String>,
+    pub rrd: Option<PathBuf>,
+    pub url: Option<String>,
+    pub rate_hz: Option<f64>,
+    pub queue: Option<usize>,
 }
 
 /// `[zenoh]`: the bridge between the local bus and Zenoh.

@@ -1,0 +1,197 @@
+//! The Rerun visualizer (issue #6), end to end: a real `icrflow run` of the paper scenario
+//! records to an `.rrd`, which the Python Rerun SDK of the same version reads back
+//! (tests/read_rrd.py) and the `rerun` viewer of the same version renders headless.
+
+mod common;
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use common::{python, root, scratch};
+
+/// One pipeline at a time.
+static PIPELINE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The entity paths the recording documents (visualizer/README.md), for the paper's hand
+/// (fingers 1 to 4; finger 3 starts free).
+const ENTITIES: [&str; 19] = [
+    "/scene",
+    "/scene/object",
+    "/scene/object/mesh",
+    "/scene/object/icr/finger_1",
+    "/scene/object/rendezvous",
+    "/scene/contacts",
+    "/scene/cones",
+    "/scene/fingers/finger_1/links",
+    "/scene/fingers/finger_3/tip",
+    "/scene/rotation_axis",
+    "/wrench_space/gws",
+    "/wrench_space/ows_alpha",
+    "/wrench_space/primitive_wrenches",
+    "/wrench_space/icr_wrenches",
+    "/timeseries/angles/object",
+    "/timeseries/angles/finger_2",
+    "/timeseries/quality/alpha_star",
+    "/timeseries/phase",
+    "/timeseries/latency_us/end_to_end",
+];
+
+/// The paper scenario without the Zenoh bridge (it is not what is tested), as `dir/name.toml`.
+fn config(dir: &Path, name: &str) -> PathBuf {
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, format!("{good}\n[zenoh]\nenabled = false\n")).unwrap();
+    path
+}
+
+/// `icrflow run CONFIG --summary-json` with `args`: its exit success, stderr and summary.
+fn run(config: &Path, args: &[&str]) -> (bool, String, serde_json::Value) {
+    let summary = config.with_extension("json");
+    let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap(), "--summary-json"])
+        .arg(&summary)
+        .args(args)
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let err =
+        String::from_utf8_lossy(&out.stderr).into_owned() + &String::from_utf8_lossy(&out.stdout);
+    let s = serde_json::from_slice(&std::fs::read(&summary).unwrap_or_default())
+        .unwrap_or(serde_json::Value::Null);
+    (out.status.success(), err, s)
+}
+
+/// The `rerun` viewer/CLI of the test venv (beside its Python).
+fn rerun() -> PathBuf {
+    Path::new(&python()).with_file_name("rerun")
+}
+
+#[test]
+fn a_run_records_what_its_summary_says_and_the_viewer_renders_it() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("visualizer");
+    let rrd = dir.join("paper.rrd");
+    let (ok, err, s) = run(&config(&dir, "paper"), &["--rrd", rrd.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert_eq!(s["completed"], true, "{s}");
+    let rec = &s["recording"];
+    assert_eq!(rec["target"], rrd.display().to_string(), "{s}");
+    assert!(rec["frames"].as_u64().unwrap() > 100, "{s}");
+    assert!(
+        err.contains(&format!("saved to {}", rrd.display())),
+        "the path is printed at the end: {err}"
+    );
+
+    // Read back by the Rerun SDK of the same version.
+    let out = Command::new(python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let entities: Vec<&str> = r["entities"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_str().unwrap())
+        .collect();
+    for e in ENTITIES {
+        assert!(entities.contains(&e), "{e} missing: {entities:?}");
+    }
+    assert_eq!(r["recording_ids"], serde_json::json!([rec["id"]]), "{r}");
+    // One row per plan step taken up, numbered as the plan's steps: as many as the summary's.
+    let steps: Vec<u64> = r["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as u64)
+        .collect();
+    let summary_steps = s["steps"].as_u64().unwrap();
+    assert!(summary_steps > 50, "{s}");
+    assert_eq!(
+        steps.iter().filter(|&&k| k > 0).count() as u64,
+        summary_steps,
+        "{steps:?}"
+    );
+    assert_eq!(steps.iter().max().copied(), Some(summary_steps));
+    assert!(
+        steps.windows(2).all(|w| w[0] < w[1]),
+        "each once: {steps:?}"
+    );
+    // The quality logged is the quality the hand commands tracked with.
+    let logged = r["quality_min"].as_f64().unwrap();
+    let min_quality = s["min_quality"].as_f64().unwrap();
+    assert!(
+        (logged - min_quality).abs() <= 1e-12,
+        "{logged} vs {min_quality}"
+    );
+    assert_eq!(r["alpha"], serde_json::json!([s["alpha"]]));
+
+    // The viewer renders it headless (software Vulkan), and the picture is not blank.
+    let shot = dir.join("shot.png");
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let viewer = Command::new(rerun())
+        .args(["--headless", "--bind", "127.0.0.1", "--port"])
+        .arg(port.to_string())
+        .args(["--window-size", "1280x720", "--screenshot-to"])
+        .arg(&shot)
+        .arg(&rrd)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap();
+    assert!(
+        viewer.status.success(),
+        "rerun: {}",
+        String::from_utf8_lossy(&viewer.stderr)
+    );
+    let out = Command::new(python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg("--png")
+        .arg(&shot)
+        .output()
+        .unwrap();
+    let png: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(png["colours"].as_u64().unwrap() > 100, "{png}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_viewer_that_does_not_read_costs_dropped_frames_not_the_loop() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("visualizer-lag");
+    // A "viewer" that accepts the connection and never reads: Rerun's client blocks once its
+    // queues are full.
+    let stuck = TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!(
+        "rerun+http://127.0.0.1:{}/proxy",
+        stuck.local_addr().unwrap().port()
+    );
+    let accepting = std::thread::spawn(move || {
+        let mut held = Vec::new();
+        for conn in stuck.incoming().take(8).flatten() {
+            held.push(conn);
+        }
+        held
+    });
+    let (ok, err, s) = run(&config(&dir, "lag"), &["--connect-viewer", &url]);
+    assert!(ok, "{err}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["stale_tracked"], 0, "{s}");
+    let rec = &s["recording"];
+    assert_eq!(rec["target"], url, "{s}");
+    assert!(rec["dropped"].as_u64().unwrap() > 0, "{s}");
+    drop(accepting);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,353 @@
+//! The Rerun visualizer node (`icrflow-visualizer`): one Rerun recording per run, showing what
+//! the paper's figures show, live: the hand and the object with each finger's ICR painted on
+//! it (Fig. 10), the wrench space in `(f_x, f_y, tau_z / rho)` (Fig. 9), and the angles,
+//! quality and phase over time (Fig. 11), plus the pipeline's latency.
+//!
+//! It is off the control loop: it reads its subscribers on its own tick (`visualizer.rate_hz`,
+//! no node on the loop wakes it), builds a frame from the newest state, and hands it to the
+//! recording thread ([`record`]) through a bounded queue (`visualizer.queue`): when the
+//! recording lags (a slow viewer; Rerun's SDK blocks when its queues are full), frames are
+//! dropped and counted (its health's `refused`, and `/timeseries/dropped_frames`), never
+//! queued without bound. Rerun lives in this crate only.
+//!
+//! Where the recording goes comes from `icrflow run` in the environment
+//! ([`icrflow_scenario::ENV_RECORDING`], [`icrflow_scenario::ENV_RECORDING_ID`]): an `.rrd`
+//! file (the default), a viewer it spawns, or a viewer at a URL.
+
+pub mod geometry;
+pub mod record;
+
+/// The Rerun SDK, as this crate uses it.
+pub use rerun;
+
+use std::sync::mpsc::{TrySendError, sync_channel};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, anyhow, bail};
+use iceoryx2::prelude::*;
+use icrflow_grasp::math::Vec3;
+use icrflow_interfaces::{
+    CommandMode, GraspState, HandCommand, JointState, PlanStepHeader, TRACE_STAMPS, topics,
+};
+use icrflow_nodes::runtime::{Context, Health};
+use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording};
+
+use geometry::{P3, p3};
+use record::{FingerView, Frame, Statics};
+
+fn recording_from_env() -> Result<(Recording, String)> {
+    let target = std::env::var(ENV_RECORDING).map_err(|_| {
+        anyhow!("{ENV_RECORDING} is not set: the visualizer is started by `icrflow run`")
+    })?;
+    let id = std::env::var(ENV_RECORDING_ID).unwrap_or_else(|_| "icrflow".into());
+    Ok((Recording::from_env(&target)?, id))
+}
+
+/// A restarted visualizer must not overwrite what its predecessor wrote: it records into the
+/// first free `STEM.N.rrd` beside the file (same recording id, so the viewer shows them as one:
+/// `rerun STEM.rrd STEM.2.rrd`).
+fn fresh(recording: Recording) -> Recording {
+    let Recording::Rrd(path) = recording else {
+        return recording;
+    };
+    if !path.exists() {
+        return Recording::Rrd(path);
+    }
+    let stem = path.with_extension("");
+    (2..)
+        .map(|n| stem.with_extension(format!("{n}.rrd")))
+        .find(|p| !p.exists())
+        .map_or(Recording::Rrd(path), Recording::Rrd)
+}
+
+/// The latest of everything the frames are built from.
+#[derive(Default)]
+struct State {
+    grasp: Option<GraspState>,
+    joints: Option<JointState>,
+    quality: Option<f64>,
+    latency: Option<[f64; 7]>,
+    step: Option<u64>,
+}
+
+/// Runs the visualizer node.
+pub fn run(ctx: &Context) -> Result<()> {
+    let (recording, id) = recording_from_env()?;
+    let recording = fresh(recording);
+    let spec = &ctx.config.visualizer;
+    let setup = &ctx.setup;
+    let problem = &setup.problem;
+    let alpha = ctx.config.grasp.alpha;
+    let com = setup.object.centre_of_mass;
+    let statics = Statics {
+        recording_id: id.clone(),
+        object: geometry::object_mesh(&setup.object),
+        ows: geometry::hull_mesh(&geometry::scaled_ows(problem, alpha)),
+        alpha,
+        axis: (p3(&com), [0.0, 0.0, 1.5 * setup.object.max_radius() as f32]),
+    };
+    // The recording thread: it owns the stream, so only it can block on a lagging viewer.
+    let (tx, rx) = sync_channel::<Frame>(spec.queue);
+    let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);
+    let target = recording.clone();
+    let recorder = std::thread::Builder::new()
+        .name("recording".into())
+        .spawn(move || -> Result<u64> {
+            let rec = match record::open(&target, &statics.recording_id)
+                .and_then(|rec| record::statics(&rec, &statics).map(|()| rec))
+            {
+                Ok(rec) => {
+                    let _ = opened_tx.send(Ok(()));
+                    rec
+                }
+                Err(e) => {
+                    let _ = opened_tx.send(Err(anyhow!("{e:#}")));
+                    return Ok(0);
+                }
+            };
+            let logged = record::log_frames(&rec, statics.alpha, rx)?;
+            rec.flush_with_timeout(Duration::from_secs(4))
+                .map_err(|e| anyhow!("flushing the recording: {e}"))?;
+            Ok(logged)
+        })
+        .context("starting the recording thread")?;
+    opened_rx
+        .recv()
+        .map_err(|_| anyhow!("the recording thread ended while opening"))??;
+    match &recording {
+        Recording::Rrd(p) => eprintln!("icrflow-visualizer: recording to {}", p.display()),
+        Recording::Spawn => eprintln!("icrflow-visualizer: recording to a spawned Rerun viewer"),
+        Recording::Connect(url) => {
+            eprintln!("icrflow-visualizer: recording to the viewer at {url}")
+        }
+    }
+
+    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
+    let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
+    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+    let plans = ctx
+        .bus
+        .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
+    let mut health = Health::new(ctx)?;
+    let mut state = State::default();
+    let mut dropped = 0u64;
+    let started = Instant::now();
+    let period = Duration::from_secs_f64(1.0 / spec.rate_hz);
+    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
+    let _tick = ws.attach_interval(period)?;
+    let mut failure = None;
+    // Hands a frame to the recording thread, or drops and counts it; false when that thread
+    // has ended.
+    let send = |frame: Frame, health: &mut Health, dropped: &mut u64| match tx.try_send(frame) {
+        Ok(()) => {
+            health.processed += 1;
+            true
+        }
+        Err(TrySendError::Full(_)) => {
+            *dropped += 1;
+            health.refuse("the recording lags: frame dropped");
+            true
+        }
+        Err(TrySendError::Disconnected(_)) => false,
+    };
+    ws.wait_and_process(|_| {
+        let mut step = || -> Result<()> {
+            let t = started.elapsed().as_secs_f64();
+            if let Some(g) = grasps.latest()? {
+                state.grasp = Some(g);
+            }
+            if let Some(j) = joints.latest()? {
+                state.joints = Some(j);
+            }
+            commands.drain(|c| {
+                if c.mode != CommandMode::Track as u32 {
+                    return;
+                }
+                state.quality = Some(state.quality.map_or(c.quality, |q| q.min(c.quality)));
+                let s = c.header.trace.as_slice();
+                if s.len() == TRACE_STAMPS {
+                    let us = |a: u64, b: u64| b.saturating_sub(a) as f64 * 1e-3;
+                    let l = [
+                        us(s[0], s[6]),
+                        us(s[0], s[1]),
+                        us(s[2], s[3]),
+                        us(s[4], s[5]),
+                        us(s[1], s[2]),
+                        us(s[3], s[4]),
+                        us(s[5], s[6]),
+                    ];
+                    let m = state.latency.get_or_insert(l);
+                    for (a, b) in m.iter_mut().zip(l) {
+                        *a = a.max(b);
+                    }
+                }
+            })?;
+            let mut steps = Vec::new();
+            plans.drain(|h, regions| {
+                if state.step.is_none_or(|s| h.step > s) {
+                    state.step = Some(h.step);
+                    steps.push(step_frame(t, h, regions, problem));
+                }
+            })?;
+            for f in steps {
+                if !send(f, &mut health, &mut dropped) {
+                    bail!("the recording thread ended");
+                }
+            }
+            if let Some(g) = &state.grasp {
+                let frame = tick_frame(
+                    t,
+                    g,
+                    state.joints.as_ref(),
+                    ctx,
+                    &com,
+                    &mut state.quality,
+                    &mut state.latency,
+                    dropped,
+                );
+                if !send(frame, &mut health, &mut dropped) {
+                    bail!("the recording thread ended");
+                }
+            }
+            health.tick()?;
+            Ok(())
+        };
+        match step() {
+            Ok(()) => CallbackProgression::Continue,
+            Err(e) => {
+                failure = Some(e);
+                CallbackProgression::Stop
+            }
+        }
+    })?;
+    // Stopped: the rest of the queue is written, and the file closed.
+    drop(tx);
+    let logged = recorder
+        .join()
+        .map_err(|_| anyhow!("the recording thread panicked"))??;
+    health.report(icrflow_interfaces::NodeState::Stopping)?;
+    eprintln!("icrflow-visualizer: {logged} frames recorded, {dropped} dropped");
+    failure.map_or(Ok(()), Err)
+}
+
+/// A plan step's frame: its ICRs, and the wrench space of its contacts.
+fn step_frame(
+    t: f64,
+    h: &PlanStepHeader,
+    regions: &[u32],
+    problem: &icrflow_grasp::quality::GraspProblem,
+) -> Frame {
+    let candidates = problem.candidates();
+    let count = candidates.points.len();
+    let mut icrs = Vec::new();
+    let mut contacts = Vec::new();
+    let mut candidate_wrenches = Vec::new();
+    let mut at = 0usize;
+    for (slot, target) in h.targets.iter().enumerate().take(h.finger_count as usize) {
+        let len = h.region_lengths[slot] as usize;
+        let region = regions.get(at..at + len).unwrap_or(&[]);
+        at += len;
+        let points: Vec<P3> = region
+            .iter()
+            .filter(|&&i| (i as usize) < count)
+            .map(|&i| p3(&candidates.points[i as usize]))
+            .collect();
+        let in_contact = target.in_contact != 0;
+        if in_contact && (target.candidate as usize) < count {
+            contacts.push(target.candidate as usize);
+            for &i in region.iter().filter(|&&i| (i as usize) < count) {
+                candidate_wrenches.extend(geometry::candidate_wrenches(problem, i as usize));
+            }
+        }
+        icrs.push((target.finger, in_contact, points));
+    }
+    let primitive: Vec<P3> = contacts
+        .iter()
+        .flat_map(|&c| geometry::candidate_wrenches(problem, c))
+        .collect();
+    Frame::Step {
+        t,
+        step: h.step,
+        phase: h.phase,
+        icrs,
+        gws: geometry::hull_mesh(&primitive),
+        primitive,
+        candidates: candidate_wrenches,
+    }
+}
+
+/// A scene and time-series frame from the newest grasp state and joint readings; takes the
+/// quality and latency gathered since the last one.
+#[allow(clippy::too_many_arguments)]
+fn tick_frame(
+    t: f64,
+    g: &GraspState,
+    joints: Option<&JointState>,
+    ctx: &Context,
+    com: &Vec3,
+    quality: &mut Option<f64>,
+    latency: &mut Option<[f64; 7]>,
+    dropped: u64,
+) -> Frame {
+    let (translation, rotation) = geometry::pose(g.position, g.orientation, com);
+    let centre = Vec3::from(g.position);
+    let model = &ctx.config.grasp.model;
+    let space = ctx.config.grasp.space;
+    let mut contacts = Vec::new();
+    let mut cones = Vec::new();
+    for c in g.fingers.iter().take(g.finger_count as usize) {
+        if c.in_contact == 0 {
+            continue;
+        }
+        let p = translation + rotation * Vec3::from(c.point);
+        let n = rotation * Vec3::from(c.normal);
+        if !(p.iter().all(|x| x.is_finite()) && n.norm() > 0.0) {
+            continue;
+        }
+        contacts.push(p3(&p));
+        cones.extend(geometry::cone_edges(
+            &p,
+            &n,
+            model.mu(),
+            model.edges(),
+            space,
+            0.02,
+        ));
+    }
+    let mut fingers = Vec::new();
+    if let Some(j) = joints {
+        for slot in 0..(j.finger_count as usize).min(j.finger_ids.len()) {
+            let Some(finger) = ctx.setup.hand.finger(j.finger_ids[slot]) else {
+                continue;
+            };
+            let q = &j.positions[slot][..finger.dof().min(j.positions[slot].len())];
+            if q.len() != finger.dof() || q.iter().any(|x| !x.is_finite()) {
+                continue;
+            }
+            let pose = finger.fk(q);
+            let mut links: Vec<P3> = pose.joints.iter().map(p3).collect();
+            links.push(p3(&pose.tip_centre));
+            fingers.push(FingerView {
+                finger: finger.id,
+                links,
+                tip: (p3(&pose.tip_centre), finger.tip_radius as f32),
+                angle_deg: geometry::angle_deg(&pose.tip_centre, &centre),
+            });
+        }
+    }
+    let q = rotation.quaternion();
+    Frame::Tick {
+        t,
+        pose: (
+            p3(&translation),
+            [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
+        ),
+        object_deg: g.rotation.to_degrees(),
+        contacts,
+        cones,
+        fingers,
+        quality: quality.take(),
+        latency: latency.take(),
+        dropped,
+    }
+}
