@@ -22,6 +22,8 @@ const HOLD_REPORT: Duration = Duration::from_secs(1);
 
 /// The visualizer's node name (started last when the visualizer is on).
 pub const VISUALIZER: &str = "visualizer";
+/// coreutils' `nice`, which starts the visualizer at a lower CPU priority.
+const NICE: &str = "/usr/bin/nice";
 
 /// Where `run`'s flags send the Rerun recording (over `[visualizer]` of the config).
 #[derive(Debug, Default)]
@@ -465,10 +467,23 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             }
         }
         // It never holds the run: it may fail for good without failing it.
+        // At a lower CPU priority (nice 10, through coreutils' `nice`, which execs it under
+        // the same pid): on a busy machine the loop's nodes go first, the recording waits.
+        let program = node_program(VISUALIZER)?;
+        let nice = Path::new(NICE);
+        let (program, mut args) = if nice.is_file() {
+            (
+                nice.to_path_buf(),
+                vec!["-n".into(), "10".into(), program.display().to_string()],
+            )
+        } else {
+            (program, Vec::new())
+        };
+        args.extend(["--config".into(), config_path.display().to_string()]);
         specs.push(NodeSpec {
             name: VISUALIZER.into(),
-            program: node_program(VISUALIZER)?,
-            args: vec!["--config".into(), config_path.display().to_string()],
+            program,
+            args,
             policy: RestartPolicy::default(),
             essential: false,
             env: vec![

@@ -172,7 +172,7 @@ pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
     // thread, and the node drops frames, after at most this much memory.
     let batching = rerun::log::ChunkBatcherConfig {
         max_bytes_in_flight: MAX_BYTES_IN_FLIGHT,
-        ..rerun::log::ChunkBatcherConfig::LOW_LATENCY
+        ..rerun::log::ChunkBatcherConfig::DEFAULT
     };
     let builder = rerun::RecordingStreamBuilder::new("icrflow")
         .recording_id(id)
