@@ -267,8 +267,14 @@ fn assert_completed_together(robot: &serde_json::Value, workstation: &serde_json
             .cloned()
             .collect()
     };
-    assert_eq!(nodes(robot), ["bridge", "command", "estimator", "plant"]);
-    assert_eq!(nodes(workstation), ["bridge", "planner", "wrench"]);
+    assert_eq!(
+        nodes(robot),
+        ["bridge", "command", "estimator", "plant", "visualizer"]
+    );
+    assert_eq!(
+        nodes(workstation),
+        ["bridge", "planner", "visualizer", "wrench"]
+    );
 }
 
 #[test]

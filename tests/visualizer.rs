@@ -37,11 +37,16 @@ const ENTITIES: [&str; 19] = [
     "/timeseries/latency_us/end_to_end",
 ];
 
-/// The paper scenario without the Zenoh bridge (it is not what is tested), as `dir/name.toml`.
-fn config(dir: &Path, name: &str) -> PathBuf {
+/// The paper scenario without the Zenoh bridge (it is not what is tested), with `extra`
+/// appended, as `dir/name.toml`.
+fn config(dir: &Path, name: &str, extra: &str) -> PathBuf {
     let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
     let path = dir.join(format!("{name}.toml"));
-    std::fs::write(&path, format!("{good}\n[zenoh]\nenabled = false\n")).unwrap();
+    std::fs::write(
+        &path,
+        format!("{good}\n[zenoh]\nenabled = false\n{extra}\n"),
+    )
+    .unwrap();
     path
 }
 
@@ -74,7 +79,10 @@ fn a_run_records_what_its_summary_says_and_the_viewer_renders_it() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("visualizer");
     let rrd = dir.join("paper.rrd");
-    let (ok, err, s) = run(&config(&dir, "paper"), &["--rrd", rrd.to_str().unwrap()]);
+    let (ok, err, s) = run(
+        &config(&dir, "paper", ""),
+        &["--rrd", rrd.to_str().unwrap()],
+    );
     assert!(ok, "{err}");
     assert_eq!(s["completed"], true, "{s}");
     let rec = &s["recording"];
@@ -185,7 +193,11 @@ fn a_viewer_that_does_not_read_costs_dropped_frames_not_the_loop() {
         }
         held
     });
-    let (ok, err, s) = run(&config(&dir, "lag"), &["--connect-viewer", &url]);
+    // Frames at 100 Hz, so that Rerun's bounded buffers fill well within the run.
+    let (ok, err, s) = run(
+        &config(&dir, "lag", "[visualizer]\nrate_hz = 100"),
+        &["--connect-viewer", &url],
+    );
     assert!(ok, "{err}");
     assert_eq!(s["completed"], true, "{s}");
     assert_eq!(s["stale_tracked"], 0, "{s}");
@@ -193,5 +205,70 @@ fn a_viewer_that_does_not_read_costs_dropped_frames_not_the_loop() {
     assert_eq!(rec["target"], url, "{s}");
     assert!(rec["dropped"].as_u64().unwrap() > 0, "{s}");
     drop(accepting);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_streams_to_a_rerun_viewer_at_a_url() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("visualizer-connect");
+    // The `rerun` of the same version as a server on a loopback port, saving what it receives.
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let received = dir.join("received.rrd");
+    let mut viewer = Command::new(rerun())
+        .args(["--bind", "127.0.0.1", "--port"])
+        .arg(port.to_string())
+        .arg("--save")
+        .arg(&received)
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let url = format!("rerun+http://127.0.0.1:{port}/proxy");
+    let listening = (0..100).any(|_| {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
+    });
+    assert!(listening, "the rerun server did not listen on {port}");
+    let (ok, err, s) = run(&config(&dir, "connect", ""), &["--connect-viewer", &url]);
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let _ = viewer.kill();
+    let _ = viewer.wait();
+    assert!(ok, "{err}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["recording"]["target"], url, "{s}");
+    assert_eq!(s["recording"]["dropped"], 0, "{s}");
+    // What the viewer received is the run, as the summary says.
+    let out = Command::new(python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(&received)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        r["recording_ids"],
+        serde_json::json!([s["recording"]["id"]]),
+        "{r}"
+    );
+    let steps = r["steps"].as_array().unwrap();
+    assert_eq!(
+        steps.iter().filter(|v| v.as_f64().unwrap() > 0.0).count() as u64,
+        s["steps"].as_u64().unwrap()
+    );
+    let logged = r["quality_min"].as_f64().unwrap();
+    assert!(
+        (logged - s["min_quality"].as_f64().unwrap()).abs() <= 1e-12,
+        "{r}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

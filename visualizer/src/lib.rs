@@ -3,8 +3,8 @@
 //! it (Fig. 10), the wrench space in `(f_x, f_y, tau_z / rho)` (Fig. 9), and the angles,
 //! quality and phase over time (Fig. 11), plus the pipeline's latency.
 //!
-//! It is off the control loop: it reads its subscribers on its own tick (`visualizer.rate_hz`,
-//! no node on the loop wakes it), builds a frame from the newest state, and hands it to the
+//! It is off the control loop: it reads its subscribers on its own 10 ms timer (no node on the
+//! loop wakes it), builds a frame from the newest state at `visualizer.rate_hz`, and hands it to the
 //! recording thread ([`record`]) through a bounded queue (`visualizer.queue`): when the
 //! recording lags (a slow viewer; Rerun's SDK blocks when its queues are full), frames are
 //! dropped and counted (its health's `refused`, and `/timeseries/dropped_frames`), never
@@ -133,8 +133,12 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut dropped = 0u64;
     let started = Instant::now();
     let period = Duration::from_secs_f64(1.0 / spec.rate_hz);
+    let mut next_frame = started;
+    // The subscribers are read every RESYNC (10 ms), more often than frames are made, so that
+    // no hand command is lost to a full subscriber queue (32 at 1 kHz) between two frames:
+    // the quality series' minimum is the run's.
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _tick = ws.attach_interval(period)?;
+    let _tick = ws.attach_interval(period.min(icrflow_nodes::runtime::RESYNC))?;
     let mut failure = None;
     // Hands a frame to the recording thread, or drops and counts it; false when that thread
     // has ended.
@@ -194,7 +198,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                     bail!("the recording thread ended");
                 }
             }
-            if let Some(g) = &state.grasp {
+            let now = Instant::now();
+            if let Some(g) = state.grasp.as_ref().filter(|_| now >= next_frame) {
+                next_frame = (next_frame + period).max(now);
                 let frame = tick_frame(
                     t,
                     g,
@@ -220,7 +226,22 @@ pub fn run(ctx: &Context) -> Result<()> {
             }
         }
     })?;
-    // Stopped: the rest of the queue is written, and the file closed.
+    // Stopped: what came since the last frame goes in a last one; the rest of the queue is
+    // written, and the file closed.
+    if let Some(g) = state.grasp.as_ref().filter(|_| state.quality.is_some()) {
+        let t = started.elapsed().as_secs_f64();
+        let frame = tick_frame(
+            t,
+            g,
+            state.joints.as_ref(),
+            ctx,
+            &com,
+            &mut state.quality,
+            &mut state.latency,
+            dropped,
+        );
+        send(frame, &mut health, &mut dropped);
+    }
     drop(tx);
     let logged = recorder
         .join()

@@ -164,7 +164,7 @@ pub fn blueprint() -> Blueprint {
 }
 
 /// The most recorded data Rerun's SDK holds before it blocks (the recording's memory bound).
-pub const MAX_BYTES_IN_FLIGHT: u64 = 4 << 20;
+pub const MAX_BYTES_IN_FLIGHT: u64 = 1 << 20;
 
 /// Opens the recording.
 pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
