@@ -69,6 +69,53 @@ fn run(config: &Path, args: &[&str]) -> (bool, String, serde_json::Value) {
     (out.status.success(), err, s)
 }
 
+/// What the Python Rerun SDK reads in `rrd` (tests/read_rrd.py), checked against the run's
+/// summary `s`: the run's recording id, one `/plan/step` row per step (each once, as many as
+/// the summary's steps), and the minimum of the quality series equal to the summary's.
+fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
+    let out = Command::new(python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(rrd)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        r["recording_ids"],
+        serde_json::json!([s["recording"]["id"]]),
+        "{r}"
+    );
+    let steps: Vec<u64> = r["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as u64)
+        .collect();
+    let summary_steps = s["steps"].as_u64().unwrap();
+    assert!(summary_steps > 50, "{s}");
+    assert_eq!(
+        steps.iter().filter(|&&k| k > 0).count() as u64,
+        summary_steps,
+        "{steps:?}"
+    );
+    assert_eq!(steps.iter().max().copied(), Some(summary_steps));
+    assert!(
+        steps.windows(2).all(|w| w[0] < w[1]),
+        "each once: {steps:?}"
+    );
+    let logged = r["quality_min"].as_f64().unwrap();
+    let min_quality = s["min_quality"].as_f64().unwrap();
+    assert!(
+        (logged - min_quality).abs() <= 1e-12,
+        "{logged} vs {min_quality}"
+    );
+    r
+}
+
 /// The `rerun` viewer/CLI of the test venv (beside its Python).
 fn rerun() -> PathBuf {
     Path::new(&python()).with_file_name("rerun")
@@ -93,18 +140,9 @@ fn a_run_records_what_its_summary_says_and_the_viewer_renders_it() {
         "the path is printed at the end: {err}"
     );
 
-    // Read back by the Rerun SDK of the same version.
-    let out = Command::new(python())
-        .arg(root().join("tests/read_rrd.py"))
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Read back by the Rerun SDK of the same version: the run's id, one row per plan step
+    // (as many as the summary's steps), the quality the hand commands tracked with.
+    let r = read_back(&rrd, &s);
     let entities: Vec<&str> = r["entities"]
         .as_array()
         .unwrap()
@@ -114,33 +152,6 @@ fn a_run_records_what_its_summary_says_and_the_viewer_renders_it() {
     for e in ENTITIES {
         assert!(entities.contains(&e), "{e} missing: {entities:?}");
     }
-    assert_eq!(r["recording_ids"], serde_json::json!([rec["id"]]), "{r}");
-    // One row per plan step taken up, numbered as the plan's steps: as many as the summary's.
-    let steps: Vec<u64> = r["steps"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap() as u64)
-        .collect();
-    let summary_steps = s["steps"].as_u64().unwrap();
-    assert!(summary_steps > 50, "{s}");
-    assert_eq!(
-        steps.iter().filter(|&&k| k > 0).count() as u64,
-        summary_steps,
-        "{steps:?}"
-    );
-    assert_eq!(steps.iter().max().copied(), Some(summary_steps));
-    assert!(
-        steps.windows(2).all(|w| w[0] < w[1]),
-        "each once: {steps:?}"
-    );
-    // The quality logged is the quality the hand commands tracked with.
-    let logged = r["quality_min"].as_f64().unwrap();
-    let min_quality = s["min_quality"].as_f64().unwrap();
-    assert!(
-        (logged - min_quality).abs() <= 1e-12,
-        "{logged} vs {min_quality}"
-    );
     assert_eq!(r["alpha"], serde_json::json!([s["alpha"]]));
 
     // The viewer renders it headless (software Vulkan), and the picture is not blank.
@@ -244,31 +255,6 @@ fn a_run_streams_to_a_rerun_viewer_at_a_url() {
     assert_eq!(s["recording"]["target"], url, "{s}");
     assert_eq!(s["recording"]["dropped"], 0, "{s}");
     // What the viewer received is the run, as the summary says.
-    let out = Command::new(python())
-        .arg(root().join("tests/read_rrd.py"))
-        .arg(&received)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(
-        r["recording_ids"],
-        serde_json::json!([s["recording"]["id"]]),
-        "{r}"
-    );
-    let steps = r["steps"].as_array().unwrap();
-    assert_eq!(
-        steps.iter().filter(|v| v.as_f64().unwrap() > 0.0).count() as u64,
-        s["steps"].as_u64().unwrap()
-    );
-    let logged = r["quality_min"].as_f64().unwrap();
-    assert!(
-        (logged - s["min_quality"].as_f64().unwrap()).abs() <= 1e-12,
-        "{r}"
-    );
+    read_back(&received, &s);
     let _ = std::fs::remove_dir_all(&dir);
 }

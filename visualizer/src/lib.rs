@@ -70,6 +70,24 @@ struct State {
     step: Option<u64>,
 }
 
+impl State {
+    /// A scene and time-series frame from the newest state, taking the quality and latency
+    /// gathered since the last one; none before the first grasp state.
+    fn frame(&mut self, t: f64, ctx: &Context, com: &Vec3, dropped: u64) -> Option<Frame> {
+        let g = self.grasp.as_ref()?;
+        Some(tick_frame(
+            t,
+            g,
+            self.joints.as_ref(),
+            ctx,
+            com,
+            &mut self.quality,
+            &mut self.latency,
+            dropped,
+        ))
+    }
+}
+
 /// Runs the visualizer node.
 pub fn run(ctx: &Context) -> Result<()> {
     let (recording, id) = recording_from_env()?;
@@ -199,18 +217,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
             }
             let now = Instant::now();
-            if let Some(g) = state.grasp.as_ref().filter(|_| now >= next_frame) {
+            if now >= next_frame
+                && let Some(frame) = state.frame(t, ctx, &com, dropped)
+            {
                 next_frame = (next_frame + period).max(now);
-                let frame = tick_frame(
-                    t,
-                    g,
-                    state.joints.as_ref(),
-                    ctx,
-                    &com,
-                    &mut state.quality,
-                    &mut state.latency,
-                    dropped,
-                );
                 if !send(frame, &mut health, &mut dropped) {
                     bail!("the recording thread ended");
                 }
@@ -228,18 +238,9 @@ pub fn run(ctx: &Context) -> Result<()> {
     })?;
     // Stopped: what came since the last frame goes in a last one; the rest of the queue is
     // written, and the file closed.
-    if let Some(g) = state.grasp.as_ref().filter(|_| state.quality.is_some()) {
-        let t = started.elapsed().as_secs_f64();
-        let frame = tick_frame(
-            t,
-            g,
-            state.joints.as_ref(),
-            ctx,
-            &com,
-            &mut state.quality,
-            &mut state.latency,
-            dropped,
-        );
+    if state.quality.is_some()
+        && let Some(frame) = state.frame(started.elapsed().as_secs_f64(), ctx, &com, dropped)
+    {
         send(frame, &mut health, &mut dropped);
     }
     drop(tx);
