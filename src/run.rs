@@ -460,10 +460,11 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     );
     if let Some(r) = &recording {
         if let Recording::Rrd(p) = r {
-            // This run's output: an older file of that name is replaced (the visualizer
-            // writes beside it only when it restarts).
-            if p.is_file() {
-                std::fs::remove_file(p).with_context(|| format!("replacing {}", p.display()))?;
+            // This run's output: an older recording of that name is replaced, with the parts
+            // a restarted visualizer of that run wrote beside it.
+            for part in icrflow_scenario::rrd_parts(p) {
+                std::fs::remove_file(&part)
+                    .with_context(|| format!("replacing {}", part.display()))?;
             }
         }
         // It never holds the run: it may fail for good without failing it.
@@ -851,14 +852,10 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     if let Some(r) = &summary.recording {
         let open = match &recording {
             Some(Recording::Rrd(p)) => {
-                let mut files = vec![p.clone()];
-                let stem = p.with_extension("");
-                files.extend(
-                    (2..)
-                        .map(|n| stem.with_extension(format!("{n}.rrd")))
-                        .take_while(|f| f.is_file()),
-                );
-                let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+                let names: Vec<String> = icrflow_scenario::rrd_parts(p)
+                    .iter()
+                    .map(|f| f.display().to_string())
+                    .collect();
                 format!(
                     "saved to {} (open it: rerun {})",
                     names.join(", "),

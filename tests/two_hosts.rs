@@ -123,8 +123,9 @@ impl Hosts {
     }
 
     /// `icrflow run CONFIG --summary-json` in namespace `ns`, in a mount namespace of its own
-    /// with a private /dev/shm; its stderr piped. `env` is added to its environment.
-    fn run(&mut self, ns: &str, config: &Path, env: &[(&str, &str)]) -> (usize, PathBuf) {
+    /// with a private /dev/shm; its stderr piped. `env` is added to its environment. Returns
+    /// the path of its summary.
+    fn run(&mut self, ns: &str, config: &Path, env: &[(&str, &str)]) -> PathBuf {
         let summary = config.with_extension("json");
         let child = Command::new("ip")
             .args(["netns", "exec", ns, "unshare", "-m", "sh", "-c"])
@@ -139,7 +140,7 @@ impl Hosts {
             .spawn()
             .unwrap();
         self.children.push(child);
-        (self.children.len() - 1, summary)
+        summary
     }
 
     /// Waits for run `k`: its exit success and stderr.
@@ -208,6 +209,24 @@ fn configs(dir: &Path) -> (PathBuf, PathBuf) {
 
 /// The workstation's login (config/zenoh_users.example).
 const PASSWORD: (&str, &str) = ("ICRFLOW_ZENOH_PASSWORD", "change-me-too");
+
+/// Fresh namespaces with the robot's run started, then the workstation's (children 0 and 1),
+/// in a scratch directory named after `tag`; `None` when `test` is skipped here (said why).
+/// Returns the hosts, the directory, and the robot's and the workstation's summary paths.
+fn start_pair(test: &str, tag: &str) -> Option<(Hosts, PathBuf, PathBuf, PathBuf)> {
+    let mut hosts = match Hosts::create(tag) {
+        Ok(h) => h,
+        Err(why) => {
+            skip(test, &why);
+            return None;
+        }
+    };
+    let dir = scratch(&format!("two-hosts-{tag}"));
+    let (robot_config, ws_config) = configs(&dir);
+    let robot_summary = hosts.run(&hosts.robot.clone(), &robot_config, &[]);
+    let ws_summary = hosts.run(&hosts.workstation.clone(), &ws_config, &[PASSWORD]);
+    Some((hosts, dir, robot_summary, ws_summary))
+}
 
 fn summary(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap_or_default())
@@ -281,16 +300,10 @@ fn assert_completed_together(robot: &serde_json::Value, workstation: &serde_json
 fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_hosts() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let test = "the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_hosts";
-    let mut hosts = match Hosts::create("run") {
-        Ok(h) => h,
-        Err(why) => return skip(test, &why),
+    let Some((mut hosts, dir, robot_summary, ws_summary)) = start_pair(test, "run") else {
+        return;
     };
-    let dir = scratch("two-hosts");
-    let (robot_config, ws_config) = configs(&dir);
-    let (robot, robot_summary) = hosts.run(&hosts.robot.clone(), &robot_config, &[]);
-    let robot_pid = hosts.children[robot].id();
-    let (_, ws_summary) = hosts.run(&hosts.workstation.clone(), &ws_config, &[PASSWORD]);
-    let ws_pid = hosts.children[1].id();
+    let (robot_pid, ws_pid) = (hosts.children[0].id(), hosts.children[1].id());
     // While both run: their buses live in their private /dev/shm, none in this machine's.
     std::thread::sleep(Duration::from_secs(5));
     for pid in [robot_pid, ws_pid] {
@@ -327,7 +340,7 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    let (robot_ok, robot_err) = hosts.wait(robot);
+    let (robot_ok, robot_err) = hosts.wait(0);
     let (ws_ok, ws_err) = hosts.wait(0);
     assert!(robot_ok, "robot: {robot_err}");
     assert!(ws_ok, "workstation: {ws_err}");
@@ -363,20 +376,15 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
 fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let test = "cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes";
-    let mut hosts = match Hosts::create("cut") {
-        Ok(h) => h,
-        Err(why) => return skip(test, &why),
+    let Some((mut hosts, dir, robot_summary, ws_summary)) = start_pair(test, "cut") else {
+        return;
     };
-    let dir = scratch("two-hosts-cut");
-    let (robot_config, ws_config) = configs(&dir);
-    let (robot, robot_summary) = hosts.run(&hosts.robot.clone(), &robot_config, &[]);
-    let (_, ws_summary) = hosts.run(&hosts.workstation.clone(), &ws_config, &[PASSWORD]);
     // Mid-run (the pair takes ~15 s uncut), the link goes down for 4 s.
     std::thread::sleep(Duration::from_secs(6));
     hosts.link(false);
     std::thread::sleep(Duration::from_secs(4));
     hosts.link(true);
-    let (robot_ok, robot_err) = hosts.wait(robot);
+    let (robot_ok, robot_err) = hosts.wait(0);
     let (ws_ok, ws_err) = hosts.wait(0);
     assert!(robot_ok, "robot: {robot_err}");
     assert!(ws_ok, "workstation: {ws_err}");

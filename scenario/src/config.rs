@@ -320,6 +320,24 @@ pub fn default_rrd(config: &Path) -> PathBuf {
     PathBuf::from("out").join(format!("{stem}.rrd"))
 }
 
+/// Part `n` of a recording saved to `path`: the file itself for `n` = 1, `STEM.N.rrd` beside it
+/// after that (where a restarted visualizer writes, under the same recording id).
+pub fn rrd_part(path: &Path, n: u32) -> PathBuf {
+    if n <= 1 {
+        path.to_path_buf()
+    } else {
+        path.with_extension("").with_extension(format!("{n}.rrd"))
+    }
+}
+
+/// The parts of a recording saved to `path` that exist, in order ([`rrd_part`]).
+pub fn rrd_parts(path: &Path) -> Vec<PathBuf> {
+    (1..)
+        .map(|n| rrd_part(path, n))
+        .take_while(|p| p.is_file())
+        .collect()
+}
+
 /// The viewer URL `rerun` listens on by default.
 pub const DEFAULT_VIEWER_URL: &str = "rerun+http://127.0.0.1:9876/proxy";
 
@@ -1075,6 +1093,22 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
             .contains("object.path")
         );
         assert!(err(&GOOD.replace("radius", "radios")).contains("radios"));
+    }
+
+    #[test]
+    fn a_recording_s_parts_are_the_file_then_numbered_files_beside_it() {
+        let dir = std::env::temp_dir().join(format!("icrflow-rrd-parts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.rrd");
+        assert_eq!(rrd_part(&path, 1), path);
+        assert_eq!(rrd_part(&path, 3), dir.join("run.3.rrd"));
+        assert!(rrd_parts(&path).is_empty());
+        for n in [1, 2, 4] {
+            std::fs::write(rrd_part(&path, n), b"x").unwrap();
+        }
+        // Consecutive parts only: a stray part 4 after a gap is not one of them.
+        assert_eq!(rrd_parts(&path), [path.clone(), dir.join("run.2.rrd")]);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

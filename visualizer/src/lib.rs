@@ -30,7 +30,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, JointState, PlanStepHeader, TRACE_STAMPS, topics,
 };
 use icrflow_nodes::runtime::{Context, Health};
-use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording};
+use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording, rrd_parts};
 
 use geometry::{P3, p3};
 use record::{FingerView, Frame, Statics};
@@ -47,17 +47,13 @@ fn recording_from_env() -> Result<(Recording, String)> {
 /// first free `STEM.N.rrd` beside the file (same recording id, so the viewer shows them as one:
 /// `rerun STEM.rrd STEM.2.rrd`).
 fn fresh(recording: Recording) -> Recording {
-    let Recording::Rrd(path) = recording else {
-        return recording;
-    };
-    if !path.exists() {
-        return Recording::Rrd(path);
+    match recording {
+        Recording::Rrd(path) => Recording::Rrd(icrflow_scenario::rrd_part(
+            &path,
+            1 + rrd_parts(&path).len() as u32,
+        )),
+        other => other,
     }
-    let stem = path.with_extension("");
-    (2..)
-        .map(|n| stem.with_extension(format!("{n}.rrd")))
-        .find(|p| !p.exists())
-        .map_or(Recording::Rrd(path), Recording::Rrd)
 }
 
 /// The latest of everything the frames are built from.
