@@ -8,6 +8,7 @@ mod common;
 
 use std::sync::OnceLock;
 
+use icrflow_grasp::hull::Hull;
 use icrflow_grasp::lp::quality_by_lp;
 use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion, Vec3};
 use icrflow_grasp::object::Object;
@@ -129,13 +130,59 @@ proptest! {
     }
 }
 
-/// Facet hyperplanes and extreme vertices of two hulls agree (facets matched by normal and
-/// offset within `tol`).
-fn same_hull(
-    a: &icrflow_grasp::hull::Hull,
-    b: &icrflow_grasp::hull::Hull,
-    tol: Real,
-) -> Result<(), String> {
+/// How far the polytope `{z : A z <= b}` of hull `x`'s facets reaches beyond the hyperplane
+/// `a . z = b`: `max { a . z : A z <= b } - b`, by LP (clarabel); infinite when unbounded or
+/// not solved.
+fn reach_beyond(x: &Hull, a: &[Real], b: Real) -> Real {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{
+        DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+    };
+    let (d, m) = (x.dim(), x.facet_count());
+    // Column-major constraint matrix: column j holds component j of every facet normal.
+    let mut colptr = vec![0];
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for j in 0..d {
+        for f in 0..m {
+            rowval.push(f);
+            nzval.push(x.normal(f)[j]);
+        }
+        colptr.push(rowval.len());
+    }
+    let constraints = CscMatrix::new(m, d, colptr, rowval, nzval);
+    let p = CscMatrix::new(d, d, vec![0; d + 1], Vec::new(), Vec::new());
+    let q: Vec<Real> = a.iter().map(|v| -v).collect();
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .tol_gap_abs(1e-12)
+        .tol_gap_rel(1e-12)
+        .tol_feas(1e-12)
+        .build()
+        .unwrap();
+    let cones = [SupportedConeT::NonnegativeConeT(m)];
+    let Ok(mut solver) =
+        DefaultSolver::new(&p, &q, &constraints, x.offsets(), &cones, settings)
+    else {
+        return Real::INFINITY;
+    };
+    solver.solve();
+    match solver.solution.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {
+            -solver.solution.obj_val - b
+        }
+        _ => Real::INFINITY,
+    }
+}
+
+/// Two hulls of the same points are the same polytope: the same extreme vertices, and every
+/// facet of each either matches a facet of the other (normal and offset within `tol`) or is
+/// kept by the other's facets anyway (their polytope reaches at most `tol` beyond it, by LP).
+/// The second case is near-degenerate input (two contacts a hair apart): both hulls are right
+/// within their tolerances and may keep or drop a sliver facet, or split nearly coplanar
+/// facets differently, whose hyperplanes then agree only to the points' distance over the
+/// facet's width. A facet really missing from one hull fails the LP check.
+fn same_hull(a: &Hull, b: &Hull, tol: Real) -> Result<(), String> {
     if a.vertices() != b.vertices() {
         return Err(format!(
             "vertices differ: {:?} vs {:?}",
@@ -143,23 +190,27 @@ fn same_hull(
             b.vertices()
         ));
     }
-    let find = |x: &icrflow_grasp::hull::Hull, y: &icrflow_grasp::hull::Hull| {
-        (0..x.facet_count()).find(|&f| {
-            !(0..y.facet_count()).any(|g| {
+    for (name, x, y) in [("first", a, b), ("second", b, a)] {
+        for f in 0..x.facet_count() {
+            let matched = (0..y.facet_count()).any(|g| {
                 (x.offsets()[f] - y.offsets()[g]).abs() <= tol
                     && x.normal(f)
                         .iter()
                         .zip(y.normal(g))
                         .all(|(p, q)| (p - q).abs() <= tol)
-            })
-        })
-    };
-    if let Some(f) = find(a, b).or_else(|| find(b, a)) {
-        return Err(format!(
-            "facet {f} has no match ({} vs {} facets)",
-            a.facet_count(),
-            b.facet_count()
-        ));
+            });
+            if matched {
+                continue;
+            }
+            let beyond = reach_beyond(y, x.normal(f), x.offsets()[f]);
+            if beyond > tol {
+                return Err(format!(
+                    "facet {f} of the {name} hull has no match, and the other reaches {beyond:.3e} beyond it ({} vs {} facets)",
+                    a.facet_count(),
+                    b.facet_count()
+                ));
+            }
+        }
     }
     Ok(())
 }
@@ -173,17 +224,30 @@ proptest! {
         let (object, c) = contacts(&g);
         let p = common::problem(object, g.space, g.mu, g.edges);
         let w: Vec<Real> = c.iter().flat_map(|&i| p.candidate_wrenches(i).to_vec()).collect();
-        let fast = icrflow_grasp::hull::Hull::new(&w, p.dim());
-        let reference = icrflow_grasp::hull::Hull::new_qhull(&w, p.dim());
+        let fast = Hull::new(&w, p.dim());
+        let reference = Hull::new_qhull(&w, p.dim());
         match (fast, reference) {
             (Ok(a), Ok(b)) => {
                 let scale = w.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
                 if let Err(e) = same_hull(&a, &b, 1e-8 * scale.max(1.0)) {
-                    return Err(TestCaseError::fail(format!("{e} ({g:?})")));
+                    return Err(TestCaseError::fail(format!("{e} ({g:?}, contacts {c:?})")));
                 }
             }
             (Err(a), Err(b)) => prop_assert_eq!(a, b),
             (a, b) => return Err(TestCaseError::fail(format!("one failed: {a:?} / {b:?}"))),
         }
     }
+}
+
+#[test]
+fn reach_beyond_measures_how_far_a_polytope_leaves_a_halfspace() {
+    // The cube [-1, 1]^3 reaches 0.5 beyond x = 0.5, and not beyond x = 1 or x + y = 2.
+    let cube: Vec<Real> = (0..8)
+        .flat_map(|i| (0..3).map(move |k| if i >> k & 1 == 1 { 1.0 } else { -1.0 }))
+        .collect();
+    let hull = Hull::new(&cube, 3).unwrap();
+    assert!((reach_beyond(&hull, &[1.0, 0.0, 0.0], 0.5) - 0.5).abs() < 1e-9);
+    assert!(reach_beyond(&hull, &[1.0, 0.0, 0.0], 1.0).abs() < 1e-9);
+    let s = 0.5f64.sqrt();
+    assert!(reach_beyond(&hull, &[s, s, 0.0], 2.0 * s).abs() < 1e-9);
 }
