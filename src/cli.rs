@@ -80,8 +80,9 @@ pub enum Command {
     },
     /// Plan the in-hand rolling scenario in CONFIG offline: roll within the ICRs, switch
     /// fingers at their limits, until the object has turned by plan.rotation_deg. Writes
-    /// trajectory.csv and trajectory.json and prints a summary. Exit status 2: the planner
-    /// stopped before the goal (the files say why).
+    /// trajectory.csv and trajectory.json and prints a summary; with --rrd, --spawn-viewer or
+    /// --connect-viewer, also records the plan for Rerun, step by step. Exit status 2: the
+    /// planner stopped before the goal (the files say why).
     Plan {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,
@@ -91,5 +92,14 @@ pub enum Command {
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
+        /// Record the plan to this Rerun file.
+        #[arg(long, conflicts_with_all = ["spawn_viewer", "connect_viewer"])]
+        rrd: Option<PathBuf>,
+        /// Record the plan to a Rerun viewer started for it (`rerun` 0.36 on the PATH).
+        #[arg(long, conflicts_with = "connect_viewer")]
+        spawn_viewer: bool,
+        /// Record the plan to the Rerun viewer at this URL.
+        #[arg(long, value_name = "URL")]
+        connect_viewer: Option<String>,
     },
 }

@@ -14,7 +14,24 @@ fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
         cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
-        cli::Command::Plan { config, out, json } => plan::run(&config, out, json),
+        cli::Command::Plan {
+            config,
+            out,
+            json,
+            rrd,
+            spawn_viewer,
+            connect_viewer,
+        } => plan::run(
+            &config,
+            out,
+            json,
+            &run::Viewer {
+                rrd,
+                spawn: spawn_viewer,
+                connect: connect_viewer,
+                off: false,
+            },
+        ),
         cli::Command::Validate { config } => plan::validate(&config).map(|()| 0),
         cli::Command::Monitor {
             connect,

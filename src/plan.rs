@@ -3,15 +3,18 @@
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use icrflow_grasp::math::Real;
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::Plan;
 use serde::Serialize;
 
-use icrflow_scenario::{Config, HandSpec, Setup};
+use icrflow_scenario::{Config, HandSpec, Recording, Setup};
+
+use crate::run::Viewer;
 
 /// Exit status of a plan that stopped before its goal (files written, `completed: false`).
 pub const EXIT_INCOMPLETE: u8 = 2;
@@ -77,8 +80,17 @@ pub fn validate(path: &Path) -> Result<()> {
 }
 
 /// Runs the verb; returns the process exit code.
-pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
+pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Result<u8> {
     let config = Config::load(path)?;
+    // The recording's target and program are checked before planning.
+    let recording = viewer
+        .flagged(&config)?
+        .map(crate::run::absolute)
+        .transpose()?;
+    let program = recording
+        .as_ref()
+        .map(|_| crate::run::node_program(crate::run::VISUALIZER))
+        .transpose()?;
     let setup = Setup::new(&config)?;
     let scenario = setup.scenario(&config);
     let goal = config.plan.goal;
@@ -126,6 +138,10 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
         plan: &plan,
     };
     write_outputs(&dir, &trajectory, &plan, &setup.hand)?;
+    let recorded = match (&recording, &program) {
+        (Some(r), Some(program)) => Some(record(program, path, &dir, r)?),
+        _ => None,
+    };
     let s = &plan.summary;
     if json {
         let mut o = std::io::stdout().lock();
@@ -189,8 +205,49 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool) -> Result<u8> {
             dir.join("trajectory.json").display(),
             elapsed.as_secs_f64() * 1e3
         )?;
+        if let Some(r) = &recording {
+            let how = match r {
+                Recording::Rrd(p) => {
+                    format!("saved to {} (open it: rerun {})", p.display(), p.display())
+                }
+                other => format!("streamed to the {}", crate::run::target_name(other)),
+            };
+            writeln!(
+                o,
+                "recording  {how}; id {}",
+                recorded.as_deref().unwrap_or_default()
+            )?;
+        }
     }
     Ok(if s.completed { 0 } else { EXIT_INCOMPLETE })
+}
+
+/// Records the plan written in `dir` with the visualizer in its plan mode (Rerun lives in that
+/// binary only), to `target`; returns the recording id.
+fn record(program: &Path, config: &Path, dir: &Path, target: &Recording) -> Result<String> {
+    let id = format!(
+        "icrflow-plan-{}-{}",
+        std::process::id(),
+        icrflow_interfaces::now_ns() / 1_000_000
+    );
+    eprintln!("recording the plan for Rerun ...");
+    let status = Command::new(program)
+        .arg("--plan")
+        .arg(config)
+        .arg(dir.join("trajectory.json"))
+        .env(icrflow_scenario::ENV_RECORDING, target.to_env())
+        .env(icrflow_scenario::ENV_RECORDING_ID, &id)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .status()
+        .with_context(|| format!("starting {}", program.display()))?;
+    if !status.success() {
+        bail!(
+            "the plan was written, but recording it failed ({} {status})",
+            program.display()
+        );
+    }
+    Ok(id)
 }
 
 /// Writes `trajectory.json` and `trajectory.csv` into `dir`, each through a temporary file

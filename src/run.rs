@@ -44,24 +44,48 @@ impl Viewer {
         if self.off || !config.visualizer.enabled {
             return Ok(None);
         }
-        let r = if let Some(p) = self.rrd {
-            Recording::Rrd(p)
+        let r = self
+            .flagged(config)?
+            .unwrap_or_else(|| config.visualizer.recording.clone());
+        Ok(Some(absolute(r)?))
+    }
+
+    /// The target the flags ask for, if any (a spawned viewer listens at the port of
+    /// `visualizer.url`).
+    pub fn flagged(&self, config: &Config) -> Result<Option<Recording>> {
+        Ok(if let Some(p) = &self.rrd {
+            Some(Recording::Rrd(p.clone()))
         } else if self.spawn {
-            Recording::Spawn
-        } else if let Some(url) = self.connect {
-            icrflow_scenario::viewer_url(&url).context("--connect-viewer")?;
-            Recording::Connect(url)
+            let (_, port) = icrflow_scenario::viewer_url(&config.visualizer.url)?;
+            Some(Recording::Spawn(port))
+        } else if let Some(url) = &self.connect {
+            icrflow_scenario::viewer_url(url).context("--connect-viewer")?;
+            Some(Recording::Connect(url.clone()))
         } else {
-            config.visualizer.recording.clone()
-        };
-        Ok(Some(match r {
-            Recording::Rrd(p) if p.is_relative() => Recording::Rrd(
-                std::env::current_dir()
-                    .context("the current directory")?
-                    .join(p),
-            ),
-            other => other,
-        }))
+            None
+        })
+    }
+}
+
+/// The recording target with a relative `.rrd` path made absolute (the processes that write it
+/// may run elsewhere).
+pub fn absolute(r: Recording) -> Result<Recording> {
+    Ok(match r {
+        Recording::Rrd(p) if p.is_relative() => Recording::Rrd(
+            std::env::current_dir()
+                .context("the current directory")?
+                .join(p),
+        ),
+        other => other,
+    })
+}
+
+/// Where a recording went, as the summaries say it.
+pub fn target_name(r: &Recording) -> String {
+    match r {
+        Recording::Rrd(p) => p.display().to_string(),
+        Recording::Spawn(port) => format!("spawned viewer (rerun+http://127.0.0.1:{port}/proxy)"),
+        Recording::Connect(url) => url.clone(),
     }
 }
 
@@ -387,7 +411,7 @@ impl Timing {
     }
 }
 
-fn node_program(name: &str) -> Result<PathBuf> {
+pub(crate) fn node_program(name: &str) -> Result<PathBuf> {
     let exe = std::env::current_exe().context("locating the icrflow executable")?;
     let dir = exe
         .parent()
@@ -767,11 +791,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         memory_kib: stats.memory,
         allocations: stats.allocations,
         recording: recording.as_ref().map(|r| RecordingSummary {
-            target: match r {
-                Recording::Rrd(p) => p.display().to_string(),
-                Recording::Spawn => "spawned viewer".into(),
-                Recording::Connect(url) => url.clone(),
-            },
+            target: target_name(r),
             id: recording_id.clone(),
             frames: stats.frames.0,
             dropped: stats.frames.1,

@@ -1,4 +1,4 @@
-"""Reads a Rerun recording of `icrflow run` back with the Python Rerun SDK of the same version
+"""Reads a Rerun recording of `icrflow run` or `icrflow plan` back with the Python Rerun SDK of the same version
 as the Rust crate (rerun-sdk, pinned in bench/requirements.txt), no code of ours. Used by
 tests/visualizer.rs.
 
@@ -10,6 +10,8 @@ Prints one JSON object:
   entities        every entity path
   rows            rows per entity path (every row logged, static ones included)
   steps           the plan-step numbers logged on /plan/step (the `step` timeline), in order
+  phases          [step, phase] of every /timeseries/phase row
+  rendezvous      [step, points] of every /scene/object/rendezvous row with points
   quality_min     the smallest value logged on /timeseries/quality/alpha_star
   alpha           the values logged on /timeseries/quality/alpha (distinct)
   dropped_max     the last count of dropped frames (/timeseries/dropped_frames)
@@ -24,6 +26,7 @@ import pyarrow.compute as pc
 from rerun.experimental import RrdReader
 
 SCALARS = "Scalars:scalars"
+POSITIONS = "Points3D:positions"
 
 
 def values(store, entity: str) -> list:
@@ -37,6 +40,19 @@ def values(store, entity: str) -> list:
     table = pa.concat_tables([pa.Table.from_batches([b]).select(["step", SCALARS]) for b in batches])
     table = table.sort_by("step")
     return pc.list_flatten(table[SCALARS]).to_pylist()
+
+
+def rows_by_step(store, entity: str, component: str) -> list:
+    """[step, value] for each row of `entity` holding `component`: the scalar, or the number of
+    instances for a point cloud."""
+    out = []
+    for ch in store.stream().filter(content=entity, components=component):
+        batch = ch.to_record_batch()
+        for step, value in zip(batch.column("step").to_pylist(), batch.column(component).to_pylist()):
+            if value is None:
+                continue
+            out.append([step, value[0] if component == SCALARS else len(value)])
+    return sorted(out)
 
 
 def png(path: str) -> int:
@@ -56,7 +72,7 @@ def main() -> int:
         return png(sys.argv[2])
     ids, entities = set(), set()
     rows = collections.Counter()
-    steps, quality, alpha, dropped = [], [], set(), []
+    steps, quality, alpha, dropped, phases, rendezvous = [], [], set(), [], [], []
     for path in sys.argv[1:]:
         reader = RrdReader(path)
         ids.update(r.recording_id for r in reader.recordings())
@@ -68,6 +84,8 @@ def main() -> int:
         quality += values(store, "/timeseries/quality/alpha_star")
         alpha.update(values(store, "/timeseries/quality/alpha"))
         dropped += values(store, "/timeseries/dropped_frames")
+        phases += rows_by_step(store, "/timeseries/phase", SCALARS)
+        rendezvous += rows_by_step(store, "/scene/object/rendezvous", POSITIONS)
     print(
         json.dumps(
             {
@@ -75,6 +93,8 @@ def main() -> int:
                 "entities": sorted(entities),
                 "rows": dict(rows),
                 "steps": steps,
+                "phases": sorted(phases),
+                "rendezvous": sorted(rendezvous),
                 "quality_min": min(quality) if quality else None,
                 "alpha": sorted(alpha),
                 "dropped_max": max(dropped) if dropped else None,

@@ -5,6 +5,7 @@
 mod common;
 
 use std::net::TcpListener;
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -52,8 +53,24 @@ fn config(dir: &Path, name: &str, extra: &str) -> PathBuf {
 
 /// `icrflow run CONFIG --summary-json` with `args`: its exit success, stderr and summary.
 fn run(config: &Path, args: &[&str]) -> (bool, String, serde_json::Value) {
+    run_with_path(config, args, None)
+}
+
+/// [`run`] with `dir` first on the PATH.
+fn run_with_path(
+    config: &Path,
+    args: &[&str],
+    dir: Option<&Path>,
+) -> (bool, String, serde_json::Value) {
     let summary = config.with_extension("json");
-    let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_icrflow"));
+    if let Some(dir) = dir {
+        let path = std::env::var_os("PATH").unwrap_or_default();
+        let mut dirs = vec![dir.to_path_buf()];
+        dirs.extend(std::env::split_paths(&path));
+        command.env("PATH", std::env::join_paths(dirs).unwrap());
+    }
+    let out = command
         .args(["run", config.to_str().unwrap(), "--summary-json"])
         .arg(&summary)
         .args(args)
@@ -69,10 +86,11 @@ fn run(config: &Path, args: &[&str]) -> (bool, String, serde_json::Value) {
     (out.status.success(), err, s)
 }
 
-/// What the Python Rerun SDK reads in `rrd` (tests/read_rrd.py), checked against the run's
-/// summary `s`: the run's recording id, one `/plan/step` row per step (each once, as many as
-/// the summary's steps), and the minimum of the quality series equal to the summary's.
-fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
+/// What the Python Rerun SDK reads in `rrd` (tests/read_rrd.py), checked against what a run's
+/// or a plan's summary `s` says: the minimum of the quality series equal to the summary's, and
+/// the rendezvous region shown, not empty, in exactly the attach steps (phase 2), one per
+/// finger switch of the summary.
+fn read_rrd(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
     let out = Command::new(python())
         .arg(root().join("tests/read_rrd.py"))
         .arg(rrd)
@@ -84,6 +102,33 @@ fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
         String::from_utf8_lossy(&out.stderr)
     );
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let logged = r["quality_min"].as_f64().unwrap();
+    let min_quality = s["min_quality"].as_f64().unwrap();
+    assert!(
+        (logged - min_quality).abs() <= 1e-12,
+        "{logged} vs {min_quality}"
+    );
+    let steps_where = |key: &str, keep: &dyn Fn(f64) -> bool| -> Vec<u64> {
+        r[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|row| keep(row[1].as_f64().unwrap()))
+            .map(|row| row[0].as_u64().unwrap())
+            .collect()
+    };
+    let attach = steps_where("phases", &|p| p == 2.0);
+    let rendezvous = steps_where("rendezvous", &|points| points > 0.0);
+    assert_eq!(attach.len() as u64, s["switches"].as_u64().unwrap(), "{r}");
+    assert!(!attach.is_empty(), "{s}");
+    assert_eq!(rendezvous, attach, "rendezvous shown in the attach steps");
+    r
+}
+
+/// [`read_rrd`] for a run with summary `s`: also the run's recording id, and one `/plan/step`
+/// row per step (each once, as many as the summary's steps).
+fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
+    let r = read_rrd(rrd, s);
     assert_eq!(
         r["recording_ids"],
         serde_json::json!([s["recording"]["id"]]),
@@ -107,13 +152,28 @@ fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
         steps.windows(2).all(|w| w[0] < w[1]),
         "each once: {steps:?}"
     );
-    let logged = r["quality_min"].as_f64().unwrap();
-    let min_quality = s["min_quality"].as_f64().unwrap();
-    assert!(
-        (logged - min_quality).abs() <= 1e-12,
-        "{logged} vs {min_quality}"
-    );
     r
+}
+
+/// Kills process group `pgid` (SIGKILL), then waits until its leader is gone.
+fn kill_group(pgid: u32) {
+    let _ = Command::new("kill")
+        .args(["-KILL", "--", &format!("-{pgid}")])
+        .stderr(Stdio::null())
+        .status();
+    for _ in 0..50 {
+        let alive = std::fs::read_to_string(format!("/proc/{pgid}/stat")).is_ok_and(|s| {
+            !s.rsplit(')')
+                .next()
+                .unwrap_or("")
+                .trim_start()
+                .starts_with('Z')
+        });
+        if !alive {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
 }
 
 /// The `rerun` viewer/CLI of the test venv (beside its Python).
@@ -230,6 +290,8 @@ fn a_run_streams_to_a_rerun_viewer_at_a_url() {
         .unwrap()
         .port();
     let received = dir.join("received.rrd");
+    // In a process group of its own: `rerun` is a Python launcher that starts the server as its
+    // child, and both must go at the end.
     let mut viewer = Command::new(rerun())
         .args(["--bind", "127.0.0.1", "--port"])
         .arg(port.to_string())
@@ -238,6 +300,7 @@ fn a_run_streams_to_a_rerun_viewer_at_a_url() {
         .env("RUST_LOG", "warn")
         .stdout(Stdio::null())
         .stderr(Stdio::null())
+        .process_group(0)
         .spawn()
         .unwrap();
     let url = format!("rerun+http://127.0.0.1:{port}/proxy");
@@ -248,13 +311,134 @@ fn a_run_streams_to_a_rerun_viewer_at_a_url() {
     assert!(listening, "the rerun server did not listen on {port}");
     let (ok, err, s) = run(&config(&dir, "connect", ""), &["--connect-viewer", &url]);
     std::thread::sleep(std::time::Duration::from_secs(2));
-    let _ = viewer.kill();
+    kill_group(viewer.id());
     let _ = viewer.wait();
     assert!(ok, "{err}");
     assert_eq!(s["completed"], true, "{s}");
     assert_eq!(s["recording"]["target"], url, "{s}");
     assert_eq!(s["recording"]["dropped"], 0, "{s}");
     // What the viewer received is the run, as the summary says.
+    read_back(&received, &s);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_plan_records_every_step_with_its_regions() {
+    let dir = scratch("visualizer-plan");
+    let rrd = dir.join("plan.rrd");
+    let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["plan", "config/paper_sphere.toml", "--json", "--out"])
+        .arg(&dir)
+        .arg("--rrd")
+        .arg(&rrd)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["completed"], true, "{s}");
+    let r = read_rrd(&rrd, &s);
+    // Every planned step once, in order, from the start (step 0).
+    let steps: Vec<u64> = r["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as u64)
+        .collect();
+    let count = s["steps"].as_u64().unwrap();
+    assert!(count > 50, "{s}");
+    assert_eq!(steps, (0..count).collect::<Vec<_>>());
+    let ids = r["recording_ids"].as_array().unwrap();
+    assert!(
+        ids.len() == 1 && ids[0].as_str().unwrap().starts_with("icrflow-plan-"),
+        "{ids:?}"
+    );
+    // The run's entities, but latency: nothing ran.
+    let entities = r["entities"].as_array().unwrap();
+    for e in ENTITIES.iter().filter(|e| !e.contains("latency")) {
+        assert!(entities.iter().any(|x| x == e), "{e} missing: {entities:?}");
+    }
+    assert!(
+        !entities
+            .iter()
+            .any(|x| x.as_str().unwrap().contains("latency")),
+        "{entities:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_plan_recording_target_is_refused_before_planning() {
+    let dir = scratch("visualizer-plan-bad");
+    let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["plan", "config/paper_sphere.toml", "--out"])
+        .arg(&dir)
+        .args(["--connect-viewer", "rerun+http://127.0.0.1/proxy"])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--connect-viewer") && err.contains("no port"),
+        "{err}"
+    );
+    assert!(!dir.join("trajectory.json").exists(), "nothing is planned");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_spawns_a_rerun_viewer_when_asked() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("visualizer-spawn");
+    // `rerun` on the PATH: the test venv's rerun 0.36.3, through a script that adds
+    // `--save FILE` so that what the spawned viewer receives is kept (this machine has no
+    // display for its window; its server runs all the same).
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let received = dir.join("received.rrd");
+    let pids = dir.join("pids");
+    let script = bin.join("rerun");
+    std::fs::write(
+        &script,
+        format!(
+            "#!/bin/sh\necho $$ >> '{}'\nexec '{}' \"$@\" --save '{}'\n",
+            pids.display(),
+            rerun().display(),
+            received.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&script, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let url = format!("rerun+http://127.0.0.1:{port}/proxy");
+    let (ok, err, s) = run_with_path(
+        &config(&dir, "spawn", &format!("[visualizer]\nurl = \"{url}\"")),
+        &["--spawn-viewer"],
+        Some(&bin),
+    );
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    // The viewer outlives the run (it is the user's window): stop it, its process group.
+    let spawned = std::fs::read_to_string(&pids).unwrap_or_default();
+    for pid in spawned.lines().filter_map(|p| p.parse().ok()) {
+        kill_group(pid);
+    }
+    assert!(ok, "{err}");
+    assert!(!spawned.is_empty(), "rerun was not started: {err}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(
+        s["recording"]["target"],
+        format!("spawned viewer ({url})"),
+        "{s}"
+    );
     read_back(&received, &s);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -130,6 +130,16 @@ pub struct PlanStepJson {
     pub quality: f64,
     /// Each finger's target, with the size of its ICR.
     pub targets: Vec<TargetJson>,
+    /// In an attach step: the finger that attaches and the size of its rendezvous region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rendezvous: Option<RendezvousJson>,
+}
+
+/// The rendezvous region of an attach step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RendezvousJson {
+    pub finger: u32,
+    pub size: u32,
 }
 
 /// One finger's target in a plan step.
@@ -276,6 +286,10 @@ pub fn plan_step(rig: &str, p: &PlanStepHeader) -> PlanStepJson {
                 }
             })
             .collect(),
+        rendezvous: (p.rendezvous_length > 0).then_some(RendezvousJson {
+            finger: p.rendezvous_finger,
+            size: p.rendezvous_length,
+        }),
     }
 }
 

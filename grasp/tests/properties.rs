@@ -161,16 +161,13 @@ fn reach_beyond(x: &Hull, a: &[Real], b: Real) -> Real {
         .build()
         .unwrap();
     let cones = [SupportedConeT::NonnegativeConeT(m)];
-    let Ok(mut solver) =
-        DefaultSolver::new(&p, &q, &constraints, x.offsets(), &cones, settings)
+    let Ok(mut solver) = DefaultSolver::new(&p, &q, &constraints, x.offsets(), &cones, settings)
     else {
         return Real::INFINITY;
     };
     solver.solve();
     match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {
-            -solver.solution.obj_val - b
-        }
+        SolverStatus::Solved | SolverStatus::AlmostSolved => -solver.solution.obj_val - b,
         _ => Real::INFINITY,
     }
 }

@@ -26,7 +26,7 @@ pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 3;
+pub const SCHEMA_VERSION: u32 = 4;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -44,7 +44,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v3`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v4`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -85,7 +85,7 @@ pub enum Kind {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Header.v3")]
+#[type_name("icrflow.Header.v4")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -129,7 +129,7 @@ pub const TRACE_STAMPS: usize = 7;
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Trace.v3")]
+#[type_name("icrflow.Trace.v4")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -323,7 +323,7 @@ messages!(
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.JointState.v3")]
+#[type_name("icrflow.JointState.v4")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -353,7 +353,7 @@ pub struct JointState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.ObjectPose.v3")]
+#[type_name("icrflow.ObjectPose.v4")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -380,7 +380,7 @@ pub struct ObjectPose {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerContact.v3")]
+#[type_name("icrflow.FingerContact.v4")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -412,7 +412,7 @@ pub struct FingerContact {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.GraspState.v3")]
+#[type_name("icrflow.GraspState.v4")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -449,7 +449,7 @@ pub struct GraspState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.WrenchSpaceHeader.v3")]
+#[type_name("icrflow.WrenchSpaceHeader.v4")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -479,7 +479,7 @@ pub struct WrenchSpaceHeader {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Facet.v3")]
+#[type_name("icrflow.Facet.v4")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -517,7 +517,7 @@ pub enum PlanPhase {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerTarget.v3")]
+#[type_name("icrflow.FingerTarget.v4")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -537,7 +537,8 @@ pub struct FingerTarget {
 }
 
 /// User header of the plan-step topic; the payload is the ICR regions, candidate indices of
-/// every finger in slot order (`region_lengths` long each).
+/// every finger in slot order (`region_lengths` long each), then, in an attach step, the
+/// rendezvous region (`rendezvous_length` long).
 #[derive(
     Debug,
     Clone,
@@ -550,7 +551,7 @@ pub struct FingerTarget {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlanStepHeader.v3")]
+#[type_name("icrflow.PlanStepHeader.v4")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -569,6 +570,12 @@ pub struct PlanStepHeader {
     pub targets: [FingerTarget; MAX_FINGERS],
     /// Length of each finger's region in the payload.
     pub region_lengths: [u32; MAX_FINGERS],
+    /// In an attach step, the finger that attaches (0 otherwise).
+    pub rendezvous_finger: u32,
+    /// In an attach step, the length of the rendezvous region (the candidates where the
+    /// attaching finger keeps the grasp's quality at or above alpha, among which its contact
+    /// was chosen), after the fingers' regions in the payload; 0 otherwise.
+    pub rendezvous_length: u32,
 }
 
 /// Hand command modes in [`HandCommand::mode`].
@@ -585,7 +592,7 @@ pub enum CommandMode {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.HandCommand.v3")]
+#[type_name("icrflow.HandCommand.v4")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -640,7 +647,7 @@ pub enum NodeState {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.NodeHealth.v3")]
+#[type_name("icrflow.NodeHealth.v4")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -853,11 +860,11 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v3");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v3");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v3");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v3");
-        assert_eq!(SCHEMA_VERSION, 3);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v4");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v4");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v4");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v4");
+        assert_eq!(SCHEMA_VERSION, 4);
     }
 
     #[test]
@@ -885,5 +892,10 @@ mod tests {
         assert_eq!(std::mem::size_of::<Facet>(), 56);
         assert_eq!(std::mem::size_of::<FingerContact>(), 72);
         assert_eq!(std::mem::size_of::<GraspState>(), 104 + 80 + 8 * 72 + 512);
+        assert_eq!(std::mem::size_of::<FingerTarget>(), 112);
+        assert_eq!(
+            std::mem::size_of::<PlanStepHeader>(),
+            104 + 32 + 8 * 112 + 8 * 4 + 8
+        );
     }
 }

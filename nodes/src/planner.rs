@@ -169,6 +169,8 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
                 for mut via in legs {
                     via.step = step.step;
                     via.phase = step.phase;
+                    // On the way to the rendezvous too, the step says where it is.
+                    via.switch = step.switch.clone();
                     out.push(Target {
                         step: via,
                         way_point: true,
@@ -219,7 +221,8 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
     out
 }
 
-fn phase(p: Phase) -> PlanPhase {
+/// The plan-step message's phase of a planned step.
+pub fn phase(p: Phase) -> PlanPhase {
     match p {
         Phase::Start => PlanPhase::Start,
         Phase::Rolling => PlanPhase::Rolling,
@@ -301,6 +304,11 @@ pub const STILL: f64 = 0.05 * std::f64::consts::PI / 180.0;
 /// Most ICR points a plan step carries (all fingers' regions together).
 pub const MAX_REGION_POINTS: usize = 4096;
 
+/// A target's regions as its plan-step messages carry them: the target's index, the members
+/// (each finger's region, then the rendezvous region), each finger's region length, and the
+/// attaching finger with the rendezvous region's length.
+type StepRegions = (usize, Vec<u32>, [u32; MAX_FINGERS], (u32, u32));
+
 /// Runs the planner node.
 pub fn run(ctx: &Context) -> Result<()> {
     let scenario = ctx.setup.scenario(&ctx.config);
@@ -321,8 +329,9 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut last_input: Option<(Header, u64)> = None;
     // The step being commanded; chosen from the first grasp state seen (a restart resumes).
     let mut current: Option<usize> = None;
-    // The ICR members of step `.0` (the concatenated regions and their lengths).
-    let mut icrs: Option<(usize, Vec<u32>, [u32; MAX_FINGERS])> = None;
+    // The ICR members of step `.0` (the concatenated regions, their lengths, and the
+    // rendezvous region's finger and length).
+    let mut icrs: Option<StepRegions> = None;
 
     // Since when, at which rotation and on which step the object has been still.
     let mut still = (0u64, f64::NAN, usize::MAX);
@@ -347,7 +356,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             quality: step.quality,
             ..Default::default()
         };
-        if icrs.as_ref().is_none_or(|(of, _, _)| *of != at) {
+        if icrs.as_ref().is_none_or(|(of, ..)| *of != at) {
             // The step's ICRs, computed once per step.
             let mut members = Vec::with_capacity(MAX_REGION_POINTS);
             let mut lengths = [0u32; MAX_FINGERS];
@@ -366,10 +375,19 @@ pub fn run(ctx: &Context) -> Result<()> {
                     region += 1;
                 }
             }
-            icrs = Some((at, members, lengths));
+            // An attach step also carries where the attaching finger may touch (the exact
+            // region its contact was chosen from), as much of it as fits.
+            let rendezvous = step.switch.as_ref().map_or((0, 0), |sw| {
+                let room = MAX_REGION_POINTS.saturating_sub(members.len());
+                let before = members.len();
+                members.extend(sw.brute_force.iter().take(room).map(|&c| c as u32));
+                (sw.attached, (members.len() - before) as u32)
+            });
+            icrs = Some((at, members, lengths, rendezvous));
         }
-        let (_, members, lengths) = icrs.as_ref().expect("computed above");
+        let (_, members, lengths, rendezvous) = icrs.as_ref().expect("computed above");
         h.region_lengths = *lengths;
+        (h.rendezvous_finger, h.rendezvous_length) = *rendezvous;
         for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
             let t = &mut h.targets[slot];
             *t = FingerTarget {

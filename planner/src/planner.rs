@@ -44,7 +44,7 @@ use std::f64::consts::PI;
 use icrflow_grasp::icr::IcrError;
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::quality::{GraspError, GraspProblem};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::hand::{Finger, Hand, IkError, wrap};
 
@@ -165,7 +165,7 @@ pub enum PlanError {
 }
 
 /// The phase a trajectory step belongs to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Phase {
     /// The initial grasp.
@@ -191,7 +191,7 @@ impl Phase {
 }
 
 /// One finger in one step.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FingerState {
     /// Finger number.
     pub finger: u32,
@@ -212,7 +212,7 @@ pub struct FingerState {
 }
 
 /// A finger switch.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Switch {
     /// The finger that could not roll on.
     pub released: u32,
@@ -239,7 +239,7 @@ pub struct Switch {
 }
 
 /// One step of the trajectory.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Step {
     /// Step number from 0.
     pub step: usize,
@@ -257,7 +257,7 @@ pub struct Step {
 }
 
 /// Summary of a plan.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// Whether the goal rotation was reached.
     pub completed: bool,
@@ -291,7 +291,7 @@ pub struct Summary {
 }
 
 /// A plan.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// Summary.
     pub summary: Summary,

@@ -262,8 +262,9 @@ pub struct Config {
 pub enum Recording {
     /// Saved to an `.rrd` file (relative paths: to the directory `run` is started in).
     Rrd(PathBuf),
-    /// Streamed to a Rerun viewer the visualizer spawns (`rerun` on the PATH).
-    Spawn,
+    /// Streamed to a Rerun viewer the visualizer spawns (`rerun` on the PATH), listening on
+    /// 127.0.0.1 at this port.
+    Spawn(u16),
     /// Streamed to a running viewer at this URL (`rerun+http://HOST:PORT/proxy`).
     Connect(String),
 }
@@ -279,6 +280,9 @@ pub struct VisualizerSpec {
     pub rate_hz: Real,
     /// Frames waiting for the recording at most; beyond, frames are dropped and counted.
     pub queue: usize,
+    /// The viewer URL (`visualizer.url`): where `connect` connects, and whose port a spawned
+    /// viewer listens on.
+    pub url: String,
 }
 
 /// Environment variable handing the recording target to the visualizer node
@@ -288,11 +292,11 @@ pub const ENV_RECORDING: &str = "ICRFLOW_RECORDING";
 pub const ENV_RECORDING_ID: &str = "ICRFLOW_RECORDING_ID";
 
 impl Recording {
-    /// The value of [`ENV_RECORDING`]: `rrd:PATH`, `spawn` or `connect:URL`.
+    /// The value of [`ENV_RECORDING`]: `rrd:PATH`, `spawn:PORT` or `connect:URL`.
     pub fn to_env(&self) -> String {
         match self {
             Self::Rrd(p) => format!("rrd:{}", p.display()),
-            Self::Spawn => "spawn".into(),
+            Self::Spawn(port) => format!("spawn:{port}"),
             Self::Connect(url) => format!("connect:{url}"),
         }
     }
@@ -304,10 +308,12 @@ impl Recording {
         } else if let Some(url) = value.strip_prefix("connect:") {
             viewer_url(url)?;
             Ok(Self::Connect(url.into()))
-        } else if value == "spawn" {
-            Ok(Self::Spawn)
+        } else if let Some(port) = value.strip_prefix("spawn:") {
+            Ok(Self::Spawn(port.parse().with_context(|| {
+                format!("{ENV_RECORDING}={value:?}: the port is not a number")
+            })?))
         } else {
-            bail!("{ENV_RECORDING}={value:?}: expected rrd:PATH, spawn or connect:URL")
+            bail!("{ENV_RECORDING}={value:?}: expected rrd:PATH, spawn:PORT or connect:URL")
         }
     }
 }
@@ -343,14 +349,12 @@ pub const DEFAULT_VIEWER_URL: &str = "rerun+http://127.0.0.1:9876/proxy";
 
 fn visualizer_spec(raw: RawVisualizer, path: &Path) -> Result<VisualizerSpec> {
     let mode = raw.mode.unwrap_or_else(|| "rrd".into());
+    let url = raw.url.unwrap_or_else(|| DEFAULT_VIEWER_URL.into());
+    let (_, port) = viewer_url(&url).context("visualizer.url")?;
     let recording = match mode.as_str() {
         "rrd" => Recording::Rrd(raw.rrd.unwrap_or_else(|| default_rrd(path))),
-        "spawn" => Recording::Spawn,
-        "connect" => {
-            let url = raw.url.unwrap_or_else(|| DEFAULT_VIEWER_URL.into());
-            viewer_url(&url).context("visualizer.url")?;
-            Recording::Connect(url)
-        }
+        "spawn" => Recording::Spawn(port),
+        "connect" => Recording::Connect(url.clone()),
         other => bail!("visualizer.mode: one of \"rrd\", \"spawn\", \"connect\", got {other:?}"),
     };
     let rate_hz = positive("visualizer.rate_hz", raw.rate_hz.unwrap_or(30.0))?;
@@ -366,6 +370,7 @@ fn visualizer_spec(raw: RawVisualizer, path: &Path) -> Result<VisualizerSpec> {
         recording,
         rate_hz,
         queue,
+        url,
     })
 }
 

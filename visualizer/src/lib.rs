@@ -15,6 +15,7 @@
 //! file (the default), a viewer it spawns, or a viewer at a URL.
 
 pub mod geometry;
+pub mod plan;
 pub mod record;
 
 /// The Rerun SDK, as this crate uses it.
@@ -35,7 +36,7 @@ use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording, rrd_parts};
 use geometry::{P3, p3};
 use record::{FingerView, Frame, Statics};
 
-fn recording_from_env() -> Result<(Recording, String)> {
+pub(crate) fn recording_from_env() -> Result<(Recording, String)> {
     let target = std::env::var(ENV_RECORDING).map_err(|_| {
         anyhow!("{ENV_RECORDING} is not set: the visualizer is started by `icrflow run`")
     })?;
@@ -84,6 +85,20 @@ impl State {
     }
 }
 
+/// What a recording of `setup` with the margin `alpha` shows from the start.
+pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64) -> Statics {
+    Statics {
+        recording_id: id.to_string(),
+        object: geometry::object_mesh(&setup.object),
+        ows: geometry::hull_mesh(&geometry::scaled_ows(&setup.problem, alpha)),
+        alpha,
+        axis: (
+            p3(&setup.object.centre_of_mass),
+            [0.0, 0.0, 1.5 * setup.object.max_radius() as f32],
+        ),
+    }
+}
+
 /// Runs the visualizer node.
 pub fn run(ctx: &Context) -> Result<()> {
     let (recording, id) = recording_from_env()?;
@@ -93,13 +108,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let problem = &setup.problem;
     let alpha = ctx.config.grasp.alpha;
     let com = setup.object.centre_of_mass;
-    let statics = Statics {
-        recording_id: id.clone(),
-        object: geometry::object_mesh(&setup.object),
-        ows: geometry::hull_mesh(&geometry::scaled_ows(problem, alpha)),
-        alpha,
-        axis: (p3(&com), [0.0, 0.0, 1.5 * setup.object.max_radius() as f32]),
-    };
+    let statics = statics(setup, &id, alpha);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
     let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);
@@ -130,7 +139,9 @@ pub fn run(ctx: &Context) -> Result<()> {
         .map_err(|_| anyhow!("the recording thread ended while opening"))??;
     match &recording {
         Recording::Rrd(p) => eprintln!("icrflow-visualizer: recording to {}", p.display()),
-        Recording::Spawn => eprintln!("icrflow-visualizer: recording to a spawned Rerun viewer"),
+        Recording::Spawn(port) => {
+            eprintln!("icrflow-visualizer: recording to a Rerun viewer spawned on port {port}")
+        }
         Recording::Connect(url) => {
             eprintln!("icrflow-visualizer: recording to the viewer at {url}")
         }
@@ -204,7 +215,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             plans.drain(|h, regions| {
                 if state.step.is_none_or(|s| h.step > s) {
                     state.step = Some(h.step);
-                    steps.push(step_frame(t, h, regions, problem));
+                    steps.push(live_step_frame(t, h, regions, problem));
                 }
             })?;
             for f in steps {
@@ -248,36 +259,65 @@ pub fn run(ctx: &Context) -> Result<()> {
     failure.map_or(Ok(()), Err)
 }
 
-/// A plan step's frame: its ICRs, and the wrench space of its contacts.
-fn step_frame(
+/// A plan step's frame from the plan-step message: its payload holds each finger's region,
+/// then the rendezvous region of an attach step.
+fn live_step_frame(
     t: f64,
     h: &PlanStepHeader,
     regions: &[u32],
     problem: &icrflow_grasp::quality::GraspProblem,
 ) -> Frame {
-    let candidates = problem.candidates();
-    let count = candidates.points.len();
-    let mut icrs = Vec::new();
-    let mut contacts = Vec::new();
-    let mut candidate_wrenches = Vec::new();
+    let mut fingers = Vec::new();
     let mut at = 0usize;
     for (slot, target) in h.targets.iter().enumerate().take(h.finger_count as usize) {
         let len = h.region_lengths[slot] as usize;
         let region = regions.get(at..at + len).unwrap_or(&[]);
         at += len;
-        let points: Vec<P3> = region
+        let contact = (target.in_contact != 0).then_some(target.candidate as usize);
+        fingers.push((target.finger, contact, region));
+    }
+    let rendezvous = (h.rendezvous_length > 0).then(|| {
+        let len = h.rendezvous_length as usize;
+        (
+            h.rendezvous_finger,
+            regions.get(at..at + len).unwrap_or(&[]),
+        )
+    });
+    step_frame(Some(t), h.step, h.phase, &fingers, rendezvous, problem)
+}
+
+/// A plan step's frame: each finger's ICR (its candidates `region`, shown while the finger is
+/// in contact at candidate `contact`), the rendezvous region of an attach step, and the wrench
+/// space of the contacts. Candidate indices out of range are skipped.
+pub(crate) fn step_frame(
+    t: Option<f64>,
+    step: u64,
+    phase: u32,
+    fingers: &[(u32, Option<usize>, &[u32])],
+    rendezvous: Option<(u32, &[u32])>,
+    problem: &icrflow_grasp::quality::GraspProblem,
+) -> Frame {
+    let candidates = problem.candidates();
+    let count = candidates.points.len();
+    let points = |region: &[u32]| -> Vec<P3> {
+        region
             .iter()
             .filter(|&&i| (i as usize) < count)
             .map(|&i| p3(&candidates.points[i as usize]))
-            .collect();
-        let in_contact = target.in_contact != 0;
-        if in_contact && (target.candidate as usize) < count {
-            contacts.push(target.candidate as usize);
+            .collect()
+    };
+    let mut icrs = Vec::new();
+    let mut contacts = Vec::new();
+    let mut candidate_wrenches = Vec::new();
+    for &(finger, contact, region) in fingers {
+        let in_contact = contact.is_some_and(|c| c < count);
+        if let Some(c) = contact.filter(|_| in_contact) {
+            contacts.push(c);
             for &i in region.iter().filter(|&&i| (i as usize) < count) {
                 candidate_wrenches.extend(geometry::candidate_wrenches(problem, i as usize));
             }
         }
-        icrs.push((target.finger, in_contact, points));
+        icrs.push((finger, in_contact, points(region)));
     }
     let primitive: Vec<P3> = contacts
         .iter()
@@ -285,13 +325,35 @@ fn step_frame(
         .collect();
     Frame::Step {
         t,
-        step: h.step,
-        phase: h.phase,
+        step,
+        phase,
         icrs,
+        rendezvous: rendezvous.map(|(finger, region)| (finger, points(region))),
         gws: geometry::hull_mesh(&primitive),
         primitive,
         candidates: candidate_wrenches,
     }
+}
+
+/// A finger at joint angles `q` (rad): its links, fingertip, and the fingertip's angle around
+/// the object's `centre` (hand frame); none for angles that are not the finger's.
+pub(crate) fn finger_view(
+    finger: &icrflow_plan::hand::Finger,
+    q: &[f64],
+    centre: &Vec3,
+) -> Option<FingerView> {
+    if q.len() != finger.dof() || q.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let pose = finger.fk(q);
+    let mut links: Vec<P3> = pose.joints.iter().map(p3).collect();
+    links.push(p3(&pose.tip_centre));
+    Some(FingerView {
+        finger: finger.id,
+        links,
+        tip: (p3(&pose.tip_centre), finger.tip_radius as f32),
+        angle_deg: geometry::angle_deg(&pose.tip_centre, centre),
+    })
 }
 
 /// A scene and time-series frame from the newest grasp state and joint readings; takes the
@@ -339,23 +401,12 @@ fn tick_frame(
                 continue;
             };
             let q = &j.positions[slot][..finger.dof().min(j.positions[slot].len())];
-            if q.len() != finger.dof() || q.iter().any(|x| !x.is_finite()) {
-                continue;
-            }
-            let pose = finger.fk(q);
-            let mut links: Vec<P3> = pose.joints.iter().map(p3).collect();
-            links.push(p3(&pose.tip_centre));
-            fingers.push(FingerView {
-                finger: finger.id,
-                links,
-                tip: (p3(&pose.tip_centre), finger.tip_radius as f32),
-                angle_deg: geometry::angle_deg(&pose.tip_centre, &centre),
-            });
+            fingers.extend(finger_view(finger, q, &centre));
         }
     }
     let q = rotation.quaternion();
     Frame::Tick {
-        t,
+        t: Some(t),
         pose: (
             p3(&translation),
             [q.i as f32, q.j as f32, q.k as f32, q.w as f32],

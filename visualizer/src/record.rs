@@ -2,7 +2,6 @@
 //! sends it, so that a lagging viewer (Rerun's SDK blocks when its bounded queues are full)
 //! only ever blocks this thread; the node drops and counts the frames that find the queue full.
 
-use std::sync::mpsc::Receiver;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result, anyhow};
@@ -21,7 +20,8 @@ pub mod paths {
     pub const OBJECT_MESH: &str = "/scene/object/mesh";
     /// Each finger's ICR (`/scene/object/icr/finger_<n>`), of the current plan step.
     pub const ICR: &str = "/scene/object/icr";
-    /// The ICR a free finger attaches into during a switch (the rendezvous region).
+    /// The ICR a free finger attaches into during a switch (the rendezvous region), in each
+    /// attach step; cleared otherwise.
     pub const RENDEZVOUS: &str = "/scene/object/rendezvous";
     /// The estimated contact points.
     pub const CONTACTS: &str = "/scene/contacts";
@@ -80,8 +80,8 @@ pub struct FingerView {
 pub enum Frame {
     /// The scene and the time series, at the visualizer's rate.
     Tick {
-        /// Seconds since the start.
-        t: f64,
+        /// Seconds since the start (none for a plan, which has steps only).
+        t: Option<f64>,
         /// The object's translation and rotation `[x, y, z, w]`.
         pose: (P3, [f32; 4]),
         /// The object's rotation (deg, unwrapped).
@@ -101,14 +101,16 @@ pub enum Frame {
     },
     /// A plan step taken up.
     Step {
-        /// Seconds since the start.
-        t: f64,
+        /// Seconds since the start (none for a plan).
+        t: Option<f64>,
         /// Its number.
         step: u64,
         /// Its phase.
         phase: u32,
         /// Each finger's ICR (body frame) and whether the finger is in contact.
         icrs: Vec<(u32, bool, Vec<P3>)>,
+        /// In an attach step: the attaching finger and the rendezvous region (body frame).
+        rendezvous: Option<(u32, Vec<P3>)>,
         /// The grasp wrench space of its contacts.
         gws: Mesh,
         /// The contacts' primitive wrenches.
@@ -188,19 +190,19 @@ pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
                 .save(path)
                 .with_context(|| format!("cannot write the recording {}", path.display()))
         }
-        Recording::Spawn => builder.spawn().map_err(|e| {
-            anyhow!("cannot spawn a Rerun viewer (`rerun` 0.36 on the PATH: `pip install rerun-sdk==0.36.3`): {e}")
-        }),
+        Recording::Spawn(port) => {
+            let url = format!("rerun+http://127.0.0.1:{port}/proxy");
+            if !reachable("127.0.0.1", *port) {
+                spawn_viewer(*port)?;
+            }
+            builder
+                .connect_grpc_opts(url.clone())
+                .with_context(|| format!("cannot connect to the spawned Rerun viewer at {url}"))
+        }
         Recording::Connect(url) => {
             // Rerun's client retries an absent viewer for ever and then blocks: ask first.
             let (host, port) = icrflow_scenario::viewer_url(url)?;
-            let reachable = std::net::ToSocketAddrs::to_socket_addrs(&(host.as_str(), port))
-                .ok()
-                .and_then(|mut a| a.next())
-                .is_some_and(|a| {
-                    std::net::TcpStream::connect_timeout(&a, Duration::from_secs(2)).is_ok()
-                });
-            if !reachable {
+            if !reachable(&host, port) {
                 anyhow::bail!("no Rerun viewer at {url} (start one with `rerun`, or use --rrd)");
             }
             builder
@@ -208,6 +210,45 @@ pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
                 .with_context(|| format!("cannot connect to the Rerun viewer at {url}"))
         }
     }
+}
+
+/// Whether something accepts TCP connections at `host:port` (within 2 s).
+fn reachable(host: &str, port: u16) -> bool {
+    std::net::ToSocketAddrs::to_socket_addrs(&(host, port))
+        .ok()
+        .and_then(|mut a| a.next())
+        .is_some_and(|a| std::net::TcpStream::connect_timeout(&a, Duration::from_secs(2)).is_ok())
+}
+
+/// Starts `rerun` (on the PATH) listening on 127.0.0.1 at `port` and waits until it accepts
+/// connections. The viewer is the user's window, so it outlives the run: it gets a process
+/// group of its own (a Ctrl-C of the run does not close it) and none of this process's output
+/// (its logs would mix with the run's, and it would hold a caller's pipes open while it is
+/// open). Rerun's SDK spawn inherits them, hence this.
+fn spawn_viewer(port: u16) -> Result<()> {
+    use std::os::unix::process::CommandExt as _;
+    std::process::Command::new("rerun")
+        .arg(format!("--port={port}"))
+        .args(["--bind", "127.0.0.1", "--memory-limit=75%"])
+        .args(["--hide-welcome-screen", "--expect-data-soon"])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .process_group(0)
+        .spawn()
+        .map_err(|e| {
+            anyhow!(
+                "cannot start a Rerun viewer (`rerun` 0.36 on the PATH: `pip install rerun-sdk==0.36.3`): {e}"
+            )
+        })?;
+    let started = std::time::Instant::now();
+    while !reachable("127.0.0.1", port) {
+        if started.elapsed() > Duration::from_secs(20) {
+            anyhow::bail!("the Rerun viewer started for the run does not listen on port {port}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    Ok(())
 }
 
 fn mesh(m: &Mesh, rgba: u32) -> rerun::Mesh3D {
@@ -255,11 +296,12 @@ pub fn statics(rec: &rerun::RecordingStream, s: &Statics) -> Result<()> {
     Ok(())
 }
 
-/// Logs frames until the node closes the channel; returns the frames logged.
+/// Logs frames until there are no more (the node closes the channel); returns the frames
+/// logged.
 pub fn log_frames(
     rec: &rerun::RecordingStream,
     alpha: f64,
-    frames: Receiver<Frame>,
+    frames: impl IntoIterator<Item = Frame>,
 ) -> Result<u64> {
     let mut logged = 0;
     let mut step = 0i64;
@@ -277,7 +319,9 @@ pub fn log_frames(
                 latency,
                 dropped,
             } => {
-                rec.set_duration_secs(TIME, t);
+                if let Some(t) = t {
+                    rec.set_duration_secs(TIME, t);
+                }
                 rec.set_time_sequence(STEP, step);
                 let (translation, [x, y, z, w]) = pose;
                 rec.log(
@@ -354,12 +398,15 @@ pub fn log_frames(
                 step: number,
                 phase: p,
                 icrs,
+                rendezvous,
                 gws,
                 primitive,
                 candidates,
             } => {
                 step = i64::try_from(number).unwrap_or(i64::MAX);
-                rec.set_duration_secs(TIME, t);
+                if let Some(t) = t {
+                    rec.set_duration_secs(TIME, t);
+                }
                 rec.set_time_sequence(STEP, step);
                 rec.log(paths::STEP, &rerun::Scalars::single(number as f64))?;
                 rec.log(paths::PHASE, &rerun::Scalars::single(p as f64))?;
@@ -370,29 +417,36 @@ pub fn log_frames(
                         &rerun::TextLog::new(format!("step {number}: phase {}", phase_name(p))),
                     )?;
                 }
-                let mut rendezvous = Vec::new();
                 for (finger, in_contact, points) in &icrs {
+                    let path = format!("{}/finger_{finger}", paths::ICR);
                     if *in_contact {
                         rec.log(
-                            format!("{}/finger_{finger}", paths::ICR),
+                            path,
                             &rerun::Points3D::new(points.iter().copied())
                                 .with_radii([0.0015])
                                 .with_colors([finger_colour(*finger)]),
                         )?;
                     } else {
-                        rendezvous.extend_from_slice(points);
-                        rec.log(
-                            format!("{}/finger_{finger}", paths::ICR),
-                            &rerun::Clear::flat(),
-                        )?;
+                        rec.log(path, &rerun::Clear::flat())?;
                     }
                 }
-                rec.log(
-                    paths::RENDEZVOUS,
-                    &rerun::Points3D::new(rendezvous)
-                        .with_radii([0.0025])
-                        .with_colors([0xffd700ff]),
-                )?;
+                match rendezvous {
+                    Some((finger, points)) => {
+                        rec.log(
+                            paths::RENDEZVOUS,
+                            &rerun::Points3D::new(points)
+                                .with_radii([0.0025])
+                                .with_colors([0xffd700ff]),
+                        )?;
+                        rec.log(
+                            paths::EVENTS,
+                            &rerun::TextLog::new(format!(
+                                "step {number}: finger {finger} attaches in its rendezvous region"
+                            )),
+                        )?;
+                    }
+                    None => rec.log(paths::RENDEZVOUS, &rerun::Clear::flat())?,
+                }
                 rec.log(paths::GWS, &mesh(&gws, 0x3cb44b90))?;
                 rec.log(
                     paths::PRIMITIVE,

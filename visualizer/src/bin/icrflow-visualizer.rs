@@ -1,10 +1,27 @@
 //! `icrflow-visualizer`: the pipeline's Rerun visualizer, started by `icrflow run` when
-//! `[visualizer]` is enabled (see `icrflow_visualizer`).
+//! `[visualizer]` is enabled (see `icrflow_visualizer`); with `--plan CONFIG TRAJECTORY`,
+//! started by `icrflow plan --rrd ...`, it records a written plan instead
+//! (`icrflow_visualizer::plan`).
+
+use std::path::Path;
+use std::process::ExitCode;
 
 #[global_allocator]
 static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
     &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
 
-fn main() -> std::process::ExitCode {
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if let [flag, config, trajectory] = args.as_slice()
+        && flag == "--plan"
+    {
+        return match icrflow_visualizer::plan::run(Path::new(config), Path::new(trajectory)) {
+            Ok(_) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("icrflow-visualizer: error: {e:#}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     icrflow_nodes::runtime::main("visualizer", icrflow_visualizer::run)
 }
