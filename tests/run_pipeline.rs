@@ -175,16 +175,38 @@ fn shm_left(summary: &serde_json::Value) -> Vec<String> {
         .collect()
 }
 
-/// The pid of the running process whose command line names `program`.
-fn find(program: &str) -> Option<u32> {
+/// The pid of a running `program` from beside the tested `icrflow` (as `run` starts its
+/// nodes), and, with `parent`, started by that process (not another pipeline's node).
+fn find_child(program: &str, parent: Option<u32>) -> Option<u32> {
+    let path = std::path::Path::new(env!("CARGO_BIN_EXE_icrflow")).with_file_name(program);
     std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
         let pid: u32 = e.file_name().to_string_lossy().parse().ok()?;
         let cmd = std::fs::read(e.path().join("cmdline")).ok()?;
         let argv0 = cmd.split(|b| *b == 0).next()?;
-        String::from_utf8_lossy(argv0)
-            .ends_with(&format!("/{program}"))
-            .then_some(pid)
+        if std::path::Path::new(&*String::from_utf8_lossy(argv0)) != path {
+            return None;
+        }
+        if let Some(parent) = parent {
+            // /proc/PID/stat: "pid (comm) state ppid ...".
+            let stat = std::fs::read_to_string(e.path().join("stat")).ok()?;
+            let ppid: u32 = stat
+                .rsplit(')')
+                .next()?
+                .split_whitespace()
+                .nth(1)?
+                .parse()
+                .ok()?;
+            if ppid != parent {
+                return None;
+            }
+        }
+        Some(pid)
     })
+}
+
+/// The pid of a running `program` from beside the tested `icrflow`.
+fn find(program: &str) -> Option<u32> {
+    find_child(program, None)
 }
 
 #[test]
@@ -201,7 +223,8 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
         // Let the run get going (a few seconds of its ~15), then kill the node.
         std::thread::sleep(std::time::Duration::from_secs(4));
         let program = format!("icrflow-{node}");
-        let pid = find(&program).unwrap_or_else(|| panic!("{program} is not running"));
+        let pid = find_child(&program, Some(run.id()))
+            .unwrap_or_else(|| panic!("{program} is not running"));
         let killed = std::process::Command::new("kill")
             .args(["-9", &pid.to_string()])
             .status()

@@ -126,7 +126,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             q.clear();
             q.extend_from_slice(&m.positions[k][..f.dof()]);
             if q.iter().any(|x| !x.is_finite()) {
-                health.refuse(format!("finger {}: joint angle not finite", f.id));
+                health.refuse(format_args!("finger {}: joint angle not finite", f.id));
                 return Ok(());
             }
             g.joints[slot][..q.len()].copy_from_slice(&q);

@@ -132,25 +132,28 @@ impl Health {
             name: ctx.name,
             processed: 0,
             refused: 0,
-            last_problem: String::new(),
+            last_problem: String::with_capacity(256),
             reported: (0, 0),
         })
     }
 
-    /// Counts a refused input and remembers why.
+    /// Counts a refused input and remembers why (written into the kept text: no allocation
+    /// once it has grown to the longest reason; pass `format_args!`, not `format!`).
     pub fn refuse(&mut self, why: impl std::fmt::Display) {
+        use std::fmt::Write as _;
         self.refused += 1;
-        self.last_problem = why.to_string();
+        self.last_problem.clear();
+        let _ = write!(self.last_problem, "{why}");
     }
 
     /// Accepts a message's header if it is of our schema, of `kind`, and after `last` (then
     /// moved to it); otherwise counts the refusal with `topic` named.
     pub fn accept(&mut self, topic: &str, h: &Header, kind: Kind, last: &mut u64) -> bool {
         if let Err(e) = h.check(kind) {
-            self.refuse(format!("{topic}: {e}"));
+            self.refuse(format_args!("{topic}: {e}"));
             false
         } else if h.sequence <= *last {
-            self.refuse(format!("{topic} out of order"));
+            self.refuse(format_args!("{topic} out of order"));
             false
         } else {
             *last = h.sequence;
