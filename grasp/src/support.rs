@@ -23,9 +23,9 @@
 //! - [`SupportTree::support`]: the exact support `h(a)` of one direction, branch and bound
 //!   (children visited best bound first, a node skipped when its bound cannot beat the best
 //!   point found so far);
-//! - [`SupportTree::max_over`]: the largest `g_f . o_k` over many directions `g_f` at once,
-//!   directions ordered by their root bound and stopped as soon as no remaining direction can
-//!   win. With `g_f = a_f / b_f` (facet normal over offset) its inverse is alpha*: a facet is
+//! - [`SupportTree::max_over`]: the largest `g_f . o_k` over many directions `g_f` at once:
+//!   the direction with the largest root bound is searched first, then the others whose root
+//!   bound exceeds its value, in order of that bound, stopping as soon as none can win. With `g_f = a_f / b_f` (facet normal over offset) its inverse is alpha*: a facet is
 //!   skipped, without touching one OWS point, whenever a lower bound on its ratio `b_f / h_f`
 //!   already exceeds the best ratio found.
 //!
@@ -283,24 +283,42 @@ impl SupportTree {
     ) -> Option<(usize, Real)> {
         let d = self.dim;
         let root = &self.nodes[0];
+        let dir = |f: u32| &dirs[f as usize * d..(f as usize + 1) * d];
+        // Root bounds by the cheap block-ball bound alone (`bound` with `best = inf`); the
+        // full bound is evaluated only for a direction about to be searched.
         order.clear();
         for (f, g) in dirs.chunks_exact(d).enumerate() {
             let norms = self.block_norms(g);
-            order.push((self.bound(root, g, norms, Real::NEG_INFINITY), f as u32));
+            order.push((self.bound(root, g, norms, Real::INFINITY), f as u32));
         }
-        order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
         let mut best = floor;
         let mut arg = None;
+        let mut consider = |f: u32, best: &mut Real, stack: &mut Vec<(Real, u32)>| {
+            let g = dir(f);
+            if self.bound(root, g, self.block_norms(g), *best) <= *best {
+                return;
+            }
+            let (v, _) = self.search(g, *best, stack);
+            if v > *best {
+                *best = v;
+                arg = Some(f as usize);
+            }
+        };
+        // The most promising direction first: its value usually prunes all the others, so
+        // the rest is filtered before it is sorted.
+        if let Some(top) = (0..order.len()).max_by(|&i, &j| order[i].0.total_cmp(&order[j].0)) {
+            let (bound, f) = order.swap_remove(top);
+            if bound > best {
+                consider(f, &mut best, stack);
+            }
+        }
+        order.retain(|&(bound, _)| bound > best);
+        order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         for &(bound, f) in order.iter() {
             if bound <= best {
                 break;
             }
-            let g = &dirs[f as usize * d..(f as usize + 1) * d];
-            let (v, _) = self.search(g, best, stack);
-            if v > best {
-                best = v;
-                arg = Some(f as usize);
-            }
+            consider(f, &mut best, stack);
         }
         arg.map(|f| (f, best))
     }
