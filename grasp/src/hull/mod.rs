@@ -270,10 +270,10 @@ impl Hull {
         // the boundary without being extreme (inside a facet, on an edge between two vertices).
         // Greedy Gram-Schmidt per point over its facets, stopping at a basis; a normal counts
         // when its residual exceeds 1e-10. Facets with `dim` points (simplices) go first, then
-        // the others, each group in the bit-reversed order of the facet indices (0, F/2, F/4,
-        // 3F/4, ...): a point's simplicial facets point in varied directions, while its large
-        // facets (a whole friction polygon, say) often share a subspace, and neighbours in
-        // the canonical order often share a ridge; so a basis is reached in few steps.
+        // the others, each group in a golden-ratio stride order of the facet indices: a
+        // point's simplicial facets point in varied directions, while its large facets (a
+        // whole friction polygon, say) often share a subspace, and neighbours in the canonical
+        // order often share a ridge; so a basis is reached in few steps.
         let count = facet_indices
             .iter()
             .map(|&i| i as usize + 1)
@@ -281,12 +281,13 @@ impl Hull {
             .unwrap_or(0);
         let mut bases = vec![Basis::default(); count];
         let facets = offsets.len();
-        let bits = facets.next_power_of_two().trailing_zeros();
+        let stride = golden_stride(facets);
         for simplices in [true, false] {
-            for k in 0..facets.next_power_of_two() {
-                let f = spread(k, bits);
+            let mut f = 0;
+            for _ in 0..facets {
+                f += stride;
                 if f >= facets {
-                    continue;
+                    f -= facets;
                 }
                 let range = facet_offsets[f] as usize..facet_offsets[f + 1] as usize;
                 if (range.len() == dim) == simplices {
@@ -375,13 +376,20 @@ impl Basis {
     }
 }
 
-/// `k` with its lowest `bits` bits reversed.
-fn spread(k: usize, bits: u32) -> usize {
-    if bits == 0 {
-        0
-    } else {
-        k.reverse_bits() >> (usize::BITS - bits)
+/// A stride coprime with `n` near `0.618 n` (1 for `n <= 2`): stepping by it modulo `n`
+/// visits every index once, consecutive visits far apart.
+fn golden_stride(n: usize) -> usize {
+    fn gcd(a: usize, b: usize) -> usize {
+        if b == 0 { a } else { gcd(b, a % b) }
     }
+    if n <= 2 {
+        return 1;
+    }
+    let mut stride = ((n as f64 * 0.618_034) as usize).clamp(1, n - 1);
+    while gcd(n, stride) != 1 {
+        stride -= 1;
+    }
+    stride
 }
 
 /// The canonical order of two facets by their ascending point lists: the one holding the

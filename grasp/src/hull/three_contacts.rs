@@ -235,6 +235,13 @@ fn extremes(values: &[Real]) -> (Real, Real) {
     (hi, lo)
 }
 
+/// `j mod s` for `j < 2 s`, without a division (the loops index polygon neighbours with
+/// it, hundreds of times per hull).
+#[inline(always)]
+fn wrap(j: usize, s: usize) -> usize {
+    if j >= s { j - s } else { j }
+}
+
 #[inline(always)]
 fn dot<const N: usize>(a: &[Real; N], b: &[Real; N]) -> Real {
     let mut s = 0.0;
@@ -470,10 +477,10 @@ impl Setup {
         })
     }
 
-    /// Index of vertex `j` (taken mod `s`) of contact `i`.
+    /// Index of vertex `j` (taken mod `s`, `j < 2 s`) of contact `i`.
     #[inline(always)]
     fn at(&self, i: usize, j: usize) -> usize {
-        i * self.s + j % self.s
+        i * self.s + wrap(j, self.s)
     }
 
     /// Whether a candidate with these values (`h . y` at the neighbours, `h = N lambda` not
@@ -550,7 +557,7 @@ impl Setup {
                 first.at(&y[self.at(0, e1 + 2)]),
             ];
             for e2 in 0..s {
-                let (a2, b2) = (e2, (e2 + 1) % s);
+                let (a2, b2) = (e2, wrap(e2 + 1, s));
                 let second: NullSpace<5, 3> = null_space([z[a2], z[b2]], [yn[s + a2], yn[s + b2]]);
                 let nf = first.norm * second.norm;
                 let pivot = first.pivot.min(second.pivot);
@@ -561,20 +568,20 @@ impl Setup {
                 let outer = [
                     second.at(&outer1[0]),
                     second.at(&outer1[1]),
-                    second.at(&z[(e2 + s - 1) % s]),
-                    second.at(&z[(e2 + 2) % s]),
+                    second.at(&z[wrap(e2 + s - 1, s)]),
+                    second.at(&z[wrap(e2 + 2, s)]),
                 ];
                 let base = (1u64 << a1) | (1u64 << b1) | (1u64 << (s + a2)) | (1u64 << (s + b2));
                 for e3 in 0..s {
-                    let (u, v) = (e3, (e3 + 1) % s);
+                    let (u, v) = (e3, wrap(e3 + 1, s));
                     let lambda = cross(&r3[u], &r3[v]);
                     let values = [
                         dot(&outer[0], &lambda),
                         dot(&outer[1], &lambda),
                         dot(&outer[2], &lambda),
                         dot(&outer[3], &lambda),
-                        dot(&r3[(e3 + s - 1) % s], &lambda),
-                        dot(&r3[(e3 + 2) % s], &lambda),
+                        dot(&r3[wrap(e3 + s - 1, s)], &lambda),
+                        dot(&r3[wrap(e3 + 2, s)], &lambda),
                     ];
                     let (pu, pv) = (2 * s + u, 2 * s + v);
                     let c = Conditioning {
@@ -632,8 +639,8 @@ impl Setup {
                         let values = [
                             dot(&outer[0], &lambda),
                             dot(&outer[1], &lambda),
-                            dot(&r[(t + s - 1) % s], &lambda),
-                            dot(&r[(t + 1) % s], &lambda),
+                            dot(&r[wrap(t + s - 1, s)], &lambda),
+                            dot(&r[wrap(t + 1, s)], &lambda),
                         ];
                         let p = self.at(vertex, t);
                         let c = Conditioning {
