@@ -166,6 +166,25 @@ fn quality(c: &mut Criterion) {
                     )
                 })
             });
+            if p.dim() == 6 {
+                assert!(
+                    icrflow_grasp::hull::three_contacts::hull(&e.wrenches, EDGES).is_ok(),
+                    "{}: the facet enumeration declined the bench grasp",
+                    b.id
+                );
+            }
+            group.bench_function(format!("{}/hull_contacts", b.id), |bench| {
+                bench.iter(|| {
+                    black_box(
+                        icrflow_grasp::hull::Hull::of_contacts(
+                            black_box(&e.wrenches),
+                            p.dim(),
+                            EDGES,
+                        )
+                        .unwrap(),
+                    )
+                })
+            });
             group.bench_function(format!("{}/hull_only", b.id), |bench| {
                 bench.iter(|| {
                     black_box(

@@ -88,8 +88,20 @@ struct Zone {
 const LANES: usize = 4;
 
 impl Zone {
+    /// The zone of the vertex of cone edge `edge` with these facets, tested in the order of
+    /// their offsets: the vertex lies on each facet, so a nearby wrench's slack
+    /// `a_f . w - sure_f` is about `b_f (1 - alpha / alpha*)`, smallest for the smallest
+    /// offset, and a failing wrench is usually rejected by the first facet tested (the
+    /// answer does not depend on the order, only the cost).
     fn new(edge: usize, facets: &[u32], hull: &Hull, sure: &[Real]) -> Self {
         let d = hull.dim();
+        let mut facets = facets.to_vec();
+        facets.sort_by(|&f, &g| {
+            let offsets = hull.offsets();
+            offsets[f as usize]
+                .total_cmp(&offsets[g as usize])
+                .then(f.cmp(&g))
+        });
         let blocks = facets.len().div_ceil(LANES);
         let mut normals = vec![0.0; blocks * d * LANES];
         let mut limits = vec![Real::NEG_INFINITY; blocks * LANES];
@@ -102,7 +114,7 @@ impl Zone {
         }
         Self {
             edge,
-            facets: facets.to_vec(),
+            facets,
             normals,
             sure: limits,
         }

@@ -9,7 +9,7 @@
 //! |---|---|
 //! | [`object`] | objects: primitives and STL/OBJ meshes, validated; candidate points, normals, areas, neighbourhood graph, centre of mass, planar section |
 //! | [`wrench`] | friction cones, primitive wrenches, object wrenches, planar and spatial spaces |
-//! | [`hull`] | convex hulls in 3 and 6 dimensions (beneath-beyond; Qhull as fallback and reference), degenerate input as a status |
+//! | [`hull`] | convex hulls in 3 and 6 dimensions (facet enumeration for three contacts in 6D; beneath-beyond; Qhull as fallback and reference), degenerate input as a status |
 //! | [`quality`] | force closure, the quality alpha* (paper eq. 6) and the Ferrari-Canny epsilon |
 //! | [`support`] | the OWS support function by branch and bound over a tree of bounding ellipsoids |
 //! | [`lp`] | alpha* by ray-shooting linear programs (clarabel): the independent check |

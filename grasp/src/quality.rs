@@ -6,8 +6,9 @@
 //! rigid motion of the object moves its grasp wrench space and its object wrench space
 //! together, so alpha* is evaluated in the body frame.
 //!
-//! [`GraspProblem::evaluate`] builds `H(GWS)` (the hull of the contacts' primitive wrenches)
-//! and reports:
+//! [`GraspProblem::evaluate`] builds `H(GWS)` (the hull of the contacts' primitive wrenches,
+//! [`Hull::of_contacts`]: facet enumeration for three contacts in 6D, beneath-beyond
+//! otherwise) and reports:
 //! - force closure: the hull is full-dimensional and the origin is strictly inside it, i.e.
 //!   every facet offset `b_f > tol` with `tol = 1e-9 * max |w|`;
 //! - epsilon (Ferrari-Canny, the L1 / "sum of forces <= 1" variant): `min_f b_f`, the radius
@@ -296,7 +297,7 @@ impl GraspProblem {
         let d = self.dim();
         let scale = wrenches.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
         let tolerance = RELATIVE_TOLERANCE * scale.max(Real::MIN_POSITIVE);
-        let hull = match Hull::new(&wrenches, d) {
+        let hull = match Hull::of_contacts(&wrenches, d, self.model.edges()) {
             Ok(h) => h,
             Err(HullError::Degenerate { rank, .. }) => {
                 return Ok(Evaluation::without_hull(

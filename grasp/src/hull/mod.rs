@@ -20,12 +20,25 @@
 //!   reference the fast path is tested against (same facet hyperplanes and vertices, in
 //!   `grasp/tests/properties.rs`).
 //!
+//! - [`three_contacts`] enumerates the facets of the 6D hull of three contacts directly
+//!   (each contact's wrenches are a convex polygon, so the facets are a few hundred
+//!   candidates of known types) and declines degenerate configurations; [`Hull::of_contacts`]
+//!   uses it where it applies, [`Hull::new`] otherwise and whenever it declines. Tested
+//!   against [`Hull::new`] facet for facet.
+//!
 //! # Conventions
 //! Facet `f` is the half-space `a_f . x <= b_f` with `a_f` a unit outward normal. Vertex and
 //! facet-vertex indices refer to the input points.
+//!
+//! Facets are in a canonical order, whichever construction ran: by their point sets, the
+//! facet holding the smallest point on which two facets' lists differ first (for ascending
+//! lists: lexicographic, except that a list comes before its own prefixes). So everything
+//! downstream that depends on facet order (ties in alpha*'s limiting facet, the published
+//! facet list) is the same for every path.
 
 pub mod beneath_beyond;
 mod qhull;
+pub mod three_contacts;
 
 use crate::math::Real;
 
@@ -99,6 +112,21 @@ impl Hull {
             )),
             Err(_) => qhull::hull(points, dim),
         }
+    }
+
+    /// The hull of the primitive wrenches of contacts with `edges`-edge friction cones
+    /// (contact-major, edge-major within a contact, `dim` coordinates each): by the facet
+    /// enumeration of [`three_contacts`] for three contacts in 6D, falling back to
+    /// [`Hull::new`] elsewhere and whenever the enumeration declines. The same hull as
+    /// [`Hull::new`] either way.
+    pub fn of_contacts(points: &[Real], dim: usize, edges: usize) -> Result<Self, HullError> {
+        if dim == 6
+            && points.len() == 3 * edges * dim
+            && let Ok(hull) = three_contacts::hull(points, edges)
+        {
+            return Ok(hull);
+        }
+        Self::new(points, dim)
     }
 
     /// The same hull computed by Qhull alone: the reference for the fast path.
@@ -182,7 +210,7 @@ impl Hull {
     }
 
     /// The hull from its facets, with ascending facet lists in compressed form (the list of
-    /// facet `f` is `facet_indices[facet_offsets[f]..facet_offsets[f + 1]]`).
+    /// facet `f` is `facet_indices[facet_offsets[f]..facet_offsets[f + 1]]`), in any order.
     fn from_compressed(
         dim: usize,
         normals: Vec<Real>,
@@ -190,21 +218,84 @@ impl Hull {
         facet_offsets: Vec<u32>,
         facet_indices: Vec<u32>,
     ) -> Self {
+        let list =
+            |f: usize| &facet_indices[facet_offsets[f] as usize..facet_offsets[f + 1] as usize];
+        let count = offsets.len();
+        if (1..count).all(|f| canonical_cmp(list(f - 1), list(f)).is_lt()) {
+            return Self::from_sorted(dim, normals, offsets, facet_offsets, facet_indices);
+        }
+        let mut order: Vec<u32> = (0..count as u32).collect();
+        if facet_indices.iter().all(|&i| i < 128) {
+            let keys: Vec<u128> = (0..count).map(|f| canonical_key(list(f))).collect();
+            order.sort_unstable_by_key(|&f| std::cmp::Reverse(keys[f as usize]));
+        } else {
+            order.sort_unstable_by(|&f, &g| canonical_cmp(list(f as usize), list(g as usize)));
+        }
+        let mut sorted_normals = Vec::with_capacity(normals.len());
+        let mut sorted_offsets = Vec::with_capacity(count);
+        let mut sorted_facet_offsets = Vec::with_capacity(count + 1);
+        let mut sorted_indices = Vec::with_capacity(facet_indices.len());
+        sorted_facet_offsets.push(0);
+        for &f in &order {
+            let f = f as usize;
+            sorted_normals.extend_from_slice(&normals[f * dim..(f + 1) * dim]);
+            sorted_offsets.push(offsets[f]);
+            sorted_indices.extend_from_slice(list(f));
+            sorted_facet_offsets.push(sorted_indices.len() as u32);
+        }
+        Self::from_sorted(
+            dim,
+            sorted_normals,
+            sorted_offsets,
+            sorted_facet_offsets,
+            sorted_indices,
+        )
+    }
+
+    /// [`Self::from_compressed`] for facets already in the canonical order.
+    fn from_sorted(
+        dim: usize,
+        normals: Vec<Real>,
+        offsets: Vec<Real>,
+        facet_offsets: Vec<u32>,
+        facet_indices: Vec<u32>,
+    ) -> Self {
+        debug_assert!((1..offsets.len()).all(|f| {
+            let list =
+                |f: usize| &facet_indices[facet_offsets[f] as usize..facet_offsets[f + 1] as usize];
+            canonical_cmp(list(f - 1), list(f)).is_lt()
+        }));
         // A point on facets is a vertex (an extreme point) when the normals of its facets span
         // the space: its normal cone is full-dimensional. This leaves out points that lie on
         // the boundary without being extreme (inside a facet, on an edge between two vertices).
-        // Greedy Gram-Schmidt per point over its facets in ascending order, stopping at a
-        // basis; a normal counts when its residual exceeds 1e-10.
+        // Greedy Gram-Schmidt per point over its facets, stopping at a basis; a normal counts
+        // when its residual exceeds 1e-10. Facets with `dim` points (simplices) go first, then
+        // the others, each group in a golden-ratio stride order of the facet indices: a
+        // point's simplicial facets point in varied directions, while its large facets (a
+        // whole friction polygon, say) often share a subspace, and neighbours in the canonical
+        // order often share a ridge; so a basis is reached in few steps.
         let count = facet_indices
             .iter()
             .map(|&i| i as usize + 1)
             .max()
             .unwrap_or(0);
         let mut bases = vec![Basis::default(); count];
-        for (f, a) in normals.chunks_exact(dim).enumerate() {
-            let range = facet_offsets[f] as usize..facet_offsets[f + 1] as usize;
-            for &i in &facet_indices[range] {
-                bases[i as usize].add(a, dim);
+        let facets = offsets.len();
+        let stride = golden_stride(facets);
+        for simplices in [true, false] {
+            let mut f = 0;
+            for _ in 0..facets {
+                f += stride;
+                if f >= facets {
+                    f -= facets;
+                }
+                let range = facet_offsets[f] as usize..facet_offsets[f + 1] as usize;
+                if (range.len() == dim) == simplices {
+                    let a = &normals[f * dim..(f + 1) * dim];
+                    for &i in &facet_indices[range] {
+                        bases[i as usize].add(a, dim);
+                    }
+                }
             }
         }
         let vertices = bases
@@ -239,6 +330,34 @@ impl Basis {
         if self.rank == dim {
             return;
         }
+        match dim {
+            6 => self.add_fixed::<6>(v),
+            3 => self.add_fixed::<3>(v),
+            _ => self.add_any(v, dim),
+        }
+    }
+
+    /// [`Self::add`] for a fixed dimension (unrolled; the same arithmetic as `add_any`).
+    #[inline(always)]
+    fn add_fixed<const D: usize>(&mut self, v: &[Real]) {
+        let mut r = [0.0; D];
+        r.copy_from_slice(&v[..D]);
+        for e in &self.vectors[..self.rank] {
+            let c = dot(&r, &e[..D]);
+            for k in 0..D {
+                r[k] -= c * e[k];
+            }
+        }
+        let norm = dot(&r, &r).sqrt();
+        if norm > 1e-10 {
+            for (b, x) in self.vectors[self.rank][..D].iter_mut().zip(&r) {
+                *b = x / norm;
+            }
+            self.rank += 1;
+        }
+    }
+
+    fn add_any(&mut self, v: &[Real], dim: usize) {
         let mut r = [0.0; 8];
         r[..dim].copy_from_slice(&v[..dim]);
         for e in &self.vectors[..self.rank] {
@@ -255,6 +374,40 @@ impl Basis {
             self.rank += 1;
         }
     }
+}
+
+/// A stride coprime with `n` near `0.618 n` (1 for `n <= 2`): stepping by it modulo `n`
+/// visits every index once, consecutive visits far apart.
+fn golden_stride(n: usize) -> usize {
+    fn gcd(a: usize, b: usize) -> usize {
+        if b == 0 { a } else { gcd(b, a % b) }
+    }
+    if n <= 2 {
+        return 1;
+    }
+    let mut stride = ((n as f64 * 0.618_034) as usize).clamp(1, n - 1);
+    while gcd(n, stride) != 1 {
+        stride -= 1;
+    }
+    stride
+}
+
+/// The canonical order of two facets by their ascending point lists: the one holding the
+/// smallest point in which they differ comes first (lexicographic, except that a list comes
+/// before its own prefixes).
+fn canonical_cmp(a: &[u32], b: &[u32]) -> std::cmp::Ordering {
+    for (x, y) in a.iter().zip(b) {
+        if x != y {
+            return x.cmp(y);
+        }
+    }
+    b.len().cmp(&a.len())
+}
+
+/// A key for [`canonical_cmp`] when every point index is below 128: the point set with point
+/// `i` at bit `127 - i`; descending keys are the canonical order.
+fn canonical_key(list: &[u32]) -> u128 {
+    list.iter().fold(0, |k, &i| k | (1u128 << (127 - i)))
 }
 
 /// For each input point, the facets whose lists hold it.
