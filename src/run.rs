@@ -206,9 +206,10 @@ pub struct RunSummary {
     /// Joint measurements the plant published (`pipeline.rate_hz` nominal; a tick the plant
     /// was not scheduled for in time is skipped).
     pub measurements: u64,
-    /// Measurements per second over the run.
+    /// Measurements per second while they flow (from the first to the last the run saw: the
+    /// start-up before the plant's first tick is not counted).
     pub measurement_rate_hz: f64,
-    /// Hand commands per second over the run.
+    /// Hand commands per second while they flow (from the first to the last).
     pub command_rate_hz: f64,
     /// Tracking commands made (their source time) from a joint measurement older than
     /// `pipeline.max_input_age_ms` plus 10 ms (the command's computation after the node's
@@ -273,7 +274,7 @@ pub struct Stages {
 pub struct PlanStream {
     /// Plan steps published (the current target at the stream's rate, and each new one).
     pub published: u64,
-    /// Mean rate over the run (Hz).
+    /// Mean rate while the stream flows, from the first step the run saw to the last (Hz).
     pub rate_hz: f64,
     /// The planner's time from taking up a step to publishing it (us).
     pub compute_us: Percentiles,
@@ -547,6 +548,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         // Joint measurements, counted by their sequence numbers (one per measurement; a
         // restarted plant starts higher up).
         let (mut measurements, mut last_joint) = (0u64, 0u64);
+        let (mut measurement_rate, mut command_rate, mut plan_rate) =
+            (Rate::default(), Rate::default(), Rate::default());
         let commands = bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
         // Read on the run's tick: the nodes' allocation counts.
         let healths = bus.subscriber::<NodeHealth>(topics::NODE_HEALTH)?;
@@ -635,6 +638,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                             }
                         }
                     })?;
+                    command_rate.saw(sent);
+                    plan_rate.saw(plan_published);
                 }
                 if id.has_event_from(&tick) {
                     if let Some(j) = joints.latest()? {
@@ -645,6 +650,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                             1
                         };
                         last_joint = j.header.sequence;
+                        measurement_rate.saw(measurements);
                     }
                     if let Some(g) = grasps.latest()? {
                         rotation = g.rotation;
@@ -750,9 +756,11 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             measurements,
             stale_tracked,
             latencies: timing.summary(),
+            measurement_rate_hz: measurement_rate.hz(),
+            command_rate_hz: command_rate.hz(),
             plan_steps: PlanStream {
                 published: plan_published,
-                rate_hz: plan_published as f64 / started.elapsed().as_secs_f64(),
+                rate_hz: plan_rate.hz(),
                 compute_us: plan_compute.percentiles(),
             },
             memory,
@@ -780,8 +788,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         holds: stats.holds,
         commands: stats.sent,
         measurements: stats.measurements,
-        measurement_rate_hz: stats.measurements as f64 / started.elapsed().as_secs_f64(),
-        command_rate_hz: stats.sent as f64 / started.elapsed().as_secs_f64(),
+        measurement_rate_hz: stats.measurement_rate_hz,
+        command_rate_hz: stats.command_rate_hz,
         stale_tracked: stats.stale_tracked,
         seconds: started.elapsed().as_secs_f64(),
         bus_prefix: bus_config.prefix.clone(),
@@ -903,6 +911,36 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     })
 }
 
+/// A stream's rate while it flows: what its count grew by between the first and the last time
+/// it was seen to grow, over that time.
+#[derive(Default)]
+struct Rate {
+    first: Option<(Instant, u64)>,
+    last: Option<(Instant, u64)>,
+}
+
+impl Rate {
+    /// The count is now `total`.
+    fn saw(&mut self, total: u64) {
+        if total == 0 || self.last.is_some_and(|(_, n)| n == total) {
+            return;
+        }
+        let now = Instant::now();
+        self.first.get_or_insert((now, total));
+        self.last = Some((now, total));
+    }
+
+    /// Per second between the first and the last sighting (0 before two).
+    fn hz(&self) -> f64 {
+        match (self.first, self.last) {
+            (Some((t0, n0)), Some((t1, n1))) if t1 > t0 => {
+                (n1 - n0) as f64 / t1.duration_since(t0).as_secs_f64()
+            }
+            _ => 0.0,
+        }
+    }
+}
+
 /// What the run saw.
 struct Stats {
     /// The visualizer's frames recorded and dropped.
@@ -916,6 +954,8 @@ struct Stats {
     holds: u64,
     sent: u64,
     measurements: u64,
+    measurement_rate_hz: f64,
+    command_rate_hz: f64,
     stale_tracked: u64,
     latencies: Latencies,
     plan_steps: PlanStream,
