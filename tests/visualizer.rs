@@ -91,17 +91,11 @@ fn run_with_path(
 /// the rendezvous region shown, not empty, in exactly the attach steps (phase 2), one per
 /// finger switch of the summary.
 fn read_rrd(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
-    let out = Command::new(python())
-        .arg(root().join("tests/read_rrd.py"))
-        .arg(rrd)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let r = json_of(
+        Command::new(python())
+            .arg(root().join("tests/read_rrd.py"))
+            .arg(rrd),
     );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let logged = r["quality_min"].as_f64().unwrap();
     let min_quality = s["min_quality"].as_f64().unwrap();
     assert!(
@@ -153,6 +147,17 @@ fn read_back(rrd: &Path, s: &serde_json::Value) -> serde_json::Value {
         "each once: {steps:?}"
     );
     r
+}
+
+/// What `command` prints on stdout, as JSON, once it has succeeded.
+fn json_of(command: &mut Command) -> serde_json::Value {
+    let out = command.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 /// Kills process group `pgid` (SIGKILL), then waits until its leader is gone.
@@ -324,22 +329,18 @@ fn a_run_streams_to_a_rerun_viewer_at_a_url() {
 
 #[test]
 fn a_plan_records_every_step_with_its_regions() {
+    // Not beside a run: its CPU would starve the run's visualizer (at nice 10) at the start.
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("visualizer-plan");
     let rrd = dir.join("plan.rrd");
-    let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
-        .args(["plan", "config/paper_sphere.toml", "--json", "--out"])
-        .arg(&dir)
-        .arg("--rrd")
-        .arg(&rrd)
-        .current_dir(root())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let s = json_of(
+        Command::new(env!("CARGO_BIN_EXE_icrflow"))
+            .args(["plan", "config/paper_sphere.toml", "--json", "--out"])
+            .arg(&dir)
+            .arg("--rrd")
+            .arg(&rrd)
+            .current_dir(root()),
     );
-    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(s["completed"], true, "{s}");
     let r = read_rrd(&rrd, &s);
     // Every planned step once, in order, from the start (step 0).
@@ -373,6 +374,7 @@ fn a_plan_records_every_step_with_its_regions() {
 
 #[test]
 fn a_bad_plan_recording_target_is_refused_before_planning() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("visualizer-plan-bad");
     let out = Command::new(env!("CARGO_BIN_EXE_icrflow"))
         .args(["plan", "config/paper_sphere.toml", "--out"])

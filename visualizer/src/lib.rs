@@ -108,6 +108,14 @@ pub fn run(ctx: &Context) -> Result<()> {
     let problem = &setup.problem;
     let alpha = ctx.config.grasp.alpha;
     let com = setup.object.centre_of_mass;
+    // Subscribed first, and the loop runs while the recording opens (a spawned viewer may take
+    // seconds to listen): frames queue meanwhile, so the first plan steps are not missed.
+    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
+    let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
+    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+    let plans = ctx
+        .bus
+        .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
     let statics = statics(setup, &id, alpha);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
@@ -134,25 +142,36 @@ pub fn run(ctx: &Context) -> Result<()> {
             Ok(logged)
         })
         .context("starting the recording thread")?;
-    opened_rx
-        .recv()
-        .map_err(|_| anyhow!("the recording thread ended while opening"))??;
-    match &recording {
-        Recording::Rrd(p) => eprintln!("icrflow-visualizer: recording to {}", p.display()),
-        Recording::Spawn(port) => {
-            eprintln!("icrflow-visualizer: recording to a Rerun viewer spawned on port {port}")
+    // Whether the recording is open yet (checked on each wake-up; a failure to open ends
+    // the node).
+    let mut opened = false;
+    let mut check_opened = || -> Result<()> {
+        if opened {
+            return Ok(());
         }
-        Recording::Connect(url) => {
-            eprintln!("icrflow-visualizer: recording to the viewer at {url}")
+        match opened_rx.try_recv() {
+            Ok(result) => {
+                result?;
+                opened = true;
+                match &recording {
+                    Recording::Rrd(p) => {
+                        eprintln!("icrflow-visualizer: recording to {}", p.display())
+                    }
+                    Recording::Spawn(port) => eprintln!(
+                        "icrflow-visualizer: recording to a Rerun viewer spawned on port {port}"
+                    ),
+                    Recording::Connect(url) => {
+                        eprintln!("icrflow-visualizer: recording to the viewer at {url}")
+                    }
+                }
+                Ok(())
+            }
+            Err(std::sync::mpsc::TryRecvError::Empty) => Ok(()),
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                bail!("the recording thread ended while opening")
+            }
         }
-    }
-
-    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-    let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
-    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
-    let plans = ctx
-        .bus
-        .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
+    };
     let mut health = Health::new(ctx)?;
     let mut state = State::default();
     let mut dropped = 0u64;
@@ -181,6 +200,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     };
     ws.wait_and_process(|_| {
         let mut step = || -> Result<()> {
+            check_opened()?;
             let t = started.elapsed().as_secs_f64();
             if let Some(g) = grasps.latest()? {
                 state.grasp = Some(g);
@@ -335,6 +355,31 @@ pub(crate) fn step_frame(
     }
 }
 
+/// Contacts at hand-frame points with outward normals: their points and their friction cones'
+/// edges (a contact with a non-finite point or a zero normal is left out).
+pub(crate) fn contacts_view(
+    contacts: impl Iterator<Item = (Vec3, Vec3)>,
+    grasp: &icrflow_scenario::GraspSpec,
+) -> (Vec<P3>, Vec<Vec<P3>>) {
+    let mut points = Vec::new();
+    let mut cones = Vec::new();
+    for (p, n) in contacts {
+        if !(p.iter().all(|x| x.is_finite()) && n.norm() > 0.0) {
+            continue;
+        }
+        points.push(p3(&p));
+        cones.extend(geometry::cone_edges(
+            &p,
+            &n,
+            grasp.model.mu(),
+            grasp.model.edges(),
+            grasp.space,
+            0.02,
+        ));
+    }
+    (points, cones)
+}
+
 /// A finger at joint angles `q` (rad): its links, fingertip, and the fingertip's angle around
 /// the object's `centre` (hand frame); none for angles that are not the finger's.
 pub(crate) fn finger_view(
@@ -371,29 +416,19 @@ fn tick_frame(
 ) -> Frame {
     let (translation, rotation) = geometry::pose(g.position, g.orientation, com);
     let centre = Vec3::from(g.position);
-    let model = &ctx.config.grasp.model;
-    let space = ctx.config.grasp.space;
-    let mut contacts = Vec::new();
-    let mut cones = Vec::new();
-    for c in g.fingers.iter().take(g.finger_count as usize) {
-        if c.in_contact == 0 {
-            continue;
-        }
-        let p = translation + rotation * Vec3::from(c.point);
-        let n = rotation * Vec3::from(c.normal);
-        if !(p.iter().all(|x| x.is_finite()) && n.norm() > 0.0) {
-            continue;
-        }
-        contacts.push(p3(&p));
-        cones.extend(geometry::cone_edges(
-            &p,
-            &n,
-            model.mu(),
-            model.edges(),
-            space,
-            0.02,
-        ));
-    }
+    let (contacts, cones) = contacts_view(
+        g.fingers
+            .iter()
+            .take(g.finger_count as usize)
+            .filter(|c| c.in_contact != 0)
+            .map(|c| {
+                (
+                    translation + rotation * Vec3::from(c.point),
+                    rotation * Vec3::from(c.normal),
+                )
+            }),
+        &ctx.config.grasp,
+    );
     let mut fingers = Vec::new();
     if let Some(j) = joints {
         for slot in 0..(j.finger_count as usize).min(j.finger_ids.len()) {

@@ -16,7 +16,7 @@ use icrflow_scenario::{Config, Setup};
 use nalgebra::UnitQuaternion;
 use serde::Deserialize;
 
-use crate::geometry::{self, p3};
+use crate::geometry::p3;
 use crate::record::{self, Frame};
 
 /// The part of `trajectory.json` this mode reads.
@@ -118,24 +118,21 @@ fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
     let rotation = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), theta);
     let translation = -(rotation * com);
     let candidates = setup.problem.candidates();
-    let model = &config.grasp.model;
-    let mut contacts = Vec::new();
-    let mut cones = Vec::new();
+    let (contacts, cones) = crate::contacts_view(
+        step.fingers
+            .iter()
+            .filter_map(|f| f.contact)
+            .filter(|&c| c < candidates.points.len())
+            .map(|c| {
+                (
+                    translation + rotation * candidates.points[c],
+                    rotation * candidates.normals[c],
+                )
+            }),
+        &config.grasp,
+    );
     let mut fingers = Vec::new();
     for f in &step.fingers {
-        if let Some(c) = f.contact.filter(|&c| c < candidates.points.len()) {
-            let p = translation + rotation * candidates.points[c];
-            let n = rotation * candidates.normals[c];
-            contacts.push(p3(&p));
-            cones.extend(geometry::cone_edges(
-                &p,
-                &n,
-                model.mu(),
-                model.edges(),
-                config.grasp.space,
-                0.02,
-            ));
-        }
         if let Some(finger) = setup.hand.finger(f.finger) {
             let q: Vec<Real> = f.joints_deg.iter().map(|d| d.to_radians()).collect();
             fingers.extend(crate::finger_view(finger, &q, &Vec3::zeros()));
