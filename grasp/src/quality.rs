@@ -324,12 +324,10 @@ impl GraspProblem {
         let mut limiting_facet = None;
         if closure == Closure::ForceClosure {
             // alpha* = min_f b_f / h_f = 1 / max_{f,k} (a_f / b_f) . o_k.
-            let g: Vec<Real> = hull
-                .normals()
-                .chunks_exact(d)
-                .zip(hull.offsets())
-                .flat_map(|(a, &b)| a.iter().map(move |x| x / b))
-                .collect();
+            let mut g = Vec::with_capacity(hull.normals().len());
+            for (a, &b) in hull.normals().chunks_exact(d).zip(hull.offsets()) {
+                g.extend(a.iter().map(|x| x / b));
+            }
             let (mut order, mut stack) = (Vec::new(), Vec::new());
             match self.tree.max_over(&g, 0.0, &mut order, &mut stack) {
                 Some((f, best)) => {

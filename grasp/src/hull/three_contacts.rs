@@ -44,8 +44,11 @@
 //! The same [`Hull`] as [`Hull::new`] (beneath-beyond): unit outward normals, offsets, per
 //! facet the ascending indices of the input points within the tolerance of its hyperplane
 //! (here exactly the points of its faces, since any other point that close makes the
-//! construction decline), and the hull vertices (classified by [`Hull`] from the facets,
-//! the same code for every path). Facets are in the canonical order of [`Hull`] (by their
+//! construction decline), and the hull vertices: every point on a facet. That is exact here
+//! (where [`Hull::new`] needs a rank test per point): a (1,1,1) or (2,1,0) facet holds 6
+//! affinely independent points, a simplex, and a (2,2) facet two strictly convex polygons
+//! whose planes span the 5-flat together, so every vertex of either polygon is extreme in
+//! the facet, hence in the hull. Facets are in the canonical order of [`Hull`] (by their
 //! point sets), so the result does not depend on which construction ran.
 //!
 //! # Tolerances and when it declines
@@ -173,6 +176,7 @@ impl Facets {
             return Err(Decline::Inconsistent);
         }
         let total: u32 = self.keys.iter().map(|k| (k >> 16).count_ones()).sum();
+        let mut vertex_set = 0;
         let mut normals = Vec::with_capacity(n * D);
         let mut offsets = Vec::with_capacity(n);
         let mut facet_offsets = Vec::with_capacity(n + 1);
@@ -183,18 +187,20 @@ impl Facets {
             normals.extend_from_slice(a);
             offsets.push(*b);
             let mut set = (key >> 16).reverse_bits() >> 16;
+            vertex_set |= set;
             while set != 0 {
                 facet_indices.push(set.trailing_zeros());
                 set &= set - 1;
             }
             facet_offsets.push(facet_indices.len() as u32);
         }
-        Ok(Hull::from_sorted(
+        Ok(Hull::from_sorted_with_vertices(
             D,
             normals,
             offsets,
             facet_offsets,
             facet_indices,
+            vertex_set,
         ))
     }
 }
