@@ -23,7 +23,7 @@ use icrflow_interfaces::{
 use icrflow_plan::hand::wrap;
 
 use crate::rolling::{Tip, rotation, tip, touches};
-use crate::runtime::{Context, Health, Sequence, serve};
+use crate::runtime::{Checkpoint, Context, Health, Sequence, serve};
 
 /// Weight of a pose measurement's correction.
 pub const GAIN: f64 = 0.3;
@@ -64,8 +64,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut q = vec![0.0; 8];
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let mut tips: Vec<Option<(Tip, bool)>> = Vec::with_capacity(hand.fingers.len());
-    let mut text = String::with_capacity(32);
-    let checkpoint_tmp = checkpoint.with_extension("tmp");
+    let saved = Checkpoint::new(checkpoint)?;
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let _joints = ws.attach_notification(joints.listener())?;
@@ -203,11 +202,9 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         out.publish(g)?;
         if last_joint_seq.is_multiple_of(10) {
-            text.clear();
-            let _ = write!(text, "{theta:e}");
-            if std::fs::write(&checkpoint_tmp, &text).is_ok() {
-                let _ = std::fs::rename(&checkpoint_tmp, &checkpoint);
-            }
+            saved.store(|text| {
+                let _ = write!(text, "{theta:e}");
+            });
         }
         Ok(())
     })

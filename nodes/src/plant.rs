@@ -27,7 +27,7 @@ use icrflow_interfaces::{
 };
 
 use crate::rolling::{rotation, tip, touches};
-use crate::runtime::{Context, Health, Noise, Sequence, now};
+use crate::runtime::{Checkpoint, Context, Health, Noise, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
@@ -98,8 +98,7 @@ pub fn run(ctx: &Context) -> Result<()> {
 
     let mut ticks: u64 = 0;
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
-    let mut text = String::with_capacity(1024);
-    let state_tmp = state_file.with_extension("tmp");
+    let saved = Checkpoint::new(state_file)?;
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.
@@ -210,17 +209,15 @@ pub fn run(ctx: &Context) -> Result<()> {
             theta += turn / rolling as f64;
         }
         if ticks.is_multiple_of(10) {
-            text.clear();
-            let _ = write!(text, "{theta:e}");
-            for (slot, joints) in q.iter().enumerate() {
-                text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
-                for a in joints {
-                    let _ = write!(text, " {a:e}");
+            saved.store(|text| {
+                let _ = write!(text, "{theta:e}");
+                for (slot, joints) in q.iter().enumerate() {
+                    text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
+                    for a in joints {
+                        let _ = write!(text, " {a:e}");
+                    }
                 }
-            }
-            if std::fs::write(&state_tmp, &text).is_ok() {
-                let _ = std::fs::rename(&state_tmp, &state_file);
-            }
+            });
         }
         history.push_back((t, theta));
         while history.len() > 4000 {
