@@ -182,6 +182,12 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Re
             "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
             s.max_rolling_residual
         )?;
+        if let Some(mm) = s.min_link_clearance_mm {
+            writeln!(
+                o,
+                "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
+            )?;
+        }
         if s.switches > 0 {
             let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
             writeln!(

@@ -26,6 +26,8 @@ fn paper_sphere_plan_writes_a_deterministic_trajectory() {
     assert!(s["switches"].as_u64().unwrap() >= 3);
     assert!(s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap());
     assert!(s["max_rolling_residual"].as_f64().unwrap() < 1e-9);
+    // The links stay off the sphere (links as lines; ~9 mm at the closest).
+    assert!(s["min_link_clearance_mm"].as_f64().unwrap() > 0.0);
     // The eq. (8) LP region never holds a point the brute force rejects.
     assert_eq!(s["lp_region_unsafe"], 0);
     assert!(s["lp_region_candidates"].as_u64().unwrap() > 0);

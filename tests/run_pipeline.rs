@@ -105,8 +105,9 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
         plant["steady"].as_u64().unwrap() <= 2 * plant["processed"].as_u64().unwrap(),
         "{plant}"
     );
-    // No fingertip went through the object (the plant reports every one that does).
+    // No fingertip or link went through the object (the plant reports every one that does).
     assert!(!err.contains("inside the object"), "{err}");
+    assert!(!err.contains("passes through the object"), "{err}");
     // Nothing of the run's iceoryx2 bus is left behind.
     let left = shm_left(&s);
     assert!(left.is_empty(), "left in /dev/shm: {left:?}");
@@ -251,8 +252,8 @@ fn every_node_killed_mid_run_is_restarted_and_the_run_completes_safely() {
             "{node}: tracked on a stale measurement: {s}"
         );
         assert!(
-            !err.contains("inside the object"),
-            "{node}: a fingertip went through the object: {err}"
+            !err.contains("inside the object") && !err.contains("passes through the object"),
+            "{node}: a fingertip or link went through the object: {err}"
         );
         let alpha = s["alpha"].as_f64().unwrap();
         assert!(

@@ -16,6 +16,7 @@ use icrflow_interfaces::{
     topics,
 };
 use icrflow_plan::planner::{Phase, Step};
+use icrflow_plan::route::Keepout;
 
 use crate::runtime::{Context, Health, Sequence, now, serve};
 
@@ -81,9 +82,11 @@ fn radians(deg: &[f64]) -> Vec<f64> {
 }
 
 /// Whether the fingertip of `f` stays at least `r` (less 0.2 mm) from the object's centre all
-/// along the straight joint-space line from `a` to `b`, as the hand moves between targets.
+/// along the straight joint-space line from `a` to `b`, as the hand moves between targets,
+/// and its links [`icrflow_plan::route::LINK_MARGIN`] off the object (of radius `r` less the
+/// fingertip's: `r` is a contact pose's fingertip distance).
 fn outside(f: &icrflow_plan::hand::Finger, a: &[f64], b: &[f64], r: f64) -> bool {
-    icrflow_plan::route::clear(f, a, b, r - 2e-4)
+    icrflow_plan::route::clear(f, a, b, Keepout::new(r - 2e-4, r - f.tip_radius))
 }
 
 /// One target the planner node publishes: a step of the plan or a sub-target of one.
@@ -135,7 +138,8 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
                 let Some(f) = hand.finger(a.finger) else {
                     continue;
                 };
-                let reach = f.fk(&radians(contact)).tip_centre.xy().norm() + CLEARANCE;
+                let touch = f.fk(&radians(contact)).tip_centre.xy().norm();
+                let reach = Keepout::new(touch + CLEARANCE, touch - f.tip_radius);
                 let (start, end) = match step.phase {
                     Phase::Attach => (radians(free), radians(&near_q)),
                     _ => (radians(&near_q), radians(free)),
@@ -526,7 +530,12 @@ mod tests {
                         CLEARANCE - 1e-9
                     };
                     assert!(
-                        icrflow_plan::route::clear(f, &qa, &qb, r + f.tip_radius + margin),
+                        icrflow_plan::route::clear(
+                            f,
+                            &qa,
+                            &qb,
+                            Keepout::new(r + f.tip_radius + margin, r)
+                        ),
                         "steps {} -> {} ({:?} -> {:?}): finger {} comes within {margin} m of the \
                          object, from {:?} to {:?}",
                         a.step,

@@ -10,8 +10,8 @@
 //! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
 //! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
 //! A command older than `pipeline.max_input_age_ms` is not followed: the hand holds still.
-//! Fingertips pass through the object (collisions are not simulated); a fingertip that goes
-//! inside it, not in contact, is reported on stderr.
+//! Fingertips and links pass through the object (collisions are not simulated); a fingertip
+//! that goes inside it, not in contact, or a link that does, is reported on stderr.
 //!
 //! The plant stands for the physical hand and object, whose state outlives any process: it
 //! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
@@ -62,6 +62,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .collect();
     // Fingers whose fingertip is inside the object without being in contact.
     let mut intruding = vec![false; hand.fingers.len()];
+    let mut link_intruding = vec![false; hand.fingers.len()];
     let mut theta = 0.0;
     let state_file = ctx.bus.config().root.join("plant.state");
     if let Ok(text) = std::fs::read_to_string(&state_file) {
@@ -184,6 +185,18 @@ pub fn run(ctx: &Context) -> Result<()> {
                     );
                 }
                 intruding[slot] = inside;
+                // The same for the links (the planner keeps them off the object).
+                let (d, link) = f.link_distance(&q[slot]);
+                let through = d < r_o - TOUCH;
+                if through && !link_intruding[slot] {
+                    eprintln!(
+                        "icrflow-plant: finger {}'s link {link} passes through the object \
+                         ({:.2} mm deep): a real hand would hit it here",
+                        f.id,
+                        (r_o - d) * 1e3
+                    );
+                }
+                link_intruding[slot] = through;
                 if contact[slot] && pressing {
                     turn += rotation(&before, &after, f, r_o);
                     rolling += 1;

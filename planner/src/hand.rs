@@ -287,6 +287,48 @@ impl Finger {
         t
     }
 
+    /// The finger's links at `q` as line segments, passed to `visit(link, from, to)`: from
+    /// each joint origin to the next (link `i` from joint `i`, counted from 1), and the distal
+    /// link from the last joint to where it enters the fingertip sphere (the fingertip itself
+    /// touches the object, and is checked on its own). The links' thickness is the caller's
+    /// margin. No allocation.
+    pub fn link_segments(&self, q: &[Real], mut visit: impl FnMut(usize, Vec3, Vec3)) {
+        let mut previous: Option<Vec3> = None;
+        let mut link = 0;
+        let t = self.chain(q, |origin| {
+            if let Some(p) = previous {
+                link += 1;
+                visit(link, p, origin);
+            }
+            previous = Some(origin);
+        });
+        if let Some(p) = previous {
+            let centre = (t * nalgebra::Point3::from(self.tip)).coords;
+            let along = centre - p;
+            let length = along.norm();
+            if length > self.tip_radius {
+                visit(
+                    link + 1,
+                    p,
+                    p + along * ((length - self.tip_radius) / length),
+                );
+            }
+        }
+    }
+
+    /// How close the finger's links ([`Self::link_segments`]) come to the hand frame's origin
+    /// (the object's centre) at `q`, and which link. No allocation.
+    pub fn link_distance(&self, q: &[Real]) -> (Real, usize) {
+        let mut closest = (Real::INFINITY, 0);
+        self.link_segments(q, |link, a, b| {
+            let d = segment_distance(&a, &b);
+            if d < closest.0 {
+                closest = (d, link);
+            }
+        });
+        closest
+    }
+
     /// The first joint whose limits `q` violates (beyond `slack` rad), if any.
     pub fn limit_violation(&self, q: &[Real], slack: Real) -> Option<IkError> {
         self.joints
@@ -623,6 +665,18 @@ impl Hand {
     }
 }
 
+/// Distance of the origin from the segment `a`-`b`.
+pub(crate) fn segment_distance(a: &Vec3, b: &Vec3) -> Real {
+    let ab = b - a;
+    let l2 = ab.norm_squared();
+    let u = if l2 > 0.0 {
+        (-a.dot(&ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * u).norm()
+}
+
 /// A planar finger from link lengths: base at `(x, y)` in the hand's plane `z = 0`, first
 /// link along world angle `yaw` at `q = 0`, joints about +z, links of the given lengths
 /// (the last one ends at the fingertip centre, so it is the distal link plus the offset to
@@ -716,6 +770,43 @@ mod tests {
         assert!((pose.tip_centre - Vec3::new(x, y, 0.0)).norm() < 1e-15);
         let (_, _, phi) = f.planar_pose(&q).unwrap();
         assert!(wrap(phi - a3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn link_distance_is_that_of_the_nearest_link_outside_the_fingertip() {
+        let f = finger();
+        // Straight at the origin: links from x = 0.14 to 0.09 and 0.09 to 0.05; the distal
+        // link (0.05 to the fingertip centre at 0.025) lies inside the fingertip sphere.
+        let (d, link) = f.link_distance(&[0.0; 3]);
+        assert!((d - 0.05).abs() < 1e-12 && link == 2, "{d} {link}");
+        // Elsewhere: the same as the distance of densely sampled points of the links.
+        for q in [
+            [0.3, -0.7, 1.1],
+            [-0.2, 0.9, -0.4],
+            [1.0, 1.5, 0.2],
+            [0.1, -1.9, 1.8],
+        ] {
+            let pose = f.fk(&q);
+            let mut ends = pose.joints.clone();
+            let last = *ends.last().unwrap();
+            let along = pose.tip_centre - last;
+            ends.push(last + along * (1.0 - f.tip_radius / along.norm()));
+            let mut sampled = (Real::INFINITY, 0);
+            for (i, w) in ends.windows(2).enumerate() {
+                for k in 0..=10_000 {
+                    let p = w[0] + (w[1] - w[0]) * (k as Real / 10_000.0);
+                    if p.norm() < sampled.0 {
+                        sampled = (p.norm(), i + 1);
+                    }
+                }
+            }
+            let (d, link) = f.link_distance(&q);
+            assert!(
+                d <= sampled.0 + 1e-12 && sampled.0 - d < 1e-6,
+                "{q:?}: {d} vs {sampled:?}"
+            );
+            assert_eq!(link, sampled.1, "{q:?}");
+        }
     }
 
     #[test]

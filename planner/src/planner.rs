@@ -156,6 +156,20 @@ pub enum PlanError {
         /// Distance between the fingertip centres (mm).
         distance_mm: Real,
     },
+    /// A finger's link would pass through the object.
+    #[error(
+        "finger {finger}'s link {link} would pass {depth_mm:.2} mm into the object's section at step {step}: the hand cannot make this plan"
+    )]
+    LinkInObject {
+        /// The finger.
+        finger: u32,
+        /// The link, counted from the palm (1 = first joint to second).
+        link: usize,
+        /// The step (at, or on the way to).
+        step: usize,
+        /// How deep (mm).
+        depth_mm: Real,
+    },
     /// A setting is impossible.
     #[error("{0}")]
     Settings(String),
@@ -288,6 +302,11 @@ pub struct Summary {
     pub lp_region_unsafe: usize,
     /// Rendezvous candidates found by brute force, summed over the switches.
     pub brute_force_candidates: usize,
+    /// How close any finger's link comes to the object's section (mm), at the steps and along
+    /// the straight joint-space moves between them ([`link_clearance`]); `None` in plans
+    /// written before it was reported.
+    #[serde(default)]
+    pub min_link_clearance_mm: Option<Real>,
 }
 
 /// A plan.
@@ -836,6 +855,20 @@ impl Scenario<'_> {
             lp_region_candidates,
             lp_region_unsafe,
             brute_force_candidates,
+            min_link_clearance_mm: None,
+        };
+        let closest = link_clearance(self, &steps);
+        if closest.clearance < 0.0 {
+            return Err(PlanError::LinkInObject {
+                finger: closest.finger,
+                link: closest.link,
+                step: closest.step,
+                depth_mm: -closest.clearance * 1e3,
+            });
+        }
+        let summary = Summary {
+            min_link_clearance_mm: Some(closest.clearance * 1e3),
+            ..summary
         };
         Ok(Plan { summary, steps })
     }
@@ -1037,6 +1070,111 @@ impl Scenario<'_> {
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
+}
+
+/// Where a plan's links come closest to the object ([`link_clearance`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkClearance {
+    /// Radial distance of the closest point of a link beyond the object's section (m;
+    /// negative: inside).
+    pub clearance: Real,
+    /// Its finger.
+    pub finger: u32,
+    /// The link ([`crate::hand::Finger::link_distance`]).
+    pub link: usize,
+    /// The step at which, or on the way to which, it is closest.
+    pub step: usize,
+}
+
+/// Spacing of the points at which a link is compared with the object's section (m).
+pub const LINK_SPACING: Real = 0.5e-3;
+
+/// How close the fingers' links ([`crate::hand::Finger::link_segments`], taken as lines) come
+/// to the object's section in the hand's plane, at every step and along the straight
+/// joint-space move of every finger from each step to the next ([`crate::route::SAMPLES`]
+/// poses): the smallest radial distance, from the object's centre, of a point of a link
+/// ([`LINK_SPACING`] apart) beyond the section (its candidates in polar form about the centre,
+/// turned by the step's rotation, the radius interpolated between neighbouring candidates; the
+/// section's chords lie inside that outline, so the check errs on the side of the object).
+/// Negative: inside. The way points the pipeline's planner node adds around the object for
+/// free fingers are checked where they are made ([`crate::route::Keepout`]).
+pub fn link_clearance(scenario: &Scenario<'_>, steps: &[Step]) -> LinkClearance {
+    let cands = scenario.problem.candidates();
+    let mut outline: Vec<(Real, Real)> = cands
+        .points
+        .iter()
+        .map(|p| {
+            let v = p - scenario.centre;
+            (v.y.atan2(v.x), v.xy().norm())
+        })
+        .collect();
+    outline.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let largest = outline.iter().map(|o| o.1).fold(0.0, Real::max);
+    // The section's radius at body angle `a`, between the neighbouring candidates.
+    let radius = |a: Real| -> Real {
+        let a = wrap(a);
+        let n = outline.len();
+        let k = outline.partition_point(|o| o.0 < a);
+        let (lo, hi) = (outline[(k + n - 1) % n], outline[k % n]);
+        let span = wrap(hi.0 - lo.0).rem_euclid(std::f64::consts::TAU);
+        if span <= 0.0 {
+            return lo.1.max(hi.1);
+        }
+        let s = (wrap(a - lo.0).rem_euclid(std::f64::consts::TAU) / span).clamp(0.0, 1.0);
+        lo.1 + s * (hi.1 - lo.1)
+    };
+    let mut closest = LinkClearance {
+        clearance: Real::INFINITY,
+        finger: 0,
+        link: 0,
+        step: 0,
+    };
+    if outline.is_empty() {
+        return closest;
+    }
+    let mut q = Vec::new();
+    for (k, step) in steps.iter().enumerate() {
+        let previous = if k > 0 { &steps[k - 1] } else { step };
+        let theta = step.rotation_deg.to_radians();
+        for (a, b) in previous.fingers.iter().zip(&step.fingers) {
+            let f = scenario.finger(b.finger);
+            let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
+            for i in 0..samples {
+                let s = if samples > 1 {
+                    i as Real / (samples - 1) as Real
+                } else {
+                    1.0
+                };
+                q.clear();
+                q.extend(
+                    a.joints_deg
+                        .iter()
+                        .zip(&b.joints_deg)
+                        .map(|(x, y)| (x + s * (y - x)).to_radians()),
+                );
+                f.link_segments(&q, |link, from, to| {
+                    // No point of a link far from the centre can beat the closest so far.
+                    if crate::hand::segment_distance(&from, &to) - largest >= closest.clearance {
+                        return;
+                    }
+                    let n = ((to - from).norm() / LINK_SPACING).ceil().max(1.0) as usize;
+                    for j in 0..=n {
+                        let p = from + (to - from) * (j as Real / n as Real);
+                        let c = p.xy().norm() - radius(p.y.atan2(p.x) - theta);
+                        if c < closest.clearance {
+                            closest = LinkClearance {
+                                clearance: c,
+                                finger: b.finger,
+                                link,
+                                step: step.step,
+                            };
+                        }
+                    }
+                });
+            }
+        }
+    }
+    closest
 }
 
 /// The rolling-relation residuals `|r_f dgamma + s|` (m) of every finger that stays in

@@ -5,9 +5,9 @@
 //! alike), so a route is a list of way points, each leg a straight joint-space move along
 //! which the fingertip centre stays at least a given distance from the object's centre (the
 //! hand frame's origin; the object's section in the hand's plane is taken as a circle, exact
-//! for the sphere, conservative for any object inside that radius). Only the fingertip is
-//! checked: the links are thin and move outside the fingertip's sweep in the paper's hand, but
-//! a hand whose links could sweep through the object needs more.
+//! for the sphere, conservative for any object inside that radius), and every link
+//! ([`Finger::link_distance`]: the segments between the joints, and the distal link up to the
+//! fingertip sphere) at least [`LINK_MARGIN`] from its surface ([`Keepout`]).
 //!
 //! Where the straight move is clear, the route is empty. Otherwise a small roadmap is searched:
 //! fingertip poses on circles of [`RADII`] beyond the given distance, every [`SPACING_DEG`]
@@ -36,17 +36,48 @@ pub const LEG_COST: Real = 0.05;
 /// Points checked along a leg (its ends included).
 pub const SAMPLES: usize = 48;
 
-/// Whether the fingertip centre of `finger` stays at least `distance` from the object's centre
-/// all along the straight joint-space move from `a` to `b` (checked at [`SAMPLES`] points).
-pub fn clear(finger: &Finger, a: &[Real], b: &[Real], distance: Real) -> bool {
+/// How far every link keeps from the object's surface on a move (m): room for the links'
+/// thickness, which the hand model does not give (they are line segments in it).
+pub const LINK_MARGIN: Real = 5e-3;
+
+/// What a move keeps clear of the object (whose centre is the hand frame's origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Keepout {
+    /// Smallest distance of the fingertip centre from the object's centre, in the hand's plane
+    /// (m).
+    pub tip: Real,
+    /// Smallest distance of every link from the object's centre (m).
+    pub links: Real,
+}
+
+impl Keepout {
+    /// The fingertip centre at least `tip` from the centre of an object of radius
+    /// `object_radius` (its largest distance from its centre), the links at least
+    /// [`LINK_MARGIN`] beyond that radius.
+    pub fn new(tip: Real, object_radius: Real) -> Self {
+        Self {
+            tip,
+            links: object_radius + LINK_MARGIN,
+        }
+    }
+
+    /// Whether `finger` at `q` keeps clear.
+    pub fn holds(&self, finger: &Finger, q: &[Real]) -> bool {
+        let (p, _) = finger.fk_tip(q);
+        p.x.hypot(p.y) >= self.tip && finger.link_distance(q).0 >= self.links
+    }
+}
+
+/// Whether `finger` keeps clear of the object ([`Keepout`]) all along the straight joint-space
+/// move from `a` to `b` (checked at [`SAMPLES`] points).
+pub fn clear(finger: &Finger, a: &[Real], b: &[Real], keep: Keepout) -> bool {
     let mut q = vec![0.0; a.len()];
     (0..SAMPLES).all(|i| {
         let s = i as Real / (SAMPLES - 1) as Real;
         for ((x, y), out) in a.iter().zip(b).zip(q.iter_mut()) {
             *out = x + s * (y - x);
         }
-        let (p, _) = finger.fk_tip(&q);
-        p.x.hypot(p.y) >= distance
+        keep.holds(finger, &q)
     })
 }
 
@@ -58,17 +89,12 @@ fn motion(a: &[Real], b: &[Real]) -> Real {
         .fold(0.0, |m, (x, y)| Real::max(m, (x - y).abs()))
 }
 
-/// The way points (joint angles, rad) that take `finger` from `from` to `to` with its
-/// fingertip centre at least `distance` from the object's centre along every leg, neither end
-/// included; empty where the straight move is clear, `None` where no route is found (a planar
-/// finger is needed for the roadmap).
-pub fn route(
-    finger: &Finger,
-    from: &[Real],
-    to: &[Real],
-    distance: Real,
-) -> Option<Vec<Vec<Real>>> {
-    if clear(finger, from, to, distance) {
+/// The way points (joint angles, rad) that take `finger` from `from` to `to` keeping clear of
+/// the object ([`Keepout`]) along every leg, neither end included; empty where the straight
+/// move is clear, `None` where no route is found (a planar finger is needed for the roadmap).
+pub fn route(finger: &Finger, from: &[Real], to: &[Real], keep: Keepout) -> Option<Vec<Vec<Real>>> {
+    let distance = keep.tip;
+    if clear(finger, from, to, keep) {
         return Some(Vec::new());
     }
     // The roadmap: index 0 is the start, 1 the goal, then the poses.
@@ -128,7 +154,7 @@ pub fn route(
         done[u] = true;
         for &v in &joined[u] {
             let c = cost[u] + motion(&poses[u], &poses[v]) + LEG_COST;
-            if !done[v] && c < cost[v] && clear(finger, &poses[u], &poses[v], distance) {
+            if !done[v] && c < cost[v] && clear(finger, &poses[u], &poses[v], keep) {
                 cost[v] = c;
                 previous[v] = u;
             }
@@ -147,7 +173,7 @@ pub fn route(
     while path[at] != 1 {
         let next = (at + 1..path.len())
             .rev()
-            .find(|&j| clear(finger, &poses[path[at]], &poses[path[j]], distance))
+            .find(|&j| clear(finger, &poses[path[at]], &poses[path[j]], keep))
             .unwrap_or(at + 1);
         kept.push(path[next]);
         at = next;
@@ -186,7 +212,7 @@ mod tests {
                 }) else {
                     continue;
                 };
-                let limit = r + 2.5e-3;
+                let limit = Keepout::new(r + 2.5e-3, paper::OBJECT_RADIUS);
                 let way = route(f, &start, &home, limit)
                     .unwrap_or_else(|| panic!("finger {} at {k}0 deg: no route", f.id));
                 let mut legs = vec![start.clone()];
@@ -211,10 +237,36 @@ mod tests {
         );
     }
 
+    /// A move is clear only if the links keep their distance too, not the fingertip alone.
+    #[test]
+    fn the_links_are_kept_clear_as_well_as_the_fingertip() {
+        let hand = paper::hand();
+        let f = &hand.fingers[0];
+        let q = f.home.clone();
+        let (tip, _) = f.fk_tip(&q);
+        let tip = tip.x.hypot(tip.y);
+        let (links, _) = f.link_distance(&q);
+        let keep = |links: Real| Keepout {
+            tip: tip - 1e-3,
+            links,
+        };
+        assert!(keep(links - 1e-3).holds(f, &q));
+        assert!(
+            !keep(links + 1e-3).holds(f, &q),
+            "the links were not checked"
+        );
+        assert!(!clear(f, &q, &q, keep(links + 1e-3)));
+        // The paper's hand keeps its links ~3 cm off the sphere where its fingertip is.
+        assert!(links > paper::OBJECT_RADIUS + LINK_MARGIN, "{links}");
+    }
+
     #[test]
     fn a_clear_move_needs_no_way_points() {
         let hand = paper::hand();
         let f = &hand.fingers[0];
-        assert_eq!(route(f, &f.home, &f.home, 0.01), Some(Vec::new()));
+        assert_eq!(
+            route(f, &f.home, &f.home, Keepout::new(0.01, 0.005)),
+            Some(Vec::new())
+        );
     }
 }

@@ -8,7 +8,7 @@ use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::{Hand, wrap};
 use icrflow_plan::paper;
-use icrflow_plan::planner::{Phase, Plan, PlanError, Scenario, Settings, Step};
+use icrflow_plan::planner::{Phase, Plan, PlanError, Scenario, Settings, Step, link_clearance};
 
 const ALPHA: Real = 0.1;
 
@@ -299,4 +299,30 @@ fn bad_scenarios_are_refused_with_the_finger_named() {
         matches!(e, PlanError::UnknownFinger { finger: 7, .. }),
         "{e}"
     );
+}
+
+/// The links of the paper's hand stay off the sphere all along the plan, and the check
+/// finds a link put through it.
+#[test]
+fn links_keep_off_the_object_and_a_link_through_it_is_found() {
+    let (o, p, hand, plan) = paper_plan();
+    let s = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
+    let closest = link_clearance(&s, &plan.steps);
+    let reported = plan.summary.min_link_clearance_mm.unwrap();
+    assert!((closest.clearance * 1e3 - reported).abs() < 1e-9);
+    assert!(closest.clearance > 0.0, "{closest:?}");
+    // Finger 1 stretched straight at the centre: its second link (from 9 cm to 4.5 cm off the
+    // centre) ends inside the 4.75 cm sphere.
+    let mut steps = plan.steps[..2].to_vec();
+    let slot = steps[1].fingers.iter().position(|f| f.finger == 1).unwrap();
+    steps[1].fingers[slot].joints_deg = vec![0.0; 3];
+    let inside = link_clearance(&s, &steps);
+    assert_eq!((inside.finger, inside.link), (1, 2), "{inside:?}");
+    let expected = paper::BASE_RADIUS - paper::LINKS[0] - paper::LINKS[1] - paper::OBJECT_RADIUS;
+    // The section's farthest candidate is a facet centre, a little inside the sphere.
+    assert!(
+        (inside.clearance - expected).abs() < 1e-4 && inside.clearance < 0.0,
+        "{inside:?} vs {expected}"
+    );
+    assert_eq!(inside.step, steps[1].step);
 }
