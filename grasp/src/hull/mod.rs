@@ -252,24 +252,17 @@ impl Hull {
         )
     }
 
-    /// [`Self::from_sorted`] for a construction that knows its vertices: those of
-    /// [`three_contacts`], where every point on a facet is extreme (see there), so the
-    /// vertices are the union of the facets' point sets (`vertex_set`, bit `i` for point `i`)
-    /// and the per-point rank test of [`Self::from_sorted`] is not needed.
+    /// The hull from facets already in the canonical order and its vertices (ascending), for
+    /// a construction that knows them: [`three_contacts`], where every point on a facet is
+    /// extreme (see there), so the per-point rank test of [`Self::from_sorted`] is not needed.
     fn from_sorted_with_vertices(
         dim: usize,
         normals: Vec<Real>,
         offsets: Vec<Real>,
         facet_offsets: Vec<u32>,
         facet_indices: Vec<u32>,
-        vertex_set: u64,
+        vertices: Vec<u32>,
     ) -> Self {
-        let mut vertices = Vec::with_capacity(vertex_set.count_ones() as usize);
-        let mut set = vertex_set;
-        while set != 0 {
-            vertices.push(set.trailing_zeros());
-            set &= set - 1;
-        }
         Self {
             dim,
             normals,
@@ -332,14 +325,14 @@ impl Hull {
             .filter(|(_, b)| b.rank == dim)
             .map(|(i, _)| i as u32)
             .collect();
-        Self {
+        Self::from_sorted_with_vertices(
             dim,
             normals,
             offsets,
             facet_offsets,
             facet_indices,
             vertices,
-        }
+        )
     }
 }
 

@@ -186,12 +186,9 @@ impl Facets {
             let (a, b) = &self.planes[(key & 0xFFFF) as usize];
             normals.extend_from_slice(a);
             offsets.push(*b);
-            let mut set = (key >> 16).reverse_bits() >> 16;
+            let set = (key >> 16).reverse_bits() >> 16;
             vertex_set |= set;
-            while set != 0 {
-                facet_indices.push(set.trailing_zeros());
-                set &= set - 1;
-            }
+            facet_indices.extend(members(set));
             facet_offsets.push(facet_indices.len() as u32);
         }
         Ok(Hull::from_sorted_with_vertices(
@@ -200,9 +197,20 @@ impl Facets {
             offsets,
             facet_offsets,
             facet_indices,
-            vertex_set,
+            members(vertex_set).collect(),
         ))
     }
+}
+
+/// The points of a point set (bit `i` for point `i`), ascending.
+fn members(mut set: u64) -> impl Iterator<Item = u32> {
+    std::iter::from_fn(move || {
+        (set != 0).then(|| {
+            let i = set.trailing_zeros();
+            set &= set - 1;
+            i
+        })
+    })
 }
 
 /// What a candidate's neighbour values say.
