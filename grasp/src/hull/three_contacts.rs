@@ -25,9 +25,13 @@
 //! dozen flops:
 //! - (1,1,1): for each pair (edge of `P_1`, edge of `P_2`), the 3-dimensional null space `N`
 //!   of the 4 homogeneous constraints `[x; 1] . (a; -b) = 0` (Gaussian elimination with full
-//!   pivoting) and the values `N^T [x; 1]` at the points of `P_3` and at the four neighbours;
-//!   then each edge `(u, v)` of `P_3` gives `lambda = r(u) x r(v)` (a 3-vector cross product)
-//!   and the hyperplane `N lambda`, tested by six 3-term dot products.
+//!   pivoting) and the values `r = N^T [x; 1]` at the four neighbours and of `P_3`'s plane;
+//!   each edge `(u, v)` of `P_3` gives `lambda = r(u) x r(v)` (a 3-vector cross product) and
+//!   the hyperplane `N lambda`. Since `P_3` is an affine regular polygon, `lambda`'s values at
+//!   the neighbours are, up to a bounded error, `(adj(M) o) . n_e` with `M` the image of its
+//!   plane and `n_e` a constant of the edge: four 3-term dot products per candidate decide it
+//!   (no facet, a facet, or unsure: then its exact values), and only facets compute `N lambda`
+//!   (`Setup::edges_of_three` and `Setup::screen` derive the error bound).
 //! - (2,1,0): the whole polygon is the three constraints `[c; 1]`, `[U; 0]`, `[V; 0]` (its
 //!   plane, from a least-squares fit, below), plus an edge's two points: a 2-dimensional null
 //!   space, and each vertex of the third polygon gives `lambda` by a 2D perpendicular.
@@ -166,6 +170,20 @@ impl Facets {
         self.planes.push((a, b));
     }
 
+    /// Records the facet with points `set` on the hyperplane `h . [x - mean; 1] = 0` as
+    /// `a . x = b`, `a = scale (h_0 .. h_5)` (`scale` = +-1 over their norm, the sign making
+    /// the points below), `b = a . mean - scale h_6`.
+    #[inline(always)]
+    fn push_plane(&mut self, set: u64, h: &[Real; W], scale: Real, mean: &[Real; D]) {
+        let mut a = [0.0; D];
+        let mut am = 0.0;
+        for k in 0..D {
+            a[k] = h[k] * scale;
+            am += h[k] * mean[k];
+        }
+        self.push(set, a, (am - h[D]) * scale);
+    }
+
     fn into_hull(mut self) -> Result<Hull, Decline> {
         let n = self.keys.len();
         if !(D + 1..=0xFFFF).contains(&n) {
@@ -263,6 +281,12 @@ fn dot<const N: usize>(a: &[Real; N], b: &[Real; N]) -> Real {
         s += a[k] * b[k];
     }
     s
+}
+
+/// The norm of a hyperplane's normal part (its first `D` coordinates).
+#[inline(always)]
+fn norm(h: &[Real; W]) -> Real {
+    h[..D].iter().map(|x| x * x).sum::<Real>().sqrt()
 }
 
 #[inline(always)]
@@ -398,6 +422,15 @@ struct Setup {
     band: Real,
     /// `64 eps scale`: the band grows by this over `cond`.
     rounding: Real,
+    /// `FIT tol`: the largest residual of a polygon fit.
+    fit: Real,
+    /// Per edge `(j, j + 1)` of the regular polygon `q_j = (1, cos phi_j, sin phi_j)`, its
+    /// normal `q_j x q_(j+1)`.
+    edge_normals: [[Real; 3]; MAX_EDGES],
+    /// `|q_j x q_(j+1)|` (the same for every edge).
+    edge_normal_norm: Real,
+    /// `q_(j-1) . (q_j x q_(j+1))` (the same for every `j`, positive).
+    kappa: Real,
 }
 
 /// What a candidate needs besides its values: the bound `nf >= |N|` of its composed null
@@ -408,6 +441,30 @@ struct Conditioning {
     nf: Real,
     pivot: Real,
     d: Real,
+}
+
+/// The screen of [`Setup::screen`]: the outer neighbours `adj(M) o`, the polygon's own
+/// neighbours' value `det(M) kappa`, and the band plus the error bound.
+struct Screen {
+    p: [[Real; 3]; 4],
+    own: Real,
+    bound: Real,
+}
+
+impl Screen {
+    /// What the values at the edge with normal `n` say, against the band plus the error
+    /// bound: surely no facet, surely a facet, or unsure (then the exact values decide).
+    #[inline(always)]
+    fn classify(&self, n: &[Real; 3]) -> Verdict {
+        let values = [
+            dot(&self.p[0], n),
+            dot(&self.p[1], n),
+            dot(&self.p[2], n),
+            dot(&self.p[3], n),
+            self.own,
+        ];
+        classify(&values, self.bound)
+    }
 }
 
 impl Setup {
@@ -442,6 +499,11 @@ impl Setup {
             *t = (cos, sin);
         }
         let chord = 1.0 - (TAU / s as Real).cos();
+        let q = |j: usize| [1.0, trig[j].0, trig[j].1];
+        let mut edge_normals = [[0.0; 3]; MAX_EDGES];
+        for (j, n) in edge_normals.iter_mut().take(s).enumerate() {
+            *n = cross(&q(j), &q(wrap(j + 1, s)));
+        }
         let mut planes = [[[0.0; W]; 3]; 3];
         for (i, plane) in planes.iter_mut().enumerate() {
             let poly = &points[i * s * D..(i + 1) * s * D];
@@ -488,6 +550,10 @@ impl Setup {
             planes,
             band: BAND * tol,
             rounding: ROUNDING * Real::EPSILON * scale,
+            fit: FIT * tol,
+            edge_normals,
+            edge_normal_norm: dot(&edge_normals[0], &edge_normals[0]).sqrt(),
+            kappa: dot(&q(s - 1), &edge_normals[0]),
         })
     }
 
@@ -533,20 +599,12 @@ impl Setup {
         } else {
             Real::INFINITY
         };
-        let a_norm = h[..D].iter().map(|x| x * x).sum::<Real>().sqrt();
+        let a_norm = norm(&h);
         match classify(values, a_norm * self.band + c.nf * self.rounding * error) {
             Verdict::Reject => Ok(()),
             Verdict::Ambiguous => Err(Decline::Ambiguous),
             Verdict::Accept(sign) => {
-                // h . [x - m; 1] = a . x - (a . m - h_6).
-                let scale = sign / a_norm;
-                let mut a = [0.0; D];
-                let mut am = 0.0;
-                for k in 0..D {
-                    a[k] = h[k] * scale;
-                    am += h[k] * self.mean[k];
-                }
-                out.push(set, a, (am - h[D]) * scale);
+                out.push_plane(set, &h, sign / a_norm, &self.mean);
                 Ok(())
             }
         }
@@ -555,9 +613,25 @@ impl Setup {
     /// Type (1,1,1): an edge of each polygon. The null space of the first edge's two
     /// constraints is computed once per edge, and the points' coordinates in it; the second
     /// edge's constraints are eliminated in those 5 coordinates.
+    ///
+    /// The third polygon's edges are screened per pair of the first two by its plane: with
+    /// `M` the 3 x 3 image `N^T [c - m; 1 | U; 0 | V; 0]` of the plane's constraints, the
+    /// point `j` is `r_j = M q_j + e_j`, `q_j = (1, cos phi_j, sin phi_j)` and `e_j` the
+    /// polygon fit's residual, so the candidate of edge `(u, v)` is
+    /// `lambda = r_u x r_v = adj(M)^T (q_u x q_v) + (a term of e)`. Its value at an outer
+    /// neighbour `o` is then `(adj(M) o) . n_e` with the edge's constant normal
+    /// `n_e = q_u x q_v`, and at the polygon's own neighbours `det(M) kappa` (`kappa` the
+    /// constant `q_(u-1) . n_e`), both up to a bounded error. Against the band of
+    /// [`Self::surely_not`] (itself at least that of [`Self::settle`]) plus that error, a
+    /// candidate whose values lie beyond it on both sides is no facet; one whose values all
+    /// lie beyond it on one side is a facet (its exact values are beyond the band of
+    /// `settle` on that side), and only its hyperplane is computed, from the exact points;
+    /// any other (a value within it) is decided by `settle` on its exact values. So the
+    /// result is that of deciding every candidate by `settle`.
     fn edges_of_three(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
+        let yn3 = yn[2 * s..3 * s].iter().fold(0.0, |m: Real, &x| m.max(x));
         for e1 in 0..s {
             let (a1, b1) = (self.at(0, e1), self.at(0, e1 + 1));
             let first: NullSpace<W, 5> = null_space([y[a1], y[b1]], [yn[a1], yn[b1]]);
@@ -570,44 +644,50 @@ impl Setup {
                 first.at(&y[self.at(0, e1 + s - 1)]),
                 first.at(&y[self.at(0, e1 + 2)]),
             ];
+            let plane3 = self.planes[2].map(|row| first.at(&row));
             for e2 in 0..s {
                 let (a2, b2) = (e2, wrap(e2 + 1, s));
                 let second: NullSpace<5, 3> = null_space([z[a2], z[b2]], [yn[s + a2], yn[s + b2]]);
                 let nf = first.norm * second.norm;
                 let pivot = first.pivot.min(second.pivot);
-                let mut r3 = [[0.0; 3]; MAX_EDGES];
-                for (j, r) in r3.iter_mut().take(s).enumerate() {
-                    *r = second.at(&z[s + j]);
-                }
                 let outer = [
                     second.at(&outer1[0]),
                     second.at(&outer1[1]),
                     second.at(&z[wrap(e2 + s - 1, s)]),
                     second.at(&z[wrap(e2 + 2, s)]),
                 ];
+                let screen =
+                    self.screen(&plane3.map(|row| second.at(&row)), &outer, nf, pivot, yn3);
                 let base = (1u64 << a1) | (1u64 << b1) | (1u64 << (s + a2)) | (1u64 << (s + b2));
                 for e3 in 0..s {
                     let (u, v) = (e3, wrap(e3 + 1, s));
-                    let lambda = cross(&r3[u], &r3[v]);
+                    let (pu, pv) = (2 * s + u, 2 * s + v);
+                    let set = base | (1u64 << pu) | (1u64 << pv);
+                    let r = |j: usize| second.at(&z[s + j]);
+                    let lambda = match screen.classify(&self.edge_normals[e3]) {
+                        Verdict::Reject => continue,
+                        Verdict::Accept(sign) => {
+                            // Every exact value is beyond the band of `settle` on one side.
+                            let h = first.combine(&second.combine(&cross(&r(u), &r(v))));
+                            out.push_plane(set, &h, sign / norm(&h), &self.mean);
+                            continue;
+                        }
+                        Verdict::Ambiguous => cross(&r(u), &r(v)),
+                    };
                     let values = [
                         dot(&outer[0], &lambda),
                         dot(&outer[1], &lambda),
                         dot(&outer[2], &lambda),
                         dot(&outer[3], &lambda),
-                        dot(&r3[wrap(e3 + s - 1, s)], &lambda),
-                        dot(&r3[wrap(e3 + 2, s)], &lambda),
+                        dot(&r(wrap(e3 + s - 1, s)), &lambda),
+                        dot(&r(wrap(e3 + 2, s)), &lambda),
                     ];
-                    let (pu, pv) = (2 * s + u, 2 * s + v);
                     let c = Conditioning {
                         nf,
                         pivot,
                         d: nf * nf * yn[pu] * yn[pv],
                     };
-                    if self.surely_not(&values, &lambda, c) {
-                        continue;
-                    }
                     let h = first.combine(&second.combine(&lambda));
-                    let set = base | (1u64 << pu) | (1u64 << pv);
                     self.settle(&values, &lambda, h, c, set, out)?;
                 }
             }
@@ -615,12 +695,56 @@ impl Setup {
         Ok(())
     }
 
+    /// The screen of the third polygon's edges for one pair of edges of the first two: `m`
+    /// the image of its plane's constraints (the columns of `M`), `outer` the outer
+    /// neighbours' coordinates, `nf` and `pivot` the pair's conditioning, `yn3` the largest
+    /// `|y|` of the third polygon. See [`Self::edges_of_three`].
+    #[inline(always)]
+    fn screen(
+        &self,
+        m: &[[Real; 3]; 3],
+        outer: &[[Real; 3]; 4],
+        nf: Real,
+        pivot: Real,
+        yn3: Real,
+    ) -> Screen {
+        let adj = [
+            cross(&m[1], &m[2]),
+            cross(&m[2], &m[0]),
+            cross(&m[0], &m[1]),
+        ];
+        let det = dot(&m[0], &adj[0]);
+        let p = outer.map(|o| [dot(&adj[0], &o), dot(&adj[1], &o), dot(&adj[2], &o)]);
+        // Bounds, all in 2-norms: `e_r >= |r_j - M q_j|` (the fit residual, at most
+        // `FIT tol` per coordinate, through `|N| <= nf`, plus rounding); `|M q_j| <= R`;
+        // `|lambda| <= Lambda`; the values' error `E`.
+        let e_r = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
+        let big_r = m.iter().map(|c| dot(c, c).sqrt()).sum::<Real>() + e_r;
+        let o_max = outer.iter().fold(0.0, |x: Real, o| x.max(dot(o, o))).sqrt();
+        let adj_norm = adj.iter().map(|a| dot(a, a)).sum::<Real>().sqrt();
+        let lambda = adj_norm * self.edge_normal_norm + 2.0 * e_r * big_r;
+        let error = 2.0 * e_r * big_r * o_max.max(big_r) + e_r * lambda;
+        // The band of `surely_not` with `|lambda|_1 <= sqrt(3) Lambda`.
+        let l1 = 3.0_f64.sqrt() * lambda;
+        Screen {
+            p,
+            own: det * self.kappa,
+            bound: self.band_bound(nf, pivot, l1, nf * nf * yn3 * yn3) + error,
+        }
+    }
     /// Type (2,1,0) and its permutations: one whole polygon, an edge, a vertex. The null
-    /// space of the whole polygon's plane is computed once per polygon.
+    /// space of the whole polygon's plane is computed once per polygon. The candidates of one
+    /// edge are decided against one band, that of [`Self::band_bound`] over all of them; a
+    /// value within it leaves the candidate to [`Self::settle`].
     fn whole_edge_vertex(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
         let all = (1u64 << s) - 1;
+        let yn_max: [Real; 3] = std::array::from_fn(|i| {
+            yn[i * s..(i + 1) * s]
+                .iter()
+                .fold(0.0, |m: Real, &x| m.max(x))
+        });
         for whole in 0..3 {
             let [c, u, v] = self.planes[whole];
             let norms = [dot(&c, &c).sqrt(), dot(&u, &u).sqrt(), dot(&v, &v).sqrt()];
@@ -647,6 +771,12 @@ impl Setup {
                         second.at(&z[self.at(edge, e + s - 1)]),
                         second.at(&z[self.at(edge, e + 2)]),
                     ];
+                    // The band of `surely_not` over all of this edge's candidates (`lambda`
+                    // is `r_t` turned, so `|lambda|_1 = |r_t|_1`).
+                    let l1 = r[..s]
+                        .iter()
+                        .fold(0.0, |m: Real, r| m.max(r[0].abs() + r[1].abs()));
+                    let bound = self.band_bound(nf, pivot, l1, nf * yn_max[vertex]);
                     let base = polygon | (1u64 << a) | (1u64 << b);
                     for t in 0..s {
                         let lambda = [r[t][1], -r[t][0]];
@@ -657,21 +787,42 @@ impl Setup {
                             dot(&r[wrap(t + 1, s)], &lambda),
                         ];
                         let p = self.at(vertex, t);
-                        let c = Conditioning {
-                            nf,
-                            pivot,
-                            d: nf * yn[p],
-                        };
-                        if self.surely_not(&values, &lambda, c) {
-                            continue;
+                        let set = base | (1u64 << p);
+                        match classify(&values, bound) {
+                            Verdict::Reject => {}
+                            Verdict::Accept(sign) => {
+                                // Beyond the band of `settle` too.
+                                let h = first.combine(&second.combine(&lambda));
+                                out.push_plane(set, &h, sign / norm(&h), &self.mean);
+                            }
+                            Verdict::Ambiguous => {
+                                let c = Conditioning {
+                                    nf,
+                                    pivot,
+                                    d: nf * yn[p],
+                                };
+                                let h = first.combine(&second.combine(&lambda));
+                                self.settle(&values, &lambda, h, c, set, out)?;
+                            }
                         }
-                        let h = first.combine(&second.combine(&lambda));
-                        self.settle(&values, &lambda, h, c, base | (1u64 << p), out)?;
                     }
                 }
             }
         }
         Ok(())
+    }
+
+    /// The band of [`Self::surely_not`] for a candidate with `|lambda|_1 <= l1` and
+    /// conditioning `nf`, `pivot` and `d` (infinite for `pivot = 0`). It is at least the band
+    /// of [`Self::settle`] (`|a| <= nf |lambda|_2 <= nf l1`), so values all beyond it on one
+    /// side make a facet, beyond it on both sides no facet.
+    #[inline(always)]
+    fn band_bound(&self, nf: Real, pivot: Real, l1: Real, d: Real) -> Real {
+        if pivot > 0.0 {
+            nf * (l1 * self.band + self.rounding * (l1 / pivot).max(d))
+        } else {
+            Real::INFINITY
+        }
     }
 
     /// Type (2,2): two whole polygons; the third must lie below.
