@@ -198,7 +198,8 @@ impl Facets {
         let mut normals = Vec::with_capacity(n * D);
         let mut offsets = Vec::with_capacity(n);
         let mut facet_offsets = Vec::with_capacity(n + 1);
-        let mut facet_indices = Vec::with_capacity(total as usize);
+        let mut facet_indices = vec![0; total as usize];
+        let mut end = 0;
         facet_offsets.push(0);
         for &key in &self.keys {
             let (a, b) = &self.planes[(key & 0xFFFF) as usize];
@@ -206,8 +207,12 @@ impl Facets {
             offsets.push(*b);
             let set = (key >> 16).reverse_bits() >> 16;
             vertex_set |= set;
-            facet_indices.extend(members(set));
-            facet_offsets.push(facet_indices.len() as u32);
+            let start = end;
+            end += set.count_ones() as usize;
+            for (slot, i) in facet_indices[start..end].iter_mut().zip(members(set)) {
+                *slot = i;
+            }
+            facet_offsets.push(end as u32);
         }
         Ok(Hull::from_sorted_with_vertices(
             D,
@@ -221,15 +226,32 @@ impl Facets {
 }
 
 /// The points of a point set (bit `i` for point `i`), ascending.
-fn members(mut set: u64) -> impl Iterator<Item = u32> {
-    std::iter::from_fn(move || {
-        (set != 0).then(|| {
-            let i = set.trailing_zeros();
-            set &= set - 1;
+fn members(set: u64) -> Members {
+    Members(set)
+}
+
+/// Iterator of [`members`] (its exact length is known, so collecting allocates once).
+struct Members(u64);
+
+impl Iterator for Members {
+    type Item = u32;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<u32> {
+        (self.0 != 0).then(|| {
+            let i = self.0.trailing_zeros();
+            self.0 &= self.0 - 1;
             i
         })
-    })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = self.0.count_ones() as usize;
+        (n, Some(n))
+    }
 }
+
+impl ExactSizeIterator for Members {}
 
 /// What a candidate's neighbour values say.
 enum Verdict {
@@ -644,7 +666,8 @@ impl Setup {
                 first.at(&y[self.at(0, e1 + s - 1)]),
                 first.at(&y[self.at(0, e1 + 2)]),
             ];
-            let plane3 = self.planes[2].map(|row| first.at(&row));
+            let [c3, u3, v3] = &self.planes[2];
+            let plane3 = [first.at(c3), first.at(u3), first.at(v3)];
             for e2 in 0..s {
                 let (a2, b2) = (e2, wrap(e2 + 1, s));
                 let second: NullSpace<5, 3> = null_space([z[a2], z[b2]], [yn[s + a2], yn[s + b2]]);
@@ -656,8 +679,17 @@ impl Setup {
                     second.at(&z[wrap(e2 + s - 1, s)]),
                     second.at(&z[wrap(e2 + 2, s)]),
                 ];
-                let screen =
-                    self.screen(&plane3.map(|row| second.at(&row)), &outer, nf, pivot, yn3);
+                let screen = self.screen(
+                    &[
+                        second.at(&plane3[0]),
+                        second.at(&plane3[1]),
+                        second.at(&plane3[2]),
+                    ],
+                    &outer,
+                    nf,
+                    pivot,
+                    yn3,
+                );
                 let base = (1u64 << a1) | (1u64 << b1) | (1u64 << (s + a2)) | (1u64 << (s + b2));
                 for e3 in 0..s {
                     let (u, v) = (e3, wrap(e3 + 1, s));
@@ -714,7 +746,13 @@ impl Setup {
             cross(&m[0], &m[1]),
         ];
         let det = dot(&m[0], &adj[0]);
-        let p = outer.map(|o| [dot(&adj[0], &o), dot(&adj[1], &o), dot(&adj[2], &o)]);
+        let adj_at = |o: &[Real; 3]| [dot(&adj[0], o), dot(&adj[1], o), dot(&adj[2], o)];
+        let p = [
+            adj_at(&outer[0]),
+            adj_at(&outer[1]),
+            adj_at(&outer[2]),
+            adj_at(&outer[3]),
+        ];
         // Bounds, all in 2-norms: `e_r >= |r_j - M q_j|` (the fit residual, at most
         // `FIT tol` per coordinate, through `|N| <= nf`, plus rounding); `|M q_j| <= R`;
         // `|lambda| <= Lambda`; the values' error `E`.
