@@ -326,7 +326,8 @@ impl GraspProblem {
             // alpha* = min_f b_f / h_f = 1 / max_{f,k} (a_f / b_f) . o_k.
             let mut g = Vec::with_capacity(hull.normals().len());
             for (a, &b) in hull.normals().chunks_exact(d).zip(hull.offsets()) {
-                g.extend(a.iter().map(|x| x / b));
+                let inv = 1.0 / b;
+                g.extend(a.iter().map(|x| x * inv));
             }
             let (mut order, mut stack) = (Vec::new(), Vec::new());
             match self.tree.max_over(&g, 0.0, &mut order, &mut stack) {
