@@ -24,6 +24,30 @@ const HOLD_REPORT: Duration = Duration::from_secs(1);
 pub const VISUALIZER: &str = "visualizer";
 /// coreutils' `nice`, which starts the visualizer at a lower CPU priority.
 const NICE: &str = "/usr/bin/nice";
+/// The nodes on the measurement-to-command path, whose loops run under SCHED_FIFO at
+/// `pipeline.realtime_priority`: the plant (it stands for the hand's driver), the estimator,
+/// the wrench-space node and the hand command node. The planner works beside the path, and
+/// may take milliseconds.
+const REALTIME_NODES: [&str; 4] = ["plant", "estimator", "wrench", "command"];
+
+/// The scheduling policy of process `pid`'s main thread (a node's loop) from `/proc`
+/// (`"fifo 50"`, `"normal"`, ...).
+fn scheduling(pid: u32) -> Option<String> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // After the command name (in parentheses, which may hold spaces): state is field 3,
+    // rt_priority field 40, policy field 41.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    let (priority, policy) = (fields.get(37)?, fields.get(38)?.parse::<u32>().ok()?);
+    Some(match policy {
+        0 => "normal".to_string(),
+        1 => format!("fifo {priority}"),
+        2 => format!("rr {priority}"),
+        3 => "batch".to_string(),
+        5 => "idle".to_string(),
+        6 => "deadline".to_string(),
+        p => format!("policy {p}"),
+    })
+}
 
 /// Where `run`'s flags send the Rerun recording (over `[visualizer]` of the config).
 #[derive(Debug, Default)]
@@ -227,6 +251,9 @@ pub struct RunSummary {
     pub plan_steps: PlanStream,
     /// Resident memory of each node process, sampled every second (KiB).
     pub memory_kib: std::collections::BTreeMap<String, Memory>,
+    /// The scheduling policy of each node process's main thread (its loop), as last sampled
+    /// (`"fifo 50"`, `"normal"`): `pipeline.realtime_priority` at work.
+    pub scheduling: std::collections::BTreeMap<String, String>,
     /// Per node: heap allocations in the steady state (from its health reports).
     pub allocations: std::collections::BTreeMap<String, Allocations>,
     /// The Rerun recording (absent without the visualizer).
@@ -444,6 +471,29 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         .context("cannot start: the initial grasp")?;
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
+    // The loop's nodes run their loops under SCHED_FIFO where the machine allows it (each
+    // switches once its start-up is done); otherwise that is said once, and they run at
+    // normal priority.
+    let realtime = match config.pipeline.realtime_priority {
+        0 => None,
+        p if config
+            .pipeline
+            .nodes
+            .iter()
+            .any(|n| REALTIME_NODES.contains(&n.as_str())) =>
+        {
+            match icrflow_nodes::runtime::realtime_allowed(p as u8) {
+                Ok(()) => Some(p),
+                Err(why) => {
+                    eprintln!(
+                        "run: pipeline.realtime_priority = {p} is not available here ({why:#}); the loop's nodes run at normal priority"
+                    );
+                    None
+                }
+            }
+        }
+        _ => None,
+    };
     let mut specs = Vec::new();
     for n in &config.pipeline.nodes {
         specs.push(NodeSpec {
@@ -452,7 +502,12 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             args: vec!["--config".into(), config_path.display().to_string()],
             policy: RestartPolicy::default(),
             essential: true,
-            env: Vec::new(),
+            env: match realtime {
+                Some(p) if REALTIME_NODES.contains(&n.as_str()) => {
+                    vec![(icrflow_nodes::runtime::ENV_REALTIME.into(), p.to_string())]
+                }
+                _ => Vec::new(),
+            },
         });
     }
     if config.zenoh.enabled {
@@ -577,6 +632,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let max_hold = Duration::from_secs_f64(config.pipeline.max_hold);
         let (mut plan_published, mut plan_compute) = (0u64, Histogram::new());
         let mut memory = std::collections::BTreeMap::<String, Memory>::new();
+        let mut policies = std::collections::BTreeMap::<String, String>::new();
         let mut next_sample = Instant::now() + Duration::from_secs(1);
 
         let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
@@ -674,6 +730,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                     if Instant::now() >= next_sample {
                         next_sample += Duration::from_secs(1);
                         for n in &names {
+                            if let Some(policy) = supervisor.pid(n).and_then(scheduling) {
+                                policies.insert(n.clone(), policy);
+                            }
                             if let Some(kib) = supervisor.pid(n).and_then(resident_kib) {
                                 let m = memory.entry(n.clone()).or_insert(Memory {
                                     first: kib,
@@ -764,6 +823,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                 compute_us: plan_compute.percentiles(),
             },
             memory,
+            scheduling: policies,
             allocations: tracks.iter().map(|(n, t)| (n.clone(), t.total())).collect(),
             frames: frames
                 .values()
@@ -797,6 +857,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         latency_us: stats.latencies,
         plan_steps: stats.plan_steps,
         memory_kib: stats.memory,
+        scheduling: stats.scheduling,
         allocations: stats.allocations,
         recording: recording.as_ref().map(|r| RecordingSummary {
             target: target_name(r),
@@ -866,6 +927,20 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         .map(|(n, m)| format!("{n} {}->{} KiB", m.first, m.last))
         .collect();
     writeln!(o, "memory     {}", grew.join(", "))?;
+    let realtime: Vec<&str> = summary
+        .scheduling
+        .iter()
+        .filter(|(_, p)| p.starts_with("fifo") || p.starts_with("rr"))
+        .map(|(n, _)| n.as_str())
+        .collect();
+    if let Some(policy) = realtime.first().and_then(|n| summary.scheduling.get(*n)) {
+        writeln!(
+            o,
+            "priority   {} at SCHED_{}",
+            realtime.join(", "),
+            policy.to_uppercase()
+        )?;
+    }
     let allocs: Vec<String> = summary
         .allocations
         .iter()
@@ -960,6 +1035,7 @@ struct Stats {
     latencies: Latencies,
     plan_steps: PlanStream,
     memory: std::collections::BTreeMap<String, Memory>,
+    scheduling: std::collections::BTreeMap<String, String>,
     allocations: std::collections::BTreeMap<String, Allocations>,
 }
 

@@ -43,6 +43,24 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     );
     let s = json(&std::fs::read(&summary).unwrap());
     assert_eq!(s["completed"], true, "{s}");
+    // The loops of the loop's nodes ran at the default real-time priority where this machine
+    // allows it (as root, or with CAP_SYS_NICE or an RLIMIT_RTPRIO), the others at normal
+    // priority; elsewhere all at normal priority, and the run said why.
+    let allowed = icrflow_nodes::runtime::realtime_allowed(50).is_ok();
+    let policy = |n: &str| s["scheduling"][n].as_str().unwrap_or("missing").to_string();
+    for n in ["plant", "estimator", "wrench", "command"] {
+        let expected = if allowed { "fifo 50" } else { "normal" };
+        assert_eq!(policy(n), expected, "{n}: {s}");
+    }
+    assert!(!err.contains("the loop runs at normal priority"), "{err}");
+    for n in ["planner", "bridge", "visualizer"] {
+        assert_eq!(policy(n), "normal", "{n}: {s}");
+    }
+    assert_eq!(
+        !allowed,
+        err.contains("realtime_priority = 50 is not available"),
+        "{err}"
+    );
     // The same total rotation (within the estimator's noise) and the same switches.
     let rotation = s["rotation_deg"].as_f64().unwrap();
     assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
@@ -130,6 +148,11 @@ fn run_refuses_a_bad_config_before_starting_anything() {
             "pipeline",
             format!("{good}\n[pipeline]\nrate_hz = 0.0\n"),
             "pipeline.rate_hz",
+        ),
+        (
+            "priority",
+            format!("{good}\n[pipeline]\nrealtime_priority = 100\n"),
+            "pipeline.realtime_priority",
         ),
         (
             "zenoh",

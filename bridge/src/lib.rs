@@ -245,7 +245,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .iter()
         .map(|e| ws.attach_notification(e.listener()))
         .collect::<Result<Vec<_>, _>>()?;
-    let served = serve(&ws, |_| {
+    let served = serve(ctx.name, &ws, |_| {
         for export in &exports {
             // A blocked link blocks here (congestion control `Block`), never the nodes.
             match export.forward(&mut bytes) {

@@ -70,7 +70,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let _plan = ws.attach_notification(plans.listener())?;
     let _wrench = ws.attach_notification(wrenches.listener())?;
     let tick = ws.attach_interval(Duration::from_secs_f64(period))?;
-    serve(&ws, |id| {
+    serve(ctx.name, &ws, |id| {
         health.tick()?;
         let t = now();
         if let Some(m) = plans.latest(&mut regions)? {

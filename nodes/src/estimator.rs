@@ -69,7 +69,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let _joints = ws.attach_notification(joints.listener())?;
     let _poses = ws.attach_notification(poses.listener())?;
-    serve(&ws, |_| {
+    serve(ctx.name, &ws, |_| {
         health.tick()?;
         if let Some(m) = poses.latest()? {
             let [w, _, _, z] = m.orientation;

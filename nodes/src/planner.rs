@@ -414,7 +414,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let _grasps = ws.attach_notification(grasps.listener())?;
     let tick = ws.attach_interval(Duration::from_secs_f64(REPUBLISH))?;
-    serve(&ws, |id| {
+    serve(ctx.name, &ws, |id| {
         health.tick()?;
         if let Some(g) = grasps.latest()? {
             if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last_grasp) {

@@ -100,6 +100,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut ticks: u64 = 0;
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let saved = Checkpoint::new(state_file)?;
+    // Its thread (started above) stays at normal priority.
+    crate::runtime::promote(ctx.name);
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.

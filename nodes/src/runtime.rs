@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result, anyhow, bail};
 use iceoryx2::prelude::{CallbackProgression, LogLevel, WaitSetAttachmentId, ipc, set_log_level};
 use iceoryx2::waitset::WaitSet;
 use icrflow_interfaces::{Header, Kind, NodeHealth, NodeState, now_ns, topics, write_text};
@@ -55,12 +55,67 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
     }
 }
 
+/// The environment variable through which `run` asks a node to run its loop under SCHED_FIFO,
+/// at this priority (1 to 99): see [`promote`].
+pub const ENV_REALTIME: &str = "ICRFLOW_REALTIME_PRIORITY";
+
+/// Puts the calling thread under SCHED_FIFO at `priority` (1 to 99).
+pub fn set_fifo(priority: u8) -> Result<()> {
+    use thread_priority::{
+        Error, RealtimeThreadSchedulePolicy, ThreadPriority, ThreadPriorityValue,
+        ThreadSchedulePolicy, set_thread_priority_and_policy, thread_native_id,
+    };
+    let value = ThreadPriorityValue::try_from(priority)
+        .ok()
+        .filter(|_| priority >= 1)
+        .ok_or_else(|| anyhow!("SCHED_FIFO priority {priority}: expected 1 to 99"))?;
+    set_thread_priority_and_policy(
+        thread_native_id(),
+        ThreadPriority::Crossplatform(value),
+        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
+    )
+    .map_err(|e| match e {
+        Error::OS(code) => anyhow!(
+            "SCHED_FIFO priority {priority}: {} (it needs root, CAP_SYS_NICE or an RLIMIT_RTPRIO of at least {priority})",
+            std::io::Error::from_raw_os_error(code)
+        ),
+        e => anyhow!("SCHED_FIFO priority {priority}: {e}"),
+    })
+}
+
+/// Whether threads may run under SCHED_FIFO at `priority` here, tried on a thread of its own
+/// that then ends (the caller's scheduling is left alone).
+pub fn realtime_allowed(priority: u8) -> Result<()> {
+    std::thread::spawn(move || set_fifo(priority))
+        .join()
+        .map_err(|_| anyhow!("the SCHED_FIFO probe thread panicked"))?
+}
+
+/// Runs the calling thread (a node's loop) under SCHED_FIFO when `run` asked for it through
+/// [`ENV_REALTIME`]. Called as the loop starts, so that the node's start-up (its config,
+/// grasp problem and bus) ran at normal priority and cannot hold up other processes starting
+/// beside it. A failure is said on stderr, and the loop runs at normal priority.
+pub fn promote(name: &str) {
+    let Some(value) = std::env::var_os(ENV_REALTIME) else {
+        return;
+    };
+    let result = value
+        .to_str()
+        .and_then(|v| v.parse::<u8>().ok())
+        .ok_or_else(|| anyhow!("{ENV_REALTIME}={value:?}: expected a priority from 1 to 99"))
+        .and_then(set_fifo);
+    if let Err(e) = result {
+        eprintln!("icrflow-{name}: the loop runs at normal priority: {e:#}");
+    }
+}
+
 /// Period of the wake-up every node's event loop has besides its inputs' events (see
 /// [`serve`]).
 pub const RESYNC: Duration = Duration::from_millis(10);
 
-/// A node's event loop: calls `handle` on every wake-up of the WaitSet until a termination
-/// signal stops the WaitSet (`Ok`) or `handle` fails (its error).
+/// Node `name`'s event loop: calls `handle` on every wake-up of the WaitSet until a
+/// termination signal stops the WaitSet (`Ok`) or `handle` fails (its error). The loop runs
+/// under SCHED_FIFO when `run` asked for it ([`promote`]).
 ///
 /// `handle` must read every one of its subscribers on every wake-up, whichever attachment
 /// woke it (reading is non-blocking and resets the subscriber's event): iceoryx2 0.10's
@@ -69,10 +124,12 @@ pub const RESYNC: Duration = Duration::from_millis(10);
 /// sending; see [`crate::bus`]). So the loop also wakes every [`RESYNC`], which bounds such a
 /// stall to that period.
 pub fn serve(
+    name: &str,
     ws: &WaitSet<ipc::Service>,
     mut handle: impl FnMut(WaitSetAttachmentId<ipc::Service>) -> Result<()>,
 ) -> Result<()> {
     let _resync = ws.attach_interval(RESYNC)?;
+    promote(name);
     let mut failure = None;
     ws.wait_and_process(|id| match handle(id) {
         Ok(()) => CallbackProgression::Continue,
@@ -342,6 +399,28 @@ impl Drop for Checkpoint {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sched_fifo_priorities_outside_1_to_99_are_refused_by_name() {
+        for p in [0, 100, 255] {
+            let e = set_fifo(p).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("priority {p}: expected 1 to 99")),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_sched_fifo_probe_leaves_the_calling_thread_alone() {
+        let before = thread_priority::thread_schedule_policy().unwrap();
+        // Allowed or not (root or not), the caller's policy is unchanged, and a refusal says
+        // what it needs.
+        if let Err(e) = realtime_allowed(10) {
+            assert!(e.to_string().contains("CAP_SYS_NICE"), "{e}");
+        }
+        assert_eq!(thread_priority::thread_schedule_policy().unwrap(), before);
+    }
 
     fn scratch(name: &str) -> PathBuf {
         let dir =

@@ -38,7 +38,7 @@ pub fn run(ctx: &Context) -> Result<()> {
 
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
     let _grasps = ws.attach_notification(grasps.listener())?;
-    serve(&ws, |_| {
+    serve(ctx.name, &ws, |_| {
         health.tick()?;
         let Some(g) = grasps.latest()? else {
             return Ok(());

@@ -443,6 +443,10 @@ pub const PASSWORD_ENV: &str = "ICRFLOW_ZENOH_PASSWORD";
 /// Where the bridge listens unless `zenoh.listen` says otherwise: this machine only.
 pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
 
+/// `pipeline.realtime_priority` by default: the SCHED_FIFO priority ros2_control's
+/// controller manager asks for, in the middle of the range.
+pub const DEFAULT_REALTIME_PRIORITY: i64 = 50;
+
 /// The validated `[pipeline]` section: rates, noise and limits of `icrflow run`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PipelineSpec {
@@ -471,6 +475,9 @@ pub struct PipelineSpec {
     /// The nodes this host runs ([`icrflow_interfaces::topics::NODES`] by default); the
     /// others run on other hosts, joined over Zenoh.
     pub nodes: Vec<String>,
+    /// SCHED_FIFO priority of the nodes on the measurement-to-command path (1 to 99), or 0:
+    /// normal scheduling.
+    pub realtime_priority: u32,
 }
 
 impl PipelineSpec {
@@ -971,6 +978,12 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         max_hold: positive("pipeline.max_hold_s", raw.max_hold_s.unwrap_or(30.0))?,
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
+        realtime_priority: match raw.realtime_priority.unwrap_or(DEFAULT_REALTIME_PRIORITY) {
+            p @ 0..=99 => p as u32,
+            p => bail!(
+                "pipeline.realtime_priority: 0 (normal scheduling) or a SCHED_FIFO priority from 1 to 99, got {p}"
+            ),
+        },
     })
 }
 

@@ -62,6 +62,7 @@ pub struct RawPipeline {
     pub max_hold_s: Option<f64>,
     pub seed: Option<u64>,
     pub nodes: Option<Vec<String>>,
+    pub realtime_priority: Option<i64>,
 }
 
 /// `[object]`: the shape is chosen by `shape`.
