@@ -335,11 +335,14 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("live");
     let summary = dir.join("live.json");
+    let rrd = dir.join("live.rrd");
     let run = spawn_run(&[
         "--live",
         "config/paper_sphere.toml",
         "--summary-json",
         summary.to_str().unwrap(),
+        "--rrd",
+        rrd.to_str().unwrap(),
     ]);
     std::thread::sleep(std::time::Duration::from_secs(6));
     let interrupted = std::process::Command::new("kill")
@@ -357,6 +360,18 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
     assert!(rotation > 1.0 && rotation < 359.0, "{s}");
     assert!(s["commands"].as_u64().unwrap() > 0, "{s}");
     assert_eq!(s["restarts"], 0, "{s}");
+    // A live run's recording is written without Rerun's index footer (its memory would grow
+    // with the run), and says so; what it recorded is on disk.
+    assert!(
+        err.contains("without Rerun's index footer (a live run"),
+        "{err}"
+    );
+    assert!(s["recording"]["frames"].as_u64().unwrap() > 0, "{s}");
+    assert!(
+        std::fs::metadata(&rrd).unwrap().len() > 10_000,
+        "{}",
+        rrd.display()
+    );
     for node in ["plant", "estimator", "wrench", "planner", "command"] {
         assert!(
             find(&format!("icrflow-{node}")).is_none(),

@@ -290,6 +290,10 @@ pub struct VisualizerSpec {
 pub const ENV_RECORDING: &str = "ICRFLOW_RECORDING";
 /// Environment variable carrying the run's recording id to the visualizer node.
 pub const ENV_RECORDING_ID: &str = "ICRFLOW_RECORDING_ID";
+/// Environment variable telling the visualizer node to write its `.rrd` without Rerun's index
+/// footer (`0`): set for `--live` runs, whose length has no bound (the footer's index of every
+/// chunk is held in memory until the file is closed).
+pub const ENV_RECORDING_FOOTER: &str = "ICRFLOW_RECORDING_FOOTER";
 
 impl Recording {
     /// The value of [`ENV_RECORDING`]: `rrd:PATH`, `spawn:PORT` or `connect:URL`.

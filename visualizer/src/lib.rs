@@ -103,6 +103,7 @@ pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64) -> 
 pub fn run(ctx: &Context) -> Result<()> {
     let (recording, id) = recording_from_env()?;
     let recording = fresh(recording);
+    let footer = std::env::var(icrflow_scenario::ENV_RECORDING_FOOTER).as_deref() != Ok("0");
     let spec = &ctx.config.visualizer;
     let setup = &ctx.setup;
     let problem = &setup.problem;
@@ -124,7 +125,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let recorder = std::thread::Builder::new()
         .name("recording".into())
         .spawn(move || -> Result<u64> {
-            let rec = match record::open(&target, &statics.recording_id)
+            let rec = match record::open(&target, &statics.recording_id, footer)
                 .and_then(|rec| record::statics(&rec, &statics).map(|()| rec))
             {
                 Ok(rec) => {
@@ -154,9 +155,13 @@ pub fn run(ctx: &Context) -> Result<()> {
                 result?;
                 opened = true;
                 match &recording {
-                    Recording::Rrd(p) => {
+                    Recording::Rrd(p) if footer => {
                         eprintln!("icrflow-visualizer: recording to {}", p.display())
                     }
+                    Recording::Rrd(p) => eprintln!(
+                        "icrflow-visualizer: recording to {} without Rerun's index footer (a live run; `rerun rrd optimize` adds it)",
+                        p.display()
+                    ),
                     Recording::Spawn(port) => eprintln!(
                         "icrflow-visualizer: recording to a Rerun viewer spawned on port {port}"
                     ),

@@ -48,7 +48,7 @@ pub fn run(config: &Path, trajectory: &Path) -> Result<u64> {
         .iter()
         .map(|step| frames(step, &config, &setup))
         .collect::<Result<Vec<_>>>()?;
-    let rec = record::open(&recording, &id)?;
+    let rec = record::open(&recording, &id, true)?;
     record::statics(&rec, &crate::statics(&setup, &id, alpha))?;
     let logged = record::log_frames(&rec, alpha, frames.into_iter().flatten())?;
     rec.flush_with_timeout(std::time::Duration::from_secs(10))

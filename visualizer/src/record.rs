@@ -168,8 +168,11 @@ pub fn blueprint() -> Blueprint {
 /// The most recorded data Rerun's SDK holds before it blocks (the recording's memory bound).
 pub const MAX_BYTES_IN_FLIGHT: u64 = 1 << 20;
 
-/// Opens the recording.
-pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
+/// Opens the recording. An `.rrd` gets Rerun's index footer when `footer` (the SDK then keeps
+/// an entry per chunk in memory until the file is closed, ~1.3 GB an hour at the run's frame
+/// rate; without it the file is still a valid recording, and `rerun rrd optimize` adds the
+/// index afterwards).
+pub fn open(recording: &Recording, id: &str, footer: bool) -> Result<rerun::RecordingStream> {
     // Rerun's queues are bounded by the bytes in flight: a viewer that lags then blocks this
     // thread, and the node drops frames, after at most this much memory.
     let batching = rerun::log::ChunkBatcherConfig {
@@ -186,8 +189,13 @@ pub fn open(recording: &Recording, id: &str) -> Result<rerun::RecordingStream> {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("creating {}", dir.display()))?;
             }
+            let options = rerun::sink::FileSinkOptions {
+                write_footer: footer,
+            };
+            let sink = rerun::sink::FileSink::with_options(path, options)
+                .with_context(|| format!("cannot write the recording {}", path.display()))?;
             builder
-                .save(path)
+                .set_sinks((sink,))
                 .with_context(|| format!("cannot write the recording {}", path.display()))
         }
         Recording::Spawn(port) => {
