@@ -482,7 +482,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             .iter()
             .any(|n| REALTIME_NODES.contains(&n.as_str())) =>
         {
-            match icrflow_nodes::runtime::realtime_allowed(p as u8) {
+            match icrflow_nodes::runtime::realtime_allowed(p) {
                 Ok(()) => Some(p),
                 Err(why) => {
                     eprintln!(

@@ -481,7 +481,7 @@ pub struct PipelineSpec {
     pub nodes: Vec<String>,
     /// SCHED_FIFO priority of the nodes on the measurement-to-command path (1 to 99), or 0:
     /// normal scheduling.
-    pub realtime_priority: u32,
+    pub realtime_priority: u8,
 }
 
 impl PipelineSpec {
@@ -983,7 +983,7 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
         realtime_priority: match raw.realtime_priority.unwrap_or(DEFAULT_REALTIME_PRIORITY) {
-            p @ 0..=99 => p as u32,
+            p @ 0..=99 => p as u8,
             p => bail!(
                 "pipeline.realtime_priority: 0 (normal scheduling) or a SCHED_FIFO priority from 1 to 99, got {p}"
             ),

@@ -438,6 +438,8 @@ struct Setup {
     y: [[Real; W]; MAX_POINTS],
     /// `|y|` per point.
     y_norm: [Real; MAX_POINTS],
+    /// Per contact, the largest `|y|` of its points.
+    y_norm_max: [Real; 3],
     /// `m`.
     mean: [Real; D],
     /// Per contact, the constraints of its plane: `[c - m; 1]`, `[U; 0]`, `[V; 0]`.
@@ -571,6 +573,11 @@ impl Setup {
             s,
             y,
             y_norm,
+            y_norm_max: std::array::from_fn(|i| {
+                y_norm[i * s..(i + 1) * s]
+                    .iter()
+                    .fold(0.0, |m: Real, &x| m.max(x))
+            }),
             mean,
             planes,
             band: BAND * tol,
@@ -604,7 +611,8 @@ impl Setup {
         hi > band && lo < -band
     }
 
-    /// Decides a candidate that [`Self::surely_not`] did not reject: `h` is its hyperplane
+    /// Decides a candidate that no coarser test decided ([`Self::surely_not`], or the screens
+    /// of the (1,1,1) and (2,1,0) loops against [`Self::band_bound`]): `h` is its hyperplane
     /// `N lambda` in homogeneous coordinates. The band is `|a| 1.5 tol + nf |lambda| 64 eps
     /// scale / cond` with `cond = min(pivot, |lambda| / d)`. An accepted facet is recorded
     /// with its points `set`.
@@ -657,7 +665,7 @@ impl Setup {
     fn edges_of_three(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
-        let yn3 = yn[2 * s..3 * s].iter().fold(0.0, |m: Real, &x| m.max(x));
+        let yn3 = self.y_norm_max[2];
         for e1 in 0..s {
             let (a1, b1) = (self.at(0, e1), self.at(0, e1 + 1));
             let first: NullSpace<W, 5> = null_space([y[a1], y[b1]], [yn[a1], yn[b1]]);
@@ -774,6 +782,7 @@ impl Setup {
             bound: self.band_bound(nf, pivot, l1, nf * nf * yn3 * yn3) + error,
         }
     }
+
     /// Type (2,1,0) and its permutations: one whole polygon, an edge, a vertex. The null
     /// space of the whole polygon's plane is computed once per polygon. The candidates of one
     /// edge are decided against one band, that of [`Self::band_bound`] over all of them; a
@@ -783,11 +792,6 @@ impl Setup {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
         let all = (1u64 << s) - 1;
-        let yn_max: [Real; 3] = std::array::from_fn(|i| {
-            yn[i * s..(i + 1) * s]
-                .iter()
-                .fold(0.0, |m: Real, &x| m.max(x))
-        });
         for whole in 0..3 {
             let [c, u, v] = self.planes[whole];
             let norms = [dot(&c, &c).sqrt(), dot(&u, &u).sqrt(), dot(&v, &v).sqrt()];
@@ -819,7 +823,7 @@ impl Setup {
                     let l1 = r[..s]
                         .iter()
                         .fold(0.0, |m: Real, r| m.max(r[0].abs() + r[1].abs()));
-                    let bound = self.band_bound(nf, pivot, l1, nf * yn_max[vertex]);
+                    let bound = self.band_bound(nf, pivot, l1, nf * self.y_norm_max[vertex]);
                     let base = polygon | (1u64 << a) | (1u64 << b);
                     for t in 0..s {
                         let lambda = [r[t][1], -r[t][0]];
