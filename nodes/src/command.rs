@@ -72,8 +72,20 @@ pub fn run(ctx: &Context) -> Result<()> {
     let tick = ws.attach_interval(Duration::from_secs_f64(period))?;
     serve(ctx.name, &ws, |id| {
         health.tick()?;
+        let plan = plans.latest(&mut regions)?;
+        let wrench = wrenches.latest(&mut facets)?;
+        if wrench.is_some() {
+            grasps.drain(|g| {
+                if recent.len() == RECENT {
+                    recent.pop_front();
+                }
+                recent.push_back(*g);
+            })?;
+        }
+        // The clock is read after the inputs, so that every input's age is measured at the
+        // decision: one published between a clock reading and the reads would count as 0 old.
         let t = now();
-        if let Some(m) = plans.latest(&mut regions)? {
+        if let Some(m) = plan {
             health.processed += 1;
             if let Err(e) = gate.offer_plan(&m, t) {
                 health.refuse(e);
@@ -81,14 +93,8 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         // The answer to a wrench space: the header of the command it causes (None: hold).
         let mut answer: Option<Option<Header>> = None;
-        if let Some(w) = wrenches.latest(&mut facets)? {
+        if let Some(w) = wrench {
             health.processed += 1;
-            grasps.drain(|g| {
-                if recent.len() == RECENT {
-                    recent.pop_front();
-                }
-                recent.push_back(*g);
-            })?;
             let behind = recent
                 .iter()
                 .rev()

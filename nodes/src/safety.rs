@@ -12,7 +12,8 @@ use icrflow_interfaces::{
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Hold {
-    /// No message of this input has been accepted yet.
+    /// No message of this input has been offered yet (one that was offered and refused is
+    /// reported by its refusal instead).
     #[error("no {0} yet")]
     Missing(&'static str),
     /// A message was refused by its header.
@@ -77,6 +78,9 @@ pub struct Gate {
     grasp: Option<GraspState>,
     wrench: Option<WrenchSpaceHeader>,
     last: [u64; 3],
+    /// Per input, why its last refused message was refused: while none of it has been
+    /// accepted, that is the reason to hold (rather than "no plan step yet").
+    refused: [Option<Hold>; 3],
 }
 
 fn finite(values: &[f64]) -> bool {
@@ -93,6 +97,7 @@ impl Gate {
             grasp: None,
             wrench: None,
             last: [0; 3],
+            refused: [None, None, None],
         }
     }
 
@@ -110,6 +115,14 @@ impl Gate {
 
     /// Offers a plan step; accepted if valid.
     pub fn offer_plan(&mut self, m: &PlanStepHeader, now: u64) -> Result<(), Hold> {
+        self.check_plan(m, now)
+            .inspect_err(|e| self.refused[0] = Some(e.clone()))?;
+        self.last[0] = m.header.sequence;
+        self.plan = Some(*m);
+        Ok(())
+    }
+
+    fn check_plan(&self, m: &PlanStepHeader, now: u64) -> Result<(), Hold> {
         const T: &str = "plan step";
         self.header(T, &m.header, Kind::PlanStep, 0, now)?;
         let invalid = |what: String| Hold::Invalid { topic: T, what };
@@ -136,13 +149,19 @@ impl Gate {
                 )));
             }
         }
-        self.last[0] = m.header.sequence;
-        self.plan = Some(*m);
         Ok(())
     }
 
     /// Offers a grasp state; accepted if valid.
     pub fn offer_grasp(&mut self, m: &GraspState, now: u64) -> Result<(), Hold> {
+        self.check_grasp(m, now)
+            .inspect_err(|e| self.refused[1] = Some(e.clone()))?;
+        self.last[1] = m.header.sequence;
+        self.grasp = Some(*m);
+        Ok(())
+    }
+
+    fn check_grasp(&self, m: &GraspState, now: u64) -> Result<(), Hold> {
         const T: &str = "grasp state";
         self.header(T, &m.header, Kind::GraspState, 1, now)?;
         let invalid = |what: String| Hold::Invalid { topic: T, what };
@@ -160,14 +179,20 @@ impl Gate {
                 )));
             }
         }
-        self.last[1] = m.header.sequence;
-        self.grasp = Some(*m);
         Ok(())
     }
 
     /// Offers a wrench-space summary; accepted if valid (force closure and quality are judged
     /// by [`Gate::decide`], so that a bad grasp holds the hand rather than being ignored).
     pub fn offer_wrench(&mut self, m: &WrenchSpaceHeader, now: u64) -> Result<(), Hold> {
+        self.check_wrench(m, now)
+            .inspect_err(|e| self.refused[2] = Some(e.clone()))?;
+        self.last[2] = m.header.sequence;
+        self.wrench = Some(*m);
+        Ok(())
+    }
+
+    fn check_wrench(&self, m: &WrenchSpaceHeader, now: u64) -> Result<(), Hold> {
         const T: &str = "wrench space";
         self.header(T, &m.header, Kind::WrenchSpace, 2, now)?;
         if !finite(&[m.quality, m.epsilon, m.alpha]) {
@@ -176,8 +201,6 @@ impl Gate {
                 what: "quality (not finite)".into(),
             });
         }
-        self.last[2] = m.header.sequence;
-        self.wrench = Some(*m);
         Ok(())
     }
 
@@ -195,9 +218,17 @@ impl Gate {
     /// space that of the accepted grasp state, and that grasp force closure with quality >=
     /// alpha. Returns the plan step to follow.
     pub fn decide(&self, now: u64) -> Result<&PlanStepHeader, Hold> {
-        let plan = self.plan.as_ref().ok_or(Hold::Missing("plan step"))?;
-        let grasp = self.grasp.as_ref().ok_or(Hold::Missing("grasp state"))?;
-        let wrench = self.wrench.as_ref().ok_or(Hold::Missing("wrench space"))?;
+        let missing =
+            |slot: usize, topic| self.refused[slot].clone().unwrap_or(Hold::Missing(topic));
+        let plan = self.plan.as_ref().ok_or_else(|| missing(0, "plan step"))?;
+        let grasp = self
+            .grasp
+            .as_ref()
+            .ok_or_else(|| missing(1, "grasp state"))?;
+        let wrench = self
+            .wrench
+            .as_ref()
+            .ok_or_else(|| missing(2, "wrench space"))?;
         for (topic, h) in [
             ("plan step", &plan.header),
             ("grasp state", &grasp.header),
@@ -282,6 +313,26 @@ mod tests {
         g.offer_grasp(&s, now_ns()).unwrap();
         g.offer_wrench(&w, now_ns()).unwrap();
         assert!(g.decide(now_ns()).is_ok());
+    }
+
+    #[test]
+    fn an_input_refused_before_any_was_accepted_holds_with_its_refusal() {
+        let now = now_ns();
+        let mut g = Gate::new(AGE, 0.1);
+        let (mut p, s, w) = inputs(1);
+        p.header.source_time_ns = now - 2 * AGE;
+        let refusal = g.offer_plan(&p, now).unwrap_err();
+        assert!(
+            refusal.to_string().starts_with("plan step: stale"),
+            "{refusal}"
+        );
+        g.offer_grasp(&s, now).unwrap();
+        g.offer_wrench(&w, now).unwrap();
+        // Not "no plan step yet": the plan steps come, and are too old.
+        assert_eq!(g.decide(now), Err(refusal));
+        let (p, _, _) = inputs(2);
+        g.offer_plan(&p, now).unwrap();
+        assert!(g.decide(now).is_ok());
     }
 
     #[test]
