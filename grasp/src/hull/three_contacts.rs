@@ -23,15 +23,16 @@
 //! neighbours of a vertex; for an untouched polygon, all of its vertices. So the hull is
 //! `s^3` (1,1,1) candidates, `6 s^2` (2,1,0) candidates and 3 (2,2) candidates, each a few
 //! dozen flops:
-//! - (1,1,1): for each pair (edge of `P_1`, edge of `P_2`), the 3-dimensional null space `N`
-//!   of the 4 homogeneous constraints `[x; 1] . (a; -b) = 0` (Gaussian elimination with full
-//!   pivoting) and the values `r = N^T [x; 1]` at the four neighbours and of `P_3`'s plane;
-//!   each edge `(u, v)` of `P_3` gives `lambda = r(u) x r(v)` (a 3-vector cross product) and
-//!   the hyperplane `N lambda`. Since `P_3` is an affine regular polygon, `lambda`'s values at
-//!   the neighbours are, up to a bounded error, `(adj(M) o) . n_e` with `M` the image of its
-//!   plane and `n_e` a constant of the edge: four 3-term dot products per candidate decide it
-//!   (no facet, a facet, or unsure: then its exact values), and only facets compute `N lambda`
-//!   (`Setup::edges_of_three` and `Setup::screen` derive the error bound).
+//! - (1,1,1): for each edge of `P_1`, the 5-dimensional null space `F` of its two
+//!   homogeneous constraints `[x; 1] . (a; -b) = 0` (Gaussian elimination with full
+//!   pivoting), and the images `A_2`, `A_3` of the other two polygons' planes in it. Since
+//!   those are affine regular polygons, the candidate of edges `e_2`, `e_3` is, up to a
+//!   bounded error, bilinear in two constants of the edges (the normals `n = q_a x q_b` of
+//!   `q_j = (1, cos phi_j, sin phi_j)`), with coefficients that are 5 x 5 cofactors computed
+//!   once per edge of `P_1`: its values at the six neighbours are two 3-term dot products and
+//!   two per-edge constants, which decide it (no facet, a facet, or unsure: then its exact
+//!   values), and only facets compute their hyperplane `F g`
+//!   (`Setup::edges_of_three` and `Setup::cofactor_bound` derive the error bound).
 //! - (2,1,0): the whole polygon is the three constraints `[c; 1]`, `[U; 0]`, `[V; 0]` (its
 //!   plane, from a least-squares fit, below), plus an edge's two points: a 2-dimensional null
 //!   space, and each vertex of the third polygon gives `lambda` by a 2D perpendicular.
@@ -53,7 +54,10 @@
 //! affinely independent points, a simplex, and a (2,2) facet two strictly convex polygons
 //! whose planes span the 5-flat together, so every vertex of either polygon is extreme in
 //! the facet, hence in the hull. Facets are in the canonical order of [`Hull`] (by their
-//! point sets), so the result does not depend on which construction ran.
+//! point sets), so the result does not depend on which construction ran. A (1,1,1) facet's
+//! hyperplane is that of the fitted polygons (below), so it passes within the fit's residual
+//! (at most `1e-3 tol`, through the conditioning) of its points rather than through them
+//! to rounding; the others' are computed from the points.
 //!
 //! # Tolerances and when it declines
 //! With `scale` the largest coordinate magnitude and `tol = 1e-10 * scale` (the tolerance of
@@ -70,7 +74,10 @@
 //!   above `T` and another below `-T` (the polygons lie on both sides: no facet, whatever the
 //!   rounding), accepted when all are beyond `T` on one side, and otherwise, a point within
 //!   the band of a candidate or a system too ill-conditioned to tell, the construction
-//!   declines ([`Decline::Ambiguous`]);
+//!   declines ([`Decline::Ambiguous`]); the screens that decide most candidates from the
+//!   fitted polygons (`Setup::edges_of_three`, `Setup::whole_edge_vertex`) use a wider band
+//!   (this one bounded from above, plus their error bound) and leave what they cannot
+//!   decide to this test;
 //! - a repeated facet or fewer than 7 facets also decline (neither happens in exact
 //!   arithmetic).
 //!
@@ -106,6 +113,9 @@ const ROUNDING: Real = 64.0;
 const FIT: Real = 1e-3;
 /// Smallest distance of a polygon vertex from its neighbours' chord, in units of `tol`.
 const CONVEX: Real = 100.0;
+/// Rounding error of the (1,1,1) screen's values, in units of `eps R^4 O` (see
+/// `Setup::cofactor_bound`).
+const COFACTOR_ROUNDING: Real = 32768.0;
 
 /// Why the enumeration declined (the caller then builds the hull by [`Hull::new`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -322,6 +332,45 @@ fn cross(p: &[Real; 3], q: &[Real; 3]) -> [Real; 3] {
     ]
 }
 
+/// `x ^ y` in R^5: the components `x_i y_j - x_j y_i` for `i < j`, in the order
+/// (0,1), (0,2), (0,3), (0,4), (1,2), (1,3), (1,4), (2,3), (2,4), (3,4).
+#[inline(always)]
+fn wedge(x: &[Real; 5], y: &[Real; 5]) -> [Real; 10] {
+    let m = |i: usize, j: usize| x[i] * y[j] - x[j] * y[i];
+    [
+        m(0, 1),
+        m(0, 2),
+        m(0, 3),
+        m(0, 4),
+        m(1, 2),
+        m(1, 3),
+        m(1, 4),
+        m(2, 3),
+        m(2, 4),
+        m(3, 4),
+    ]
+}
+
+/// The cofactor vector `c` of `x1, x2, x3, x4` in R^5 from `p = x1 ^ x2` and `q = x3 ^ x4`
+/// ([`wedge`]): `c . x = det [x1, x2, x3, x4, x]`. Component `m` is `(-1)^m` times the
+/// 4 x 4 minor without row `m`, by Laplace's expansion over the pairs of rows of `x1, x2`;
+/// the rows `(i, j, sign)` pair `p_i q_j + p_j q_i`.
+#[inline(always)]
+fn cofactor(p: &[Real; 10], q: &[Real; 10]) -> [Real; 5] {
+    const TERMS: [[(usize, usize, Real); 3]; 5] = [
+        [(4, 9, 1.0), (5, 8, -1.0), (6, 7, 1.0)],
+        [(1, 9, -1.0), (2, 8, 1.0), (3, 7, -1.0)],
+        [(0, 9, 1.0), (2, 6, -1.0), (3, 5, 1.0)],
+        [(0, 8, -1.0), (1, 6, 1.0), (3, 4, -1.0)],
+        [(0, 7, 1.0), (1, 5, -1.0), (2, 4, 1.0)],
+    ];
+    TERMS.map(|row| {
+        row.iter()
+            .map(|&(i, j, sign)| sign * (p[i] * q[j] + p[j] * q[i]))
+            .sum()
+    })
+}
+
 /// A basis of the null space of `R` homogeneous constraints in R^N (`R + K = N`).
 struct NullSpace<const N: usize, const K: usize> {
     basis: [[Real; N]; K],
@@ -453,8 +502,6 @@ struct Setup {
     /// Per edge `(j, j + 1)` of the regular polygon `q_j = (1, cos phi_j, sin phi_j)`, its
     /// normal `q_j x q_(j+1)`.
     edge_normals: [[Real; 3]; MAX_EDGES],
-    /// `|q_j x q_(j+1)|` (the same for every edge).
-    edge_normal_norm: Real,
     /// `q_(j-1) . (q_j x q_(j+1))` (the same for every `j`, positive).
     kappa: Real,
 }
@@ -467,30 +514,6 @@ struct Conditioning {
     nf: Real,
     pivot: Real,
     d: Real,
-}
-
-/// The screen of [`Setup::screen`]: the outer neighbours `adj(M) o`, the polygon's own
-/// neighbours' value `det(M) kappa`, and the band plus the error bound.
-struct Screen {
-    p: [[Real; 3]; 4],
-    own: Real,
-    bound: Real,
-}
-
-impl Screen {
-    /// What the values at the edge with normal `n` say, against the band plus the error
-    /// bound: surely no facet, surely a facet, or unsure (then the exact values decide).
-    #[inline(always)]
-    fn classify(&self, n: &[Real; 3]) -> Verdict {
-        let values = [
-            dot(&self.p[0], n),
-            dot(&self.p[1], n),
-            dot(&self.p[2], n),
-            dot(&self.p[3], n),
-            self.own,
-        ];
-        classify(&values, self.bound)
-    }
 }
 
 impl Setup {
@@ -584,7 +607,6 @@ impl Setup {
             rounding: ROUNDING * Real::EPSILON * scale,
             fit: FIT * tol,
             edge_normals,
-            edge_normal_norm: dot(&edge_normals[0], &edge_normals[0]).sqrt(),
             kappa: dot(&q(s - 1), &edge_normals[0]),
         })
     }
@@ -611,8 +633,9 @@ impl Setup {
         hi > band && lo < -band
     }
 
-    /// Decides a candidate that no coarser test decided ([`Self::surely_not`], or the screens
-    /// of the (1,1,1) and (2,1,0) loops against [`Self::band_bound`]): `h` is its hyperplane
+    /// Decides a candidate that no coarser test decided ([`Self::surely_not`], the screen of
+    /// the (1,1,1) loop against [`Self::cofactor_bound`], or that of the (2,1,0) loop
+    /// against [`Self::band_bound`]): `h` is its hyperplane
     /// `N lambda` in homogeneous coordinates. The band is `|a| 1.5 tol + nf |lambda| 64 eps
     /// scale / cond` with `cond = min(pivot, |lambda| / d)`. An accepted facet is recorded
     /// with its points `set`.
@@ -643,144 +666,185 @@ impl Setup {
         }
     }
 
-    /// Type (1,1,1): an edge of each polygon. The null space of the first edge's two
-    /// constraints is computed once per edge, and the points' coordinates in it; the second
-    /// edge's constraints are eliminated in those 5 coordinates.
+    /// Type (1,1,1): an edge of each polygon. The null space `F` of the first edge's two
+    /// constraints is computed once per edge, and the candidates of all pairs of edges of the
+    /// other two polygons are screened in its 5 coordinates through the polygons' planes.
     ///
-    /// The third polygon's edges are screened per pair of the first two by its plane: with
-    /// `M` the 3 x 3 image `N^T [c - m; 1 | U; 0 | V; 0]` of the plane's constraints, the
-    /// point `j` is `r_j = M q_j + e_j`, `q_j = (1, cos phi_j, sin phi_j)` and `e_j` the
-    /// polygon fit's residual, so the candidate of edge `(u, v)` is
-    /// `lambda = r_u x r_v = adj(M)^T (q_u x q_v) + (a term of e)`. Its value at an outer
-    /// neighbour `o` is then `(adj(M) o) . n_e` with the edge's constant normal
-    /// `n_e = q_u x q_v`, and at the polygon's own neighbours `det(M) kappa` (`kappa` the
-    /// constant `q_(u-1) . n_e`), both up to a bounded error. Against the band of
-    /// [`Self::surely_not`] (itself at least that of [`Self::settle`]) plus that error, a
+    /// With `A_i = F^T [c_i - m; 1 | U_i; 0 | V_i; 0]` (5 x 3), point `j` of polygon `i` is
+    /// `z_j = A_i q_j + e_j`, `q_j = (1, cos phi_j, sin phi_j)` and `e_j` the polygon fit's
+    /// residual. The candidate of edges `(a, b)` and `(u, v)` is the cofactor vector `g` of
+    /// its four constraints (`g . x = det [z_a, z_b, z_u, z_v, x]`, the hyperplane `F g`).
+    /// Without the residuals, `A q_a ^ A q_b = sum_k (q_a x q_b)_k a_(k+1) ^ a_(k+2)`, so `g` is
+    /// bilinear in the edges' constant normals `n = q_a x q_b`:
+    /// `g = sum_kl n2_k n3_l g_kl` with `g_kl` the cofactor of
+    /// `a2_(k+1), a2_(k+2), a3_(l+1), a3_(l+2)`. Its values are then
+    /// - at the first polygon's outer neighbours `o`: `n2^T [g_kl . z_o] n3`;
+    /// - at the second polygon's (`det[q_a, q_b, q_o] = kappa` for both):
+    ///   `kappa det[a2_0, a2_1, a2_2, A3 q_u, A3 q_v] = kappa (w3 . n3)`;
+    /// - at the third's: `kappa (w2 . n2)`.
+    ///
+    /// So a candidate costs two 3-term dot products, and no per-pair null space is needed.
+    /// The exact values (of the cofactor of the exact points) differ from these by at most
+    /// the residuals through Hadamard's inequality plus rounding, bounded per first edge
+    /// (`bound` below, with the band `1.5 tol |a|` for `|a| <= |F| |g| <= nf R^4`). A
     /// candidate whose values lie beyond it on both sides is no facet; one whose values all
-    /// lie beyond it on one side is a facet (its exact values are beyond the band of
-    /// `settle` on that side), and only its hyperplane is computed, from the exact points;
-    /// any other (a value within it) is decided by `settle` on its exact values. So the
-    /// result is that of deciding every candidate by `settle`.
+    /// lie beyond it on one side is a facet, recorded with the hyperplane `F g`; any other
+    /// (a value within it: a point near the candidate, or a degenerate, rank-deficient
+    /// candidate, whose exact values are all 0) is decided on its exact values by
+    /// [`Self::exact_candidate`] and [`Self::settle`].
     #[inline(always)]
     fn edges_of_three(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
         let (y, yn) = (&self.y, &self.y_norm);
-        let yn3 = self.y_norm_max[2];
+        let n = &self.edge_normals;
         for e1 in 0..s {
             let (a1, b1) = (self.at(0, e1), self.at(0, e1 + 1));
             let first: NullSpace<W, 5> = null_space([y[a1], y[b1]], [yn[a1], yn[b1]]);
-            // Coordinates of contacts 1 and 2 (z[j] is point s + j) and of e1's neighbours.
-            let mut z = [[0.0; 5]; 2 * MAX_EDGES];
-            for (j, z) in z.iter_mut().take(2 * s).enumerate() {
-                *z = first.at(&y[s + j]);
+            if first.pivot <= 0.0 {
+                // A rank-deficient edge: every candidate through it is undecidable.
+                return Err(Decline::Ambiguous);
             }
-            let outer1 = [
+            let outer = [
                 first.at(&y[self.at(0, e1 + s - 1)]),
                 first.at(&y[self.at(0, e1 + 2)]),
             ];
-            let [c3, u3, v3] = &self.planes[2];
-            let plane3 = [first.at(c3), first.at(u3), first.at(v3)];
+            let a2 = self.planes[1].map(|c| first.at(&c));
+            let a3 = self.planes[2].map(|c| first.at(&c));
+            let p2: [[Real; 10]; 3] =
+                std::array::from_fn(|k| wedge(&a2[(k + 1) % 3], &a2[(k + 2) % 3]));
+            let p3: [[Real; 10]; 3] =
+                std::array::from_fn(|l| wedge(&a3[(l + 1) % 3], &a3[(l + 2) % 3]));
+            let g: [[[Real; 5]; 3]; 3] =
+                std::array::from_fn(|k| std::array::from_fn(|l| cofactor(&p2[k], &p3[l])));
+            // `gamma[o][k][l] = g_kl . z_o`; `w3_l = g_0l . a2_0`; `w2_k = g_k0 . a3_0`.
+            let gamma: [[[Real; 3]; 3]; 2] = std::array::from_fn(|o| {
+                std::array::from_fn(|k| std::array::from_fn(|l| dot(&g[k][l], &outer[o])))
+            });
+            let w3: [Real; 3] = std::array::from_fn(|l| dot(&g[0][l], &a2[0]));
+            let w2: [Real; 3] = std::array::from_fn(|k| dot(&g[k][0], &a3[0]));
+            let bound = self.cofactor_bound(&first, &a2, &a3, &outer);
+            let mut own2 = [0.0; MAX_EDGES];
+            for (v, n3) in own2.iter_mut().zip(n).take(s) {
+                *v = self.kappa * dot(&w3, n3);
+            }
             for e2 in 0..s {
-                let (a2, b2) = (e2, wrap(e2 + 1, s));
-                let second: NullSpace<5, 3> = null_space([z[a2], z[b2]], [yn[s + a2], yn[s + b2]]);
-                let nf = first.norm * second.norm;
-                let pivot = first.pivot.min(second.pivot);
-                let outer = [
-                    second.at(&outer1[0]),
-                    second.at(&outer1[1]),
-                    second.at(&z[wrap(e2 + s - 1, s)]),
-                    second.at(&z[wrap(e2 + 2, s)]),
-                ];
-                let screen = self.screen(
-                    &[
-                        second.at(&plane3[0]),
-                        second.at(&plane3[1]),
-                        second.at(&plane3[2]),
-                    ],
-                    &outer,
-                    nf,
-                    pivot,
-                    yn3,
-                );
-                let base = (1u64 << a1) | (1u64 << b1) | (1u64 << (s + a2)) | (1u64 << (s + b2));
+                let n2 = &n[e2];
+                let own3 = self.kappa * dot(&w2, n2);
+                let u: [[Real; 3]; 2] = std::array::from_fn(|o| {
+                    std::array::from_fn(|l| {
+                        n2[0] * gamma[o][0][l] + n2[1] * gamma[o][1][l] + n2[2] * gamma[o][2][l]
+                    })
+                });
+                // `sum_k n2_k g_kl`: an accepted candidate's `g` is `sum_l n3_l` of these.
+                let g2: [[Real; 5]; 3] = std::array::from_fn(|l| {
+                    std::array::from_fn(|c| {
+                        n2[0] * g[0][l][c] + n2[1] * g[1][l][c] + n2[2] * g[2][l][c]
+                    })
+                });
+                let (a2, b2) = (self.at(1, e2), self.at(1, e2 + 1));
+                let base = (1u64 << a1) | (1u64 << b1) | (1u64 << a2) | (1u64 << b2);
                 for e3 in 0..s {
-                    let (u, v) = (e3, wrap(e3 + 1, s));
-                    let (pu, pv) = (2 * s + u, 2 * s + v);
-                    let set = base | (1u64 << pu) | (1u64 << pv);
-                    let r = |j: usize| second.at(&z[s + j]);
-                    let lambda = match screen.classify(&self.edge_normals[e3]) {
-                        Verdict::Reject => continue,
+                    let n3 = &n[e3];
+                    let values = [dot(&u[0], n3), dot(&u[1], n3), own2[e3], own3];
+                    match classify(&values, bound) {
+                        Verdict::Reject => {}
                         Verdict::Accept(sign) => {
-                            // Every exact value is beyond the band of `settle` on one side.
-                            let h = first.combine(&second.combine(&cross(&r(u), &r(v))));
+                            let (pu, pv) = (self.at(2, e3), self.at(2, e3 + 1));
+                            let gm: [Real; 5] = std::array::from_fn(|c| {
+                                n3[0] * g2[0][c] + n3[1] * g2[1][c] + n3[2] * g2[2][c]
+                            });
+                            let h = first.combine(&gm);
+                            let set = base | (1u64 << pu) | (1u64 << pv);
                             out.push_plane(set, &h, sign / norm(&h), &self.mean);
-                            continue;
                         }
-                        Verdict::Ambiguous => cross(&r(u), &r(v)),
-                    };
-                    let values = [
-                        dot(&outer[0], &lambda),
-                        dot(&outer[1], &lambda),
-                        dot(&outer[2], &lambda),
-                        dot(&outer[3], &lambda),
-                        dot(&r(wrap(e3 + s - 1, s)), &lambda),
-                        dot(&r(wrap(e3 + 2, s)), &lambda),
-                    ];
-                    let c = Conditioning {
-                        nf,
-                        pivot,
-                        d: nf * nf * yn[pu] * yn[pv],
-                    };
-                    let h = first.combine(&second.combine(&lambda));
-                    self.settle(&values, &lambda, h, c, set, out)?;
+                        Verdict::Ambiguous => self.exact_candidate(&first, e1, e2, e3, out)?,
+                    }
                 }
             }
         }
         Ok(())
     }
 
-    /// The screen of the third polygon's edges for one pair of edges of the first two: `m`
-    /// the image of its plane's constraints (the columns of `M`), `outer` the outer
-    /// neighbours' coordinates, `nf` and `pivot` the pair's conditioning, `yn3` the largest
-    /// `|y|` of the third polygon. See [`Self::edges_of_three`].
+    /// The bound of [`Self::edges_of_three`] on the distance of a candidate's screened
+    /// values from the band of its exact values, for the first edge's null space `first`,
+    /// the planes' images `a2`, `a3` and the outer neighbours `outer`. In 2-norms:
+    /// - `e_z >= |z_j - A_i q_j|`: the fit residual (at most `FIT tol` per coordinate) through
+    ///   `|F| <= nf`, plus rounding;
+    /// - `R >= |A_i q_j|, |z_j|` (`|a_i0| + |(a_i1, a_i2)|`, plus `e_z`), `O >= |z_o|, R`;
+    /// - every 5 x 5 determinant of four polygon points and a neighbour is at most `R^4 O`
+    ///   (Hadamard), and replacing the model points by the exact ones (five slots at most)
+    ///   changes it by at most `5 e_z R^3 O`;
+    /// - the band `1.5 tol |a|` with `|a| <= nf |g| <= nf R^4`, and the rounding of `F`
+    ///   (that of [`Self::settle`], `nf |g| 64 eps scale / pivot`);
+    /// - the rounding of the screened values, `2^15 eps R^4 O` (each is a sum of at most 9 x
+    ///   5 x 6 products of magnitude at most `4 R^4 O`, each with a relative error of a few
+    ///   `eps`).
     #[inline(always)]
-    fn screen(
+    fn cofactor_bound(
         &self,
-        m: &[[Real; 3]; 3],
-        outer: &[[Real; 3]; 4],
-        nf: Real,
-        pivot: Real,
-        yn3: Real,
-    ) -> Screen {
-        let adj = [
-            cross(&m[1], &m[2]),
-            cross(&m[2], &m[0]),
-            cross(&m[0], &m[1]),
-        ];
-        let det = dot(&m[0], &adj[0]);
-        let adj_at = |o: &[Real; 3]| [dot(&adj[0], o), dot(&adj[1], o), dot(&adj[2], o)];
-        let p = [
-            adj_at(&outer[0]),
-            adj_at(&outer[1]),
-            adj_at(&outer[2]),
-            adj_at(&outer[3]),
-        ];
-        // Bounds, all in 2-norms: `e_r >= |r_j - M q_j|` (the fit residual, at most
-        // `FIT tol` per coordinate, through `|N| <= nf`, plus rounding); `|M q_j| <= R`;
-        // `|lambda| <= Lambda`; the values' error `E`.
-        let e_r = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
-        let big_r = m.iter().map(|c| dot(c, c).sqrt()).sum::<Real>() + e_r;
-        let o_max = outer.iter().fold(0.0, |x: Real, o| x.max(dot(o, o))).sqrt();
-        let adj_norm = adj.iter().map(|a| dot(a, a)).sum::<Real>().sqrt();
-        let lambda = adj_norm * self.edge_normal_norm + 2.0 * e_r * big_r;
-        let error = 2.0 * e_r * big_r * o_max.max(big_r) + e_r * lambda;
-        // The band of `surely_not` with `|lambda|_1 <= sqrt(3) Lambda`.
-        let l1 = 3.0_f64.sqrt() * lambda;
-        Screen {
-            p,
-            own: det * self.kappa,
-            bound: self.band_bound(nf, pivot, l1, nf * nf * yn3 * yn3) + error,
-        }
+        first: &NullSpace<W, 5>,
+        a2: &[[Real; 5]; 3],
+        a3: &[[Real; 5]; 3],
+        outer: &[[Real; 5]; 2],
+    ) -> Real {
+        let nf = first.norm;
+        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
+        let reach = |a: &[[Real; 5]; 3]| {
+            dot(&a[0], &a[0]).sqrt() + (dot(&a[1], &a[1]) + dot(&a[2], &a[2])).sqrt()
+        };
+        let r = reach(a2).max(reach(a3)) + e_z;
+        let o = dot(&outer[0], &outer[0])
+            .max(dot(&outer[1], &outer[1]))
+            .sqrt()
+            .max(r);
+        let r4 = r * r * r * r;
+        nf * r4 * (self.band + self.rounding / first.pivot)
+            + 5.0 * e_z * r * r * r * o
+            + COFACTOR_ROUNDING * Real::EPSILON * r4 * o
+    }
+
+    /// Decides the (1,1,1) candidate of edges `e1`, `e2`, `e3` on its exact values, as every
+    /// candidate was decided before the screen of [`Self::edges_of_three`]: the null space
+    /// of the second edge's constraints in `first`'s coordinates, `lambda` the cross product
+    /// of the third edge's points there, then [`Self::settle`].
+    #[cold]
+    fn exact_candidate(
+        &self,
+        first: &NullSpace<W, 5>,
+        e1: usize,
+        e2: usize,
+        e3: usize,
+        out: &mut Facets,
+    ) -> Result<(), Decline> {
+        let s = self.s;
+        let (y, yn) = (&self.y, &self.y_norm);
+        let z = |p: usize| first.at(&y[p]);
+        let (a2, b2) = (self.at(1, e2), self.at(1, e2 + 1));
+        let second: NullSpace<5, 3> = null_space([z(a2), z(b2)], [yn[a2], yn[b2]]);
+        let r = |p: usize| second.at(&z(p));
+        let (pu, pv) = (self.at(2, e3), self.at(2, e3 + 1));
+        let lambda = cross(&r(pu), &r(pv));
+        let values = [
+            self.at(0, e1 + s - 1),
+            self.at(0, e1 + 2),
+            self.at(1, e2 + s - 1),
+            self.at(1, e2 + 2),
+            self.at(2, e3 + s - 1),
+            self.at(2, e3 + 2),
+        ]
+        .map(|p| dot(&r(p), &lambda));
+        let nf = first.norm * second.norm;
+        let c = Conditioning {
+            nf,
+            pivot: first.pivot.min(second.pivot),
+            d: nf * nf * yn[pu] * yn[pv],
+        };
+        let h = first.combine(&second.combine(&lambda));
+        let (a1, b1) = (self.at(0, e1), self.at(0, e1 + 1));
+        let set = [a1, b1, a2, b2, pu, pv]
+            .iter()
+            .fold(0u64, |set, &p| set | (1u64 << p));
+        self.settle(&values, &lambda, h, c, set, out)
     }
 
     /// Type (2,1,0) and its permutations: one whole polygon, an edge, a vertex. The null
@@ -926,6 +990,42 @@ mod tests {
 
         fn below(&mut self, n: usize) -> usize {
             (self.next() % n as u64) as usize
+        }
+    }
+
+    /// The determinant of a 5 x 5 matrix of columns, by Leibniz's formula.
+    fn det5(cols: &[[Real; 5]; 5]) -> Real {
+        fn permutations(
+            k: usize,
+            p: &mut [usize; 5],
+            sign: Real,
+            f: &mut impl FnMut(&[usize; 5], Real),
+        ) {
+            if k == 5 {
+                return f(p, sign);
+            }
+            for i in k..5 {
+                p.swap(k, i);
+                permutations(k + 1, p, if i == k { sign } else { -sign }, f);
+                p.swap(k, i);
+            }
+        }
+        let mut det = 0.0;
+        permutations(0, &mut [0, 1, 2, 3, 4], 1.0, &mut |p, sign| {
+            det += sign * (0..5).map(|c| cols[c][p[c]]).product::<Real>();
+        });
+        det
+    }
+
+    #[test]
+    fn cofactor_of_wedges_is_the_determinant() {
+        let mut rng = Rng(7);
+        for _ in 0..100 {
+            let cols: [[Real; 5]; 5] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.uniform(-2.0, 2.0)));
+            let c = cofactor(&wedge(&cols[0], &cols[1]), &wedge(&cols[2], &cols[3]));
+            let want = det5(&cols);
+            assert!((dot(&c, &cols[4]) - want).abs() <= 1e-12 * (1.0 + want.abs()));
         }
     }
 
