@@ -34,8 +34,12 @@
 //!   values), and only facets compute their hyperplane `F g`
 //!   (`Setup::edges_of_three` and `Setup::cofactor_bound` derive the error bound).
 //! - (2,1,0): the whole polygon is the three constraints `[c; 1]`, `[U; 0]`, `[V; 0]` (its
-//!   plane, from a least-squares fit, below), plus an edge's two points: a 2-dimensional null
-//!   space, and each vertex of the third polygon gives `lambda` by a 2D perpendicular.
+//!   plane, from a least-squares fit, below): a 4-dimensional null space per polygon, in
+//!   which a candidate (an edge of a second polygon, a vertex of the third) is, up to a
+//!   bounded error, linear in the edge's normal `n`, with 4 x 4 determinants computed once
+//!   per vertex as coefficients (`Setup::whole_edge_vertex`, `Setup::vertex_bound`); the
+//!   candidates the screen cannot decide get the exact construction: the edge's two points
+//!   give a 2-dimensional null space, and the vertex `lambda` by a 2D perpendicular.
 //! - (2,2): six constraints, a one-dimensional null space; all points of the third polygon
 //!   are tested.
 //!
@@ -54,10 +58,10 @@
 //! affinely independent points, a simplex, and a (2,2) facet two strictly convex polygons
 //! whose planes span the 5-flat together, so every vertex of either polygon is extreme in
 //! the facet, hence in the hull. Facets are in the canonical order of [`Hull`] (by their
-//! point sets), so the result does not depend on which construction ran. A (1,1,1) facet's
-//! hyperplane is that of the fitted polygons (below), so it passes within the fit's residual
-//! (at most `1e-3 tol`, through the conditioning) of its points rather than through them
-//! to rounding; the others' are computed from the points.
+//! point sets), so the result does not depend on which construction ran. A facet decided by
+//! a screen (below) has the hyperplane of the fitted polygons, which passes within the fit's
+//! residual (at most `1e-3 tol`, through the conditioning) of its points rather than through
+//! them up to rounding; the others' are computed from the points.
 //!
 //! # Tolerances and when it declines
 //! With `scale` the largest coordinate magnitude and `tol = 1e-10 * scale` (the tolerance of
@@ -371,6 +375,32 @@ fn cofactor(p: &[Real; 10], q: &[Real; 10]) -> [Real; 5] {
     })
 }
 
+/// `x ^ y` in R^4: the components `x_i y_j - x_j y_i` for `i < j`, in the order
+/// (0,1), (0,2), (0,3), (1,2), (1,3), (2,3).
+#[inline(always)]
+fn wedge4(x: &[Real; 4], y: &[Real; 4]) -> [Real; 6] {
+    let m = |i: usize, j: usize| x[i] * y[j] - x[j] * y[i];
+    [m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3)]
+}
+
+/// `det [x1, x2, x3, x4]` in R^4 from `p = x1 ^ x2` and `q = x3 ^ x4` ([`wedge4`]).
+#[inline(always)]
+fn det4(p: &[Real; 6], q: &[Real; 6]) -> Real {
+    p[0] * q[5] - p[1] * q[4] + p[2] * q[3] + p[3] * q[2] - p[4] * q[1] + p[5] * q[0]
+}
+
+/// The cofactor vector `c` of `x1, x2, x3` in R^4 from `p = x1 ^ x2` ([`wedge4`]) and `x3`:
+/// `c . x = det [x1, x2, x3, x]`.
+#[inline(always)]
+fn cofactor4(p: &[Real; 6], x: &[Real; 4]) -> [Real; 4] {
+    [
+        -x[1] * p[5] + x[2] * p[4] - x[3] * p[3],
+        x[0] * p[5] - x[2] * p[2] + x[3] * p[1],
+        -x[0] * p[4] + x[1] * p[2] - x[3] * p[0],
+        x[0] * p[3] - x[1] * p[1] + x[2] * p[0],
+    ]
+}
+
 /// A basis of the null space of `R` homogeneous constraints in R^N (`R + K = N`).
 struct NullSpace<const N: usize, const K: usize> {
     basis: [[Real; N]; K],
@@ -487,8 +517,6 @@ struct Setup {
     y: [[Real; W]; MAX_POINTS],
     /// `|y|` per point.
     y_norm: [Real; MAX_POINTS],
-    /// Per contact, the largest `|y|` of its points.
-    y_norm_max: [Real; 3],
     /// `m`.
     mean: [Real; D],
     /// Per contact, the constraints of its plane: `[c - m; 1]`, `[U; 0]`, `[V; 0]`.
@@ -596,11 +624,6 @@ impl Setup {
             s,
             y,
             y_norm,
-            y_norm_max: std::array::from_fn(|i| {
-                y_norm[i * s..(i + 1) * s]
-                    .iter()
-                    .fold(0.0, |m: Real, &x| m.max(x))
-            }),
             mean,
             planes,
             band: BAND * tol,
@@ -633,9 +656,9 @@ impl Setup {
         hi > band && lo < -band
     }
 
-    /// Decides a candidate that no coarser test decided ([`Self::surely_not`], the screen of
-    /// the (1,1,1) loop against [`Self::cofactor_bound`], or that of the (2,1,0) loop
-    /// against [`Self::band_bound`]): `h` is its hyperplane
+    /// Decides a candidate that no coarser test decided ([`Self::surely_not`], the screens of
+    /// the (1,1,1) and (2,1,0) loops against [`Self::cofactor_bound`] and
+    /// [`Self::vertex_bound`]): `h` is its hyperplane
     /// `N lambda` in homogeneous coordinates. The band is `|a| 1.5 tol + nf |lambda| 64 eps
     /// scale / cond` with `cond = min(pivot, |lambda| / d)`. An accepted facet is recorded
     /// with its points `set`.
@@ -848,18 +871,32 @@ impl Setup {
     }
 
     /// Type (2,1,0) and its permutations: one whole polygon, an edge, a vertex. The null
-    /// space of the whole polygon's plane is computed once per polygon. The candidates of one
-    /// edge are decided against one band, that of [`Self::band_bound`] over all of them; a
-    /// value within it leaves the candidate to [`Self::settle`].
+    /// space `F` of the whole polygon's plane is computed once per polygon, and the image `A`
+    /// of the edge polygon's plane in its 4 coordinates; the candidates are then screened as
+    /// in [`Self::edges_of_three`]: the candidate of edge `(a, b)` and vertex `t` is the
+    /// cofactor `g` of `z_a, z_b, z_t` (`g . x = det [z_a, z_b, z_t, x]`), without the
+    /// residuals `sum_k n_k cof(a_(k+1), a_(k+2), z_t)` with the edge's normal `n`. Its values
+    /// are
+    /// - at the edge's outer neighbours (`det[q_a, q_b, q_o] = kappa`):
+    ///   `-kappa det[a_0, a_1, a_2, z_t]`, a constant of the vertex;
+    /// - at the vertex's neighbours: `n . m_t` and `-n . m_(t-1)`, with
+    ///   `m_t = (det[a_(k+1), a_(k+2), z_t, z_(t+1)])_k`.
+    ///
+    /// Against [`Self::vertex_bound`]: no facet, a facet (hyperplane `F g`), or unsure, then
+    /// decided on its exact values by [`Self::exact_whole_edge_vertex`].
     #[inline(always)]
     fn whole_edge_vertex(&self, out: &mut Facets) -> Result<(), Decline> {
         let s = self.s;
-        let (y, yn) = (&self.y, &self.y_norm);
+        let y = &self.y;
+        let n = &self.edge_normals;
         let all = (1u64 << s) - 1;
         for whole in 0..3 {
             let [c, u, v] = self.planes[whole];
             let norms = [dot(&c, &c).sqrt(), dot(&u, &u).sqrt(), dot(&v, &v).sqrt()];
             let first: NullSpace<W, 4> = null_space([c, u, v], norms);
+            if first.pivot <= 0.0 {
+                return Err(Decline::Ambiguous);
+            }
             let mut z = [[0.0; 4]; MAX_POINTS];
             for (p, z) in z.iter_mut().enumerate().take(3 * s) {
                 if p / s != whole {
@@ -869,52 +906,49 @@ impl Setup {
             let polygon = all << (whole * s);
             for edge in (0..3).filter(|&j| j != whole) {
                 let vertex = 3 - whole - edge;
+                let a = self.planes[edge].map(|c| first.at(&c));
+                let p: [[Real; 6]; 3] =
+                    std::array::from_fn(|k| wedge4(&a[(k + 1) % 3], &a[(k + 2) % 3]));
+                let plane = cofactor4(&wedge4(&a[0], &a[1]), &a[2]);
+                let zt = |t: usize| &z[self.at(vertex, t)];
+                let (mut m, mut own) = ([[0.0; 3]; MAX_EDGES], [0.0; MAX_EDGES]);
+                let mut o2: Real = 0.0;
+                for t in 0..s {
+                    let q = wedge4(zt(t), zt(t + 1));
+                    m[t] = std::array::from_fn(|k| det4(&p[k], &q));
+                    own[t] = -self.kappa * dot(&plane, zt(t));
+                    o2 = o2.max(dot(zt(t), zt(t)));
+                }
+                let bound = self.vertex_bound(&first, &a, o2.sqrt());
                 for e in 0..s {
-                    let (a, b) = (self.at(edge, e), self.at(edge, e + 1));
-                    let second: NullSpace<4, 2> = null_space([z[a], z[b]], [yn[a], yn[b]]);
-                    let nf = first.norm * second.norm;
-                    let pivot = first.pivot.min(second.pivot);
-                    let mut r = [[0.0; 2]; MAX_EDGES];
-                    for (j, r) in r.iter_mut().take(s).enumerate() {
-                        *r = second.at(&z[self.at(vertex, j)]);
-                    }
-                    let outer = [
-                        second.at(&z[self.at(edge, e + s - 1)]),
-                        second.at(&z[self.at(edge, e + 2)]),
-                    ];
-                    // The band of `surely_not` over all of this edge's candidates (`lambda`
-                    // is `r_t` turned, so `|lambda|_1 = |r_t|_1`).
-                    let l1 = r[..s]
-                        .iter()
-                        .fold(0.0, |m: Real, r| m.max(r[0].abs() + r[1].abs()));
-                    let bound = self.band_bound(nf, pivot, l1, nf * self.y_norm_max[vertex]);
-                    let base = polygon | (1u64 << a) | (1u64 << b);
+                    let ne = &n[e];
+                    let (pa, pb) = (self.at(edge, e), self.at(edge, e + 1));
+                    let base = polygon | (1u64 << pa) | (1u64 << pb);
                     for t in 0..s {
-                        let lambda = [r[t][1], -r[t][0]];
-                        let values = [
-                            dot(&outer[0], &lambda),
-                            dot(&outer[1], &lambda),
-                            dot(&r[wrap(t + s - 1, s)], &lambda),
-                            dot(&r[wrap(t + 1, s)], &lambda),
-                        ];
-                        let p = self.at(vertex, t);
-                        let set = base | (1u64 << p);
+                        let values = [own[t], dot(ne, &m[t]), -dot(ne, &m[wrap(t + s - 1, s)])];
+                        let pt = self.at(vertex, t);
                         match classify(&values, bound) {
                             Verdict::Reject => {}
                             Verdict::Accept(sign) => {
-                                // Beyond the band of `settle` too.
-                                let h = first.combine(&second.combine(&lambda));
-                                out.push_plane(set, &h, sign / norm(&h), &self.mean);
+                                let cof = p.map(|p| cofactor4(&p, zt(t)));
+                                let g: [Real; 4] = std::array::from_fn(|i| {
+                                    ne[0] * cof[0][i] + ne[1] * cof[1][i] + ne[2] * cof[2][i]
+                                });
+                                let h = first.combine(&g);
+                                out.push_plane(
+                                    base | (1u64 << pt),
+                                    &h,
+                                    sign / norm(&h),
+                                    &self.mean,
+                                );
                             }
-                            Verdict::Ambiguous => {
-                                let c = Conditioning {
-                                    nf,
-                                    pivot,
-                                    d: nf * yn[p],
-                                };
-                                let h = first.combine(&second.combine(&lambda));
-                                self.settle(&values, &lambda, h, c, set, out)?;
-                            }
+                            Verdict::Ambiguous => self.exact_whole_edge_vertex(
+                                &first,
+                                &z,
+                                [pa, pb, pt],
+                                polygon,
+                                out,
+                            )?,
                         }
                     }
                 }
@@ -923,17 +957,58 @@ impl Setup {
         Ok(())
     }
 
-    /// The band of [`Self::surely_not`] for a candidate with `|lambda|_1 <= l1` and
-    /// conditioning `nf`, `pivot` and `d` (infinite for `pivot = 0`). It is at least the band
-    /// of [`Self::settle`] (`|a| <= nf |lambda|_2 <= nf l1`), so values all beyond it on one
-    /// side make a facet, beyond it on both sides no facet.
+    /// The bound of [`Self::whole_edge_vertex`], as [`Self::cofactor_bound`]: with `e_z`,
+    /// `R` (of the edge polygon, from `a`) and `O >= |z_t|, R` (`o` the vertex polygon's
+    /// largest `|z_t|`), `|g| <= R^2 O`, the determinants are at most `R^2 O^2`, and
+    /// replacing the model points by the exact ones (three slots at most) changes them by at
+    /// most `3 e_z R O^2`.
     #[inline(always)]
-    fn band_bound(&self, nf: Real, pivot: Real, l1: Real, d: Real) -> Real {
-        if pivot > 0.0 {
-            nf * (l1 * self.band + self.rounding * (l1 / pivot).max(d))
-        } else {
-            Real::INFINITY
-        }
+    fn vertex_bound(&self, first: &NullSpace<W, 4>, a: &[[Real; 4]; 3], o: Real) -> Real {
+        let nf = first.norm;
+        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
+        let r = dot(&a[0], &a[0]).sqrt() + (dot(&a[1], &a[1]) + dot(&a[2], &a[2])).sqrt() + e_z;
+        let o = o.max(r);
+        nf * r * r * o * (self.band + self.rounding / first.pivot)
+            + 3.0 * e_z * r * o * o
+            + COFACTOR_ROUNDING * Real::EPSILON * r * r * o * o
+    }
+
+    /// Decides the (2,1,0) candidate of the edge `(a, b)` and the vertex `t` (`points`)
+    /// whose whole polygon (`polygon`, its points) has the null space `first` and gives the
+    /// points the coordinates `z`, on its exact values, as before the screen of
+    /// [`Self::whole_edge_vertex`]: the null space of the edge's constraints, `lambda` the
+    /// vertex's coordinates turned, then [`Self::settle`].
+    #[cold]
+    fn exact_whole_edge_vertex(
+        &self,
+        first: &NullSpace<W, 4>,
+        z: &[[Real; 4]; MAX_POINTS],
+        [a, b, t]: [usize; 3],
+        polygon: u64,
+        out: &mut Facets,
+    ) -> Result<(), Decline> {
+        let (s, yn) = (self.s, &self.y_norm);
+        let second: NullSpace<4, 2> = null_space([z[a], z[b]], [yn[a], yn[b]]);
+        let r = |p: usize| second.at(&z[p]);
+        let rt = r(t);
+        let lambda = [rt[1], -rt[0]];
+        let (edge, e, vertex, j) = (a / s, a % s, t / s, t % s);
+        let values = [
+            self.at(edge, e + s - 1),
+            self.at(edge, e + 2),
+            self.at(vertex, j + s - 1),
+            self.at(vertex, j + 1),
+        ]
+        .map(|p| dot(&r(p), &lambda));
+        let nf = first.norm * second.norm;
+        let c = Conditioning {
+            nf,
+            pivot: first.pivot.min(second.pivot),
+            d: nf * yn[t],
+        };
+        let h = first.combine(&second.combine(&lambda));
+        let set = polygon | (1u64 << a) | (1u64 << b) | (1u64 << t);
+        self.settle(&values, &lambda, h, c, set, out)
     }
 
     /// Type (2,2): two whole polygons; the third must lie below.
@@ -1015,6 +1090,23 @@ mod tests {
             det += sign * (0..5).map(|c| cols[c][p[c]]).product::<Real>();
         });
         det
+    }
+
+    #[test]
+    fn determinants_of_wedges_in_4d() {
+        let mut rng = Rng(11);
+        for _ in 0..100 {
+            let x: [[Real; 4]; 4] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.uniform(-2.0, 2.0)));
+            // det4 by Leibniz's formula, through det5 with a unit fifth row and column.
+            let lift = |v: &[Real; 4]| [v[0], v[1], v[2], v[3], 0.0];
+            let unit = [0.0, 0.0, 0.0, 0.0, 1.0];
+            let want = det5(&[lift(&x[0]), lift(&x[1]), lift(&x[2]), lift(&x[3]), unit]);
+            let p = wedge4(&x[0], &x[1]);
+            let tol = 1e-12 * (1.0 + want.abs());
+            assert!((det4(&p, &wedge4(&x[2], &x[3])) - want).abs() <= tol);
+            assert!((dot(&cofactor4(&p, &x[2]), &x[3]) - want).abs() <= tol);
+        }
     }
 
     #[test]
