@@ -305,6 +305,17 @@ fn extremes(values: &[Real]) -> (Real, Real) {
     (hi, lo)
 }
 
+/// `[f(0), f(1), ..]`, as `std::array::from_fn`, which the compiler leaves as calls in the
+/// loops here (its closure wrapper is not inlined).
+#[inline(always)]
+fn array<T: Copy + Default, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [T::default(); N];
+    for (i, x) in out.iter_mut().enumerate() {
+        *x = f(i);
+    }
+    out
+}
+
 /// `j mod s` for `j < 2 s`, without a division (the loops index polygon neighbours with
 /// it, hundreds of times per hull).
 #[inline(always)]
@@ -368,8 +379,9 @@ fn cofactor(p: &[Real; 10], q: &[Real; 10]) -> [Real; 5] {
         [(0, 8, -1.0), (1, 6, 1.0), (3, 4, -1.0)],
         [(0, 7, 1.0), (1, 5, -1.0), (2, 4, 1.0)],
     ];
-    TERMS.map(|row| {
-        row.iter()
+    array(|m| {
+        TERMS[m]
+            .iter()
             .map(|&(i, j, sign)| sign * (p[i] * q[j] + p[j] * q[i]))
             .sum()
     })
@@ -416,7 +428,7 @@ impl<const N: usize, const K: usize> NullSpace<N, K> {
     /// the null space).
     #[inline(always)]
     fn at(&self, y: &[Real; N]) -> [Real; K] {
-        std::array::from_fn(|t| dot(&self.basis[t], y))
+        array(|t| dot(&self.basis[t], y))
     }
 
     /// The vector `N lambda`.
@@ -450,7 +462,7 @@ fn null_space<const N: usize, const R: usize, const K: usize>(
             *x *= inv;
         }
     }
-    let mut perm: [usize; N] = std::array::from_fn(|j| j);
+    let mut perm: [usize; N] = array(|j| j);
     let mut pivot: Real = 1.0;
     for k in 0..R {
         let (mut bi, mut bj, mut best) = (k, k, 0.0);
@@ -731,20 +743,16 @@ impl Setup {
                 first.at(&y[self.at(0, e1 + s - 1)]),
                 first.at(&y[self.at(0, e1 + 2)]),
             ];
-            let a2 = self.planes[1].map(|c| first.at(&c));
-            let a3 = self.planes[2].map(|c| first.at(&c));
-            let p2: [[Real; 10]; 3] =
-                std::array::from_fn(|k| wedge(&a2[(k + 1) % 3], &a2[(k + 2) % 3]));
-            let p3: [[Real; 10]; 3] =
-                std::array::from_fn(|l| wedge(&a3[(l + 1) % 3], &a3[(l + 2) % 3]));
-            let g: [[[Real; 5]; 3]; 3] =
-                std::array::from_fn(|k| std::array::from_fn(|l| cofactor(&p2[k], &p3[l])));
+            let a2 = array(|i| first.at(&self.planes[1][i]));
+            let a3 = array(|i| first.at(&self.planes[2][i]));
+            let p2: [[Real; 10]; 3] = array(|k| wedge(&a2[(k + 1) % 3], &a2[(k + 2) % 3]));
+            let p3: [[Real; 10]; 3] = array(|l| wedge(&a3[(l + 1) % 3], &a3[(l + 2) % 3]));
+            let g: [[[Real; 5]; 3]; 3] = array(|k| array(|l| cofactor(&p2[k], &p3[l])));
             // `gamma[o][k][l] = g_kl . z_o`; `w3_l = g_0l . a2_0`; `w2_k = g_k0 . a3_0`.
-            let gamma: [[[Real; 3]; 3]; 2] = std::array::from_fn(|o| {
-                std::array::from_fn(|k| std::array::from_fn(|l| dot(&g[k][l], &outer[o])))
-            });
-            let w3: [Real; 3] = std::array::from_fn(|l| dot(&g[0][l], &a2[0]));
-            let w2: [Real; 3] = std::array::from_fn(|k| dot(&g[k][0], &a3[0]));
+            let gamma: [[[Real; 3]; 3]; 2] =
+                array(|o| array(|k| array(|l| dot(&g[k][l], &outer[o]))));
+            let w3: [Real; 3] = array(|l| dot(&g[0][l], &a2[0]));
+            let w2: [Real; 3] = array(|k| dot(&g[k][0], &a3[0]));
             let bound = self.cofactor_bound(&first, &a2, &a3, &outer);
             let mut own2 = [0.0; MAX_EDGES];
             for (v, n3) in own2.iter_mut().zip(n).take(s) {
@@ -753,16 +761,14 @@ impl Setup {
             for e2 in 0..s {
                 let n2 = &n[e2];
                 let own3 = self.kappa * dot(&w2, n2);
-                let u: [[Real; 3]; 2] = std::array::from_fn(|o| {
-                    std::array::from_fn(|l| {
+                let u: [[Real; 3]; 2] = array(|o| {
+                    array(|l| {
                         n2[0] * gamma[o][0][l] + n2[1] * gamma[o][1][l] + n2[2] * gamma[o][2][l]
                     })
                 });
                 // `sum_k n2_k g_kl`: an accepted candidate's `g` is `sum_l n3_l` of these.
-                let g2: [[Real; 5]; 3] = std::array::from_fn(|l| {
-                    std::array::from_fn(|c| {
-                        n2[0] * g[0][l][c] + n2[1] * g[1][l][c] + n2[2] * g[2][l][c]
-                    })
+                let g2: [[Real; 5]; 3] = array(|l| {
+                    array(|c| n2[0] * g[0][l][c] + n2[1] * g[1][l][c] + n2[2] * g[2][l][c])
                 });
                 let (a2, b2) = (self.at(1, e2), self.at(1, e2 + 1));
                 let base = (1u64 << a1) | (1u64 << b1) | (1u64 << a2) | (1u64 << b2);
@@ -773,9 +779,8 @@ impl Setup {
                         Verdict::Reject => {}
                         Verdict::Accept(sign) => {
                             let (pu, pv) = (self.at(2, e3), self.at(2, e3 + 1));
-                            let gm: [Real; 5] = std::array::from_fn(|c| {
-                                n3[0] * g2[0][c] + n3[1] * g2[1][c] + n3[2] * g2[2][c]
-                            });
+                            let gm: [Real; 5] =
+                                array(|c| n3[0] * g2[0][c] + n3[1] * g2[1][c] + n3[2] * g2[2][c]);
                             let h = first.combine(&gm);
                             let set = base | (1u64 << pu) | (1u64 << pv);
                             out.push_plane(set, &h, sign / norm(&h), &self.mean);
@@ -847,15 +852,15 @@ impl Setup {
         let r = |p: usize| second.at(&z(p));
         let (pu, pv) = (self.at(2, e3), self.at(2, e3 + 1));
         let lambda = cross(&r(pu), &r(pv));
-        let values = [
+        let neighbours = [
             self.at(0, e1 + s - 1),
             self.at(0, e1 + 2),
             self.at(1, e2 + s - 1),
             self.at(1, e2 + 2),
             self.at(2, e3 + s - 1),
             self.at(2, e3 + 2),
-        ]
-        .map(|p| dot(&r(p), &lambda));
+        ];
+        let values: [Real; 6] = array(|i| dot(&r(neighbours[i]), &lambda));
         let nf = first.norm * second.norm;
         let c = Conditioning {
             nf,
@@ -906,16 +911,15 @@ impl Setup {
             let polygon = all << (whole * s);
             for edge in (0..3).filter(|&j| j != whole) {
                 let vertex = 3 - whole - edge;
-                let a = self.planes[edge].map(|c| first.at(&c));
-                let p: [[Real; 6]; 3] =
-                    std::array::from_fn(|k| wedge4(&a[(k + 1) % 3], &a[(k + 2) % 3]));
+                let a = array(|i| first.at(&self.planes[edge][i]));
+                let p: [[Real; 6]; 3] = array(|k| wedge4(&a[(k + 1) % 3], &a[(k + 2) % 3]));
                 let plane = cofactor4(&wedge4(&a[0], &a[1]), &a[2]);
                 let zt = |t: usize| &z[self.at(vertex, t)];
                 let (mut m, mut own) = ([[0.0; 3]; MAX_EDGES], [0.0; MAX_EDGES]);
                 let mut o2: Real = 0.0;
                 for t in 0..s {
                     let q = wedge4(zt(t), zt(t + 1));
-                    m[t] = std::array::from_fn(|k| det4(&p[k], &q));
+                    m[t] = array(|k| det4(&p[k], &q));
                     own[t] = -self.kappa * dot(&plane, zt(t));
                     o2 = o2.max(dot(zt(t), zt(t)));
                 }
@@ -930,8 +934,8 @@ impl Setup {
                         match classify(&values, bound) {
                             Verdict::Reject => {}
                             Verdict::Accept(sign) => {
-                                let cof = p.map(|p| cofactor4(&p, zt(t)));
-                                let g: [Real; 4] = std::array::from_fn(|i| {
+                                let cof: [[Real; 4]; 3] = array(|k| cofactor4(&p[k], zt(t)));
+                                let g: [Real; 4] = array(|i| {
                                     ne[0] * cof[0][i] + ne[1] * cof[1][i] + ne[2] * cof[2][i]
                                 });
                                 let h = first.combine(&g);
@@ -993,13 +997,13 @@ impl Setup {
         let rt = r(t);
         let lambda = [rt[1], -rt[0]];
         let (edge, e, vertex, j) = (a / s, a % s, t / s, t % s);
-        let values = [
+        let neighbours = [
             self.at(edge, e + s - 1),
             self.at(edge, e + 2),
             self.at(vertex, j + s - 1),
             self.at(vertex, j + 1),
-        ]
-        .map(|p| dot(&r(p), &lambda));
+        ];
+        let values: [Real; 4] = array(|i| dot(&r(neighbours[i]), &lambda));
         let nf = first.norm * second.norm;
         let c = Conditioning {
             nf,
