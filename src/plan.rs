@@ -49,6 +49,14 @@ pub fn validate(path: &Path) -> Result<()> {
     for w in &setup.object.warnings {
         writeln!(o, "warning    {w}")?;
     }
+    match crate::run::surface(&setup) {
+        Ok(s) => writeln!(
+            o,
+            "pipeline   the plant rolls fingertips on {}",
+            s.describe()
+        )?,
+        Err(e) => writeln!(o, "warning    `run` cannot take this object: {e:#}")?,
+    }
     writeln!(
         o,
         "hand       {} fingers ({})",

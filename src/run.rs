@@ -454,17 +454,20 @@ pub(crate) fn node_program(name: &str) -> Result<PathBuf> {
     Ok(path)
 }
 
+/// The object's section as the plant and the estimator roll fingertips on it, or why the
+/// pipeline cannot (named by its key).
+pub fn surface(setup: &Setup) -> Result<icrflow_nodes::rolling::Surface> {
+    let o = &setup.object;
+    icrflow_nodes::rolling::Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y])
+        .context("object: the pipeline's plant and estimator cannot roll fingertips on it")
+}
+
 /// Runs the verb; returns the exit code.
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
-    if !matches!(config.object, icrflow_scenario::ObjectSpec::Sphere { .. }) {
-        bail!(
-            "object.shape: the pipeline's plant and estimator model a sphere for now; `plan` handles {}",
-            config.object.describe()
-        );
-    }
     let setup = Setup::new(&config)?;
+    surface(&setup)?;
     setup
         .scenario(&config)
         .start()

@@ -133,6 +133,48 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A non-spherical object: the 55 x 45 x 40 mm ellipsoid mesh of `config/ellipsoid_spatial.toml`
+/// (6D analysis), whose section the plant and the estimator roll the fingertips on.
+#[test]
+fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("ellipsoid");
+    let config = "config/ellipsoid_spatial.toml";
+    let offline = icrflow(&[
+        "plan",
+        config,
+        "--json",
+        "--out",
+        dir.join("plan").to_str().unwrap(),
+    ]);
+    assert!(offline.status.success());
+    let offline = json(&offline.stdout);
+    let summary = dir.join("summary.json");
+    let o = icrflow(&["run", config, "--summary-json", summary.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "run failed: {err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(s["completed"], true, "{s}");
+    let rotation = s["rotation_deg"].as_f64().unwrap();
+    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
+    assert_eq!(s["switches"], offline["switches"], "{s}");
+    assert_eq!(
+        s["steps"].as_u64().unwrap() + 1,
+        offline["steps"].as_u64().unwrap(),
+        "every planned step after the start executed"
+    );
+    let alpha = s["alpha"].as_f64().unwrap();
+    assert!(
+        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
+        "{s}"
+    );
+    assert_eq!(s["restarts"], 0, "{s}");
+    assert!(!err.contains("inside the object"), "{err}");
+    assert!(!err.contains("passes through the object"), "{err}");
+    assert_eq!(shm_left(&s), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn run_refuses_a_bad_config_before_starting_anything() {
     let dir = scratch("run-bad");

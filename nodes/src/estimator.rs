@@ -7,8 +7,8 @@
 //! and a fraction [`GAIN`] of the difference corrects the current estimate: the kinematics
 //! since `t` are kept, so the delay is compensated (a complementary filter with replay).
 //! A finger touches when its fingertip centre (from the encoders) is within [`TOUCH`] of the
-//! object's surface offset by the fingertip radius; its contact point is where the line to
-//! the fingertip centre meets the object, in the body frame, snapped to the nearest candidate.
+//! object's surface offset by the fingertip radius; its contact point is the section's point
+//! nearest to the fingertip centre (along the normal), snapped to the nearest candidate.
 //! The grasp state also carries the joint angles it was estimated from (the hand's state, for
 //! the planner's way points and a restarted command node).
 
@@ -22,7 +22,7 @@ use icrflow_interfaces::{
 };
 use icrflow_plan::hand::wrap;
 
-use crate::rolling::{Tip, rotation, tip, touches};
+use crate::rolling::{Surface, Tip, tip};
 use crate::runtime::{Checkpoint, Context, Health, Sequence, serve};
 
 /// Weight of a pose measurement's correction.
@@ -34,7 +34,7 @@ pub const TOUCH: f64 = 0.6e-3;
 pub const SETTLE: u32 = 10;
 /// ... and leaves contact beyond this (m): hysteresis against noise.
 pub const RELEASE: f64 = 2e-3;
-/// A fingertip in contact counts for the rolling only if its distance from the object's centre
+/// A fingertip in contact counts for the rolling only if its distance from the object's surface
 /// changed less than this between two samples (m): one arriving or leaving does not roll it.
 pub const RADIAL: f64 = 0.2e-3;
 
@@ -42,7 +42,10 @@ pub const RADIAL: f64 = 0.2e-3;
 pub fn run(ctx: &Context) -> Result<()> {
     let hand = &ctx.setup.hand;
     let object = &ctx.setup.object;
-    let r_o = object.max_radius();
+    let surface = Surface::new(
+        &object.section,
+        [object.centre_of_mass.x, object.centre_of_mass.y],
+    )?;
     let section = &object.section;
     let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
     let poses = ctx.bus.subscriber::<ObjectPose>(topics::OBJECT_POSE)?;
@@ -57,7 +60,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .unwrap_or(0.0);
     let mut last_joint_seq = 0;
     let mut last_pose_seq = 0;
-    let mut previous: Vec<Option<Tip>> = vec![None; hand.fingers.len()];
+    let mut previous: Vec<Option<(Tip, f64)>> = vec![None; hand.fingers.len()];
     let mut contact = vec![false; hand.fingers.len()];
     let mut streak = vec![0u32; hand.fingers.len()];
     let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
@@ -131,13 +134,14 @@ pub fn run(ctx: &Context) -> Result<()> {
             g.joints[slot][..q.len()].copy_from_slice(&q);
             let t = tip(f, &q);
             let was = contact[slot];
-            streak[slot] = if touches(&t, f, r_o, TOUCH) {
+            let gap = surface.contact_of(&t, f, theta).gap;
+            streak[slot] = if gap.abs() <= TOUCH {
                 streak[slot].saturating_add(1)
             } else {
                 0
             };
             let on = if was {
-                touches(&t, f, r_o, RELEASE)
+                gap.abs() <= RELEASE
             } else {
                 streak[slot] >= SETTLE
             };
@@ -147,20 +151,20 @@ pub fn run(ctx: &Context) -> Result<()> {
                     "icrflow-estimator: finger {} {} (fingertip {:+.2} mm from the surface)",
                     f.id,
                     if on { "touches" } else { "released" },
-                    (t.distance - r_o - f.tip_radius) * 1e3
+                    gap * 1e3
                 );
             }
             contact[slot] = on;
-            if let Some(before) = previous[slot]
+            if let Some((before, before_gap)) = previous[slot]
                 && was
                 && on
-                && (t.distance - before.distance).abs() < RADIAL
+                && (gap - before_gap).abs() < RADIAL
             {
-                turn += rotation(&before, &t, f, r_o);
+                turn += surface.rotation(&before, &t, f, theta);
                 rolling += 1;
             }
             tips.push(Some((t, on)));
-            previous[slot] = Some(t);
+            previous[slot] = Some((t, gap));
         }
         if rolling > 0 {
             theta += turn / rolling as f64;
@@ -172,8 +176,8 @@ pub fn run(ctx: &Context) -> Result<()> {
             if !on {
                 continue;
             }
-            let body = t.psi - theta;
-            let (index, _) = section.nearest_angle(body).unwrap_or((0, 0.0));
+            let touch = surface.contact_of(&t, f, theta);
+            let index = touch.sample;
             let p = section.samples.points[index];
             let n = section.samples.normals[index];
             *c = FingerContact {
@@ -183,7 +187,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 reserved: 0,
                 point: [p.x, p.y, p.z],
                 normal: [n.x, n.y, n.z],
-                residual: t.distance - (r_o + f.tip_radius),
+                residual: touch.gap,
             };
             residual += c.residual * c.residual;
             touching += 1;

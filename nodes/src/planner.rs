@@ -18,6 +18,7 @@ use icrflow_interfaces::{
 use icrflow_plan::planner::{Phase, Step};
 use icrflow_plan::route::Keepout;
 
+use crate::rolling::{Surface, tip};
 use crate::runtime::{Context, Health, Sequence, now, serve};
 
 /// How close the estimated rotation must come to a step's target (rad).
@@ -37,6 +38,10 @@ pub const SUBSTEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
 pub const STANDOFF: f64 = 8e-3;
 /// Stand-off distances tried, farthest first (m); all beyond the estimator's release distance.
 const STANDOFFS: [f64; 4] = [STANDOFF, 6e-3, 4.5e-3, 3e-3];
+/// Directions tried for a stand-off (deg from straight out of the object's centre through the
+/// contact), straight out first: a finger at a joint limit may only be able to leave the
+/// object sideways.
+const SWINGS: [f64; 5] = [0.0, 30.0, -30.0, 60.0, -60.0];
 /// Cap-angle changes tried at a stand-off pose (deg), the unchanged one first.
 const CAP_TURNS: [f64; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 35.0, -35.0];
 
@@ -46,9 +51,10 @@ const CAP_TURNS: [f64; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 35.0, -35.0];
 pub const CLEARANCE: f64 = crate::estimator::RELEASE + 0.5e-3;
 
 /// `step` with finger `slot` (not in contact in it) at a pose off the contact pose `q_deg`:
-/// the fingertip moved out along the line from the object's centre (the hand frame's origin)
-/// by the first of `distances` and [`CAP_TURNS`] whose straight joint-space moves from every
-/// pose of `legs` (degrees) stay outside the object. `None` if there is none.
+/// the fingertip moved out along the line from the object's centre (the hand frame's origin),
+/// or swung from it by one of [`SWINGS`], by the first of `distances` and [`CAP_TURNS`] whose
+/// straight joint-space moves from every pose of `legs` (degrees) stay outside the object
+/// (`surface`, turned as in `step`). `None` if there is none.
 fn standoff(
     step: &Step,
     slot: usize,
@@ -56,18 +62,26 @@ fn standoff(
     distances: &[f64],
     legs: &[&[f64]],
     hand: &icrflow_plan::hand::Hand,
+    surface: &Surface,
 ) -> Option<Step> {
     let f = hand.finger(step.fingers[slot].finger)?;
     let q = radians(q_deg);
     let legs: Vec<Vec<f64>> = legs.iter().map(|l| radians(l)).collect();
     let (x, y, phi) = f.planar_pose(&q)?;
     let r = x.hypot(y);
-    let q = distances.iter().find_map(|d| {
-        let out = 1.0 + d / r;
-        CAP_TURNS.iter().find_map(|turn| {
-            f.ik_planar(out * x, out * y, phi + turn.to_radians(), &q)
-                .ok()
-                .filter(|pose| legs.iter().all(|from| outside(f, from, pose, r)))
+    let q = SWINGS.iter().find_map(|swing| {
+        // The direction out of the contact: away from the centre, swung by `swing`.
+        let (sin, cos) = swing.to_radians().sin_cos();
+        let (ux, uy) = ((cos * x - sin * y) / r, (sin * x + cos * y) / r);
+        distances.iter().find_map(|d| {
+            CAP_TURNS.iter().find_map(|turn| {
+                let ik = f.ik_planar(x + d * ux, y + d * uy, phi + turn.to_radians(), &q);
+                ik.ok().filter(|pose| {
+                    legs.iter().all(|from| {
+                        outside(f, from, pose, r, surface, step.rotation_deg.to_radians())
+                    })
+                })
+            })
         })
     })?;
     let mut t = step.clone();
@@ -81,12 +95,35 @@ fn radians(deg: &[f64]) -> Vec<f64> {
     deg.iter().map(|d| d.to_radians()).collect()
 }
 
-/// Whether the fingertip of `f` stays at least `r` (less 0.2 mm) from the object's centre all
-/// along the straight joint-space line from `a` to `b`, as the hand moves between targets,
-/// and its links [`icrflow_plan::route::LINK_MARGIN`] off the object (of radius `r` less the
-/// fingertip's: `r` is a contact pose's fingertip distance).
-fn outside(f: &icrflow_plan::hand::Finger, a: &[f64], b: &[f64], r: f64) -> bool {
-    icrflow_plan::route::clear(f, a, b, Keepout::new(r - 2e-4, r - f.tip_radius))
+/// Whether the fingertip of `f` stays off the object (by -0.2 mm at most) all along the
+/// straight joint-space line from `a` to `b`, as the hand moves between targets, and its links
+/// [`icrflow_plan::route::LINK_MARGIN`] off it. On a circular section (the sphere): the
+/// fingertip at least `r` (less 0.2 mm) from the centre, `r` a contact pose's fingertip
+/// distance, and the links beyond the circle of radius `r` less the fingertip's. On another
+/// section: the fingertip's gap to `surface` turned by `theta`, and the links beyond its
+/// inscribed circle (the links are checked against a circle, a fingertip against the section).
+fn outside(
+    f: &icrflow_plan::hand::Finger,
+    a: &[f64],
+    b: &[f64],
+    r: f64,
+    surface: &Surface,
+    theta: f64,
+) -> bool {
+    match surface {
+        Surface::Circle { .. } => {
+            icrflow_plan::route::clear(f, a, b, Keepout::new(r - 2e-4, r - f.tip_radius))
+        }
+        Surface::Curve(_) => {
+            let links = Keepout {
+                tip: 0.0,
+                links: surface.inscribed() + icrflow_plan::route::LINK_MARGIN,
+            };
+            icrflow_plan::route::along(a, b, |q| {
+                links.holds(f, q) && surface.contact_of(&tip(f, q), f, theta).gap >= -2e-4
+            })
+        }
+    }
 }
 
 /// One target the planner node publishes: a step of the plan or a sub-target of one.
@@ -114,7 +151,7 @@ impl Target {
 /// needed ([`icrflow_plan::route`]), its stand-off pose), a detach step by those of the
 /// released finger (its stand-off pose, its route), so that a finger never crosses the object
 /// on its way.
-fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
+fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand, surface: &Surface) -> Vec<Target> {
     let mut out = Vec::with_capacity(steps.len() * 12);
     for (k, step) in steps.iter().enumerate() {
         if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
@@ -127,9 +164,20 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand) -> Vec<Target> {
                     _ => continue,
                 };
                 // Near the contact: the stand-off, reached straight from the contact pose.
-                let Some(near) =
-                    standoff(base, slot, contact, &STANDOFFS, &[contact.as_slice()], hand)
-                else {
+                let Some(near) = standoff(
+                    base,
+                    slot,
+                    contact,
+                    &STANDOFFS,
+                    &[contact.as_slice()],
+                    hand,
+                    surface,
+                ) else {
+                    eprintln!(
+                        "icrflow-planner: step {}: no stand-off pose found for finger {}; it \
+                         moves straight between the contact and its free pose",
+                        step.step, a.finger
+                    );
                     continue;
                 };
                 let near_q = near.fingers[slot].joints_deg.clone();
@@ -317,7 +365,12 @@ type StepRegions = (usize, Vec<u32>, [u32; MAX_FINGERS], (u32, u32));
 pub fn run(ctx: &Context) -> Result<()> {
     let scenario = ctx.setup.scenario(&ctx.config);
     let plan = scenario.plan(&mut |_| {}).context("planning")?;
-    let steps = &targets(&plan.steps, &ctx.setup.hand);
+    let object = &ctx.setup.object;
+    let surface = Surface::new(
+        &object.section,
+        [object.centre_of_mass.x, object.centre_of_mass.y],
+    )?;
+    let steps = &targets(&plan.steps, &ctx.setup.hand, &surface);
     let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.config.pipeline.joint_noise;
     let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let problem = &ctx.setup.problem;
@@ -494,7 +547,7 @@ pub fn run(ctx: &Context) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rolling::tip;
+
     use icrflow_scenario::{Config, Setup};
 
     /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
@@ -510,7 +563,8 @@ mod tests {
         let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
         let hand = &setup.hand;
         let r = setup.object.max_radius();
-        let list = targets(&plan.steps, hand);
+        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let list = targets(&plan.steps, hand, &surface);
         let (mut approaches, mut retreats, mut free_moves) = (0, 0, 0);
         for w in list.windows(2) {
             let (a, b) = (&w[0].step, &w[1].step);

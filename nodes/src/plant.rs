@@ -26,7 +26,7 @@ use icrflow_interfaces::{
     CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose, topics,
 };
 
-use crate::rolling::{rotation, tip, touches};
+use crate::rolling::{Surface, tip};
 use crate::runtime::{Checkpoint, Context, Health, Noise, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
@@ -36,7 +36,12 @@ const TOUCH: f64 = 5e-4;
 pub fn run(ctx: &Context) -> Result<()> {
     let p = &ctx.config.pipeline;
     let hand = &ctx.setup.hand;
-    let r_o = ctx.setup.object.max_radius();
+    let object = &ctx.setup.object;
+    let surface = Surface::new(
+        &object.section,
+        [object.centre_of_mass.x, object.centre_of_mass.y],
+    )?;
+    let r_in = surface.inscribed();
     // The true state starts in the initial grasp, as the planner computes it.
     let (contacts, _) = ctx
         .setup
@@ -176,7 +181,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 let after = tip(f, &q[slot]);
                 // The simulation lets a fingertip pass through the object; a real one would
                 // hit it. Said on entering, always: it is a planning or tracking fault.
-                let depth = r_o + f.tip_radius - after.distance;
+                let depth = -surface.contact_of(&after, f, theta).gap;
                 let inside = !contact[slot] && depth > TOUCH;
                 if inside && !intruding[slot] {
                     eprintln!(
@@ -189,24 +194,24 @@ pub fn run(ctx: &Context) -> Result<()> {
                 intruding[slot] = inside;
                 // The same for the links (the planner keeps them off the object).
                 let (d, link) = f.link_distance(&q[slot]);
-                let through = d < r_o - TOUCH;
+                let through = d < r_in - TOUCH;
                 if through && !link_intruding[slot] {
                     eprintln!(
                         "icrflow-plant: finger {}'s link {link} passes through the object \
                          ({:.2} mm deep): a real hand would hit it here",
                         f.id,
-                        (r_o - d) * 1e3
+                        (r_in - d) * 1e3
                     );
                 }
                 link_intruding[slot] = through;
                 if contact[slot] && pressing {
-                    turn += rotation(&before, &after, f, r_o);
+                    turn += surface.rotation(&before, &after, f, theta);
                     rolling += 1;
                 }
                 // A pressing finger comes into contact where its motion ends on the surface.
                 let was = contact[slot];
-                contact[slot] =
-                    pressing && (contact[slot] || (arrived && touches(&after, f, r_o, TOUCH)));
+                contact[slot] = pressing
+                    && (contact[slot] || (arrived && surface.touches(&after, f, theta, TOUCH)));
                 if contact[slot] != was && log_contacts {
                     eprintln!(
                         "icrflow-plant: finger {} {} the object",

@@ -71,13 +71,19 @@ impl Keepout {
 /// Whether `finger` keeps clear of the object ([`Keepout`]) all along the straight joint-space
 /// move from `a` to `b` (checked at [`SAMPLES`] points).
 pub fn clear(finger: &Finger, a: &[Real], b: &[Real], keep: Keepout) -> bool {
+    along(a, b, |q| keep.holds(finger, q))
+}
+
+/// Whether `holds` is true all along the straight joint-space move from `a` to `b` (at
+/// [`SAMPLES`] points, both ends included).
+pub fn along(a: &[Real], b: &[Real], mut holds: impl FnMut(&[Real]) -> bool) -> bool {
     let mut q = vec![0.0; a.len()];
     (0..SAMPLES).all(|i| {
         let s = i as Real / (SAMPLES - 1) as Real;
         for ((x, y), out) in a.iter().zip(b).zip(q.iter_mut()) {
             *out = x + s * (y - x);
         }
-        keep.holds(finger, &q)
+        holds(&q)
     })
 }
 
