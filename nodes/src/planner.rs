@@ -186,13 +186,39 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand, surface: &Surface) -
                 let Some(f) = hand.finger(a.finger) else {
                     continue;
                 };
-                let touch = f.fk(&radians(contact)).tip_centre.xy().norm();
-                let reach = Keepout::new(touch + CLEARANCE, touch - f.tip_radius);
                 let (start, end) = match step.phase {
                     Phase::Attach => (radians(free), radians(&near_q)),
                     _ => (radians(&near_q), radians(free)),
                 };
-                let way = icrflow_plan::route::route(f, &start, &end, reach).unwrap_or_else(|| {
+                let way = match surface {
+                    // A circle: the fingertip beyond the contact's distance plus the clearance.
+                    Surface::Circle { .. } => {
+                        let touch = f.fk(&radians(contact)).tip_centre.xy().norm();
+                        let reach = Keepout::new(touch + CLEARANCE, touch - f.tip_radius);
+                        icrflow_plan::route::route(f, &start, &end, reach)
+                    }
+                    // Another section: the fingertip's gap to it (turned as in the step) at
+                    // least the clearance, the links beyond its inscribed circle, the roadmap
+                    // beyond its farthest point.
+                    Surface::Curve(_) => {
+                        let theta = base.rotation_deg.to_radians();
+                        let links = Keepout {
+                            tip: 0.0,
+                            links: surface.inscribed() + icrflow_plan::route::LINK_MARGIN,
+                        };
+                        icrflow_plan::route::route_with(
+                            f,
+                            &start,
+                            &end,
+                            surface.circumscribed() + f.tip_radius + CLEARANCE,
+                            |q| {
+                                links.holds(f, q)
+                                    && surface.contact_of(&tip(f, q), f, theta).gap >= CLEARANCE
+                            },
+                        )
+                    }
+                };
+                let way = way.unwrap_or_else(|| {
                     eprintln!(
                         "icrflow-planner: step {}: no route found for finger {} around the \
                          object; it moves straight",
@@ -632,6 +658,74 @@ mod tests {
             free_moves >= 4 * plan.summary.switches,
             "{free_moves} free moves"
         );
+        assert_eq!(
+            approaches, plan.summary.switches,
+            "an approach before every attach"
+        );
+        assert_eq!(
+            retreats, plan.summary.switches,
+            "a retreat before every detach"
+        );
+    }
+
+    /// On a non-circular section (the ellipsoid mesh of `config/ellipsoid_spatial.toml`): every
+    /// move of a finger that is not rolling keeps its fingertip off the section (turned as in
+    /// the move's targets) by the stand-off legs' tolerance next to a contact and by the
+    /// estimator's release distance elsewhere, and every switch has its stand-offs.
+    #[test]
+    fn free_fingers_keep_off_a_non_circular_object() {
+        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
+        let path = std::path::PathBuf::from(dir).join("../config/ellipsoid_spatial.toml");
+        let config = Config::load(&path).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+        let hand = &setup.hand;
+        let o = &setup.object;
+        let surface = Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y]).unwrap();
+        assert!(matches!(surface, Surface::Curve(_)));
+        let list = targets(&plan.steps, hand, &surface);
+        let (mut approaches, mut retreats) = (0, 0);
+        for w in list.windows(2) {
+            let (a, b) = (&w[0].step, &w[1].step);
+            for slot in 0..a.fingers.len() {
+                let f = hand.finger(a.fingers[slot].finger).unwrap();
+                let (qa, qb) = (
+                    radians(&a.fingers[slot].joints_deg),
+                    radians(&b.fingers[slot].joints_deg),
+                );
+                let touching = |t: &Step| t.fingers[slot].contact.is_some();
+                if qa == qb || (touching(a) && touching(b)) {
+                    continue;
+                }
+                let margin = if touching(a) || touching(b) {
+                    -2e-4
+                } else {
+                    crate::estimator::RELEASE
+                };
+                for theta in [a.rotation_deg, b.rotation_deg].map(f64::to_radians) {
+                    let mut lowest = f64::INFINITY;
+                    icrflow_plan::route::along(&qa, &qb, |q| {
+                        lowest = lowest.min(surface.contact_of(&tip(f, q), f, theta).gap);
+                        true
+                    });
+                    assert!(
+                        lowest >= margin,
+                        "steps {} -> {} ({:?} -> {:?}): finger {} comes {:.2} mm from the \
+                         object (at least {:.2} mm wanted)",
+                        a.step,
+                        b.step,
+                        a.phase,
+                        b.phase,
+                        f.id,
+                        lowest * 1e3,
+                        margin * 1e3
+                    );
+                }
+                approaches += usize::from(!touching(a) && touching(b));
+                retreats += usize::from(touching(a) && !touching(b));
+            }
+        }
         assert_eq!(
             approaches, plan.summary.switches,
             "an approach before every attach"

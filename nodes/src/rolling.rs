@@ -207,15 +207,20 @@ impl Surface {
     pub fn describe(&self) -> String {
         match self {
             Self::Circle { radius, .. } => format!("a circle of radius {:.1} mm", radius * 1e3),
-            Self::Curve(c) => {
-                let far = c.radius.iter().fold(0.0_f64, |m, &r| m.max(r));
-                format!(
-                    "a convex section of {} samples, {:.1} to {:.1} mm from the centre",
-                    c.angle.len(),
-                    c.inscribed * 1e3,
-                    far * 1e3
-                )
-            }
+            Self::Curve(c) => format!(
+                "a convex section of {} samples, {:.1} to {:.1} mm from the centre",
+                c.angle.len(),
+                c.inscribed * 1e3,
+                self.circumscribed() * 1e3
+            ),
+        }
+    }
+
+    /// Largest distance of the section from the centre (m).
+    pub fn circumscribed(&self) -> f64 {
+        match self {
+            Self::Circle { radius, .. } => *radius,
+            Self::Curve(c) => c.radius.iter().fold(0.0, |m: f64, &r| m.max(r)),
         }
     }
 

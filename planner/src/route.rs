@@ -5,7 +5,8 @@
 //! alike), so a route is a list of way points, each leg a straight joint-space move along
 //! which the fingertip centre stays at least a given distance from the object's centre (the
 //! hand frame's origin; the object's section in the hand's plane is taken as a circle, exact
-//! for the sphere, conservative for any object inside that radius), and every link
+//! for the sphere, conservative for any object inside that radius; [`route_with`] takes any
+//! keep-out, e.g. the fingertip's gap to a non-circular section), and every link
 //! ([`Finger::link_distance`]: the segments between the joints, and the distal link up to the
 //! fingertip sphere) at least [`LINK_MARGIN`] from its surface ([`Keepout`]).
 //!
@@ -99,8 +100,21 @@ fn motion(a: &[Real], b: &[Real]) -> Real {
 /// the object ([`Keepout`]) along every leg, neither end included; empty where the straight
 /// move is clear, `None` where no route is found (a planar finger is needed for the roadmap).
 pub fn route(finger: &Finger, from: &[Real], to: &[Real], keep: Keepout) -> Option<Vec<Vec<Real>>> {
-    let distance = keep.tip;
-    if clear(finger, from, to, keep) {
+    route_with(finger, from, to, keep.tip, |q| keep.holds(finger, q))
+}
+
+/// [`route`] for any keep-out: `holds` says whether a pose keeps clear (every leg is checked
+/// with it, [`along`]), and the roadmap's circles lie [`RADII`] beyond `distance` (from the
+/// object's centre), which must be at least the fingertip distance `holds` requires in every
+/// direction (for a non-circular object: its largest).
+pub fn route_with(
+    finger: &Finger,
+    from: &[Real],
+    to: &[Real],
+    distance: Real,
+    holds: impl Fn(&[Real]) -> bool,
+) -> Option<Vec<Vec<Real>>> {
+    if along(from, to, &holds) {
         return Some(Vec::new());
     }
     // The roadmap: index 0 is the start, 1 the goal, then the poses.
@@ -160,7 +174,7 @@ pub fn route(finger: &Finger, from: &[Real], to: &[Real], keep: Keepout) -> Opti
         done[u] = true;
         for &v in &joined[u] {
             let c = cost[u] + motion(&poses[u], &poses[v]) + LEG_COST;
-            if !done[v] && c < cost[v] && clear(finger, &poses[u], &poses[v], keep) {
+            if !done[v] && c < cost[v] && along(&poses[u], &poses[v], &holds) {
                 cost[v] = c;
                 previous[v] = u;
             }
@@ -179,7 +193,7 @@ pub fn route(finger: &Finger, from: &[Real], to: &[Real], keep: Keepout) -> Opti
     while path[at] != 1 {
         let next = (at + 1..path.len())
             .rev()
-            .find(|&j| clear(finger, &poses[path[at]], &poses[path[j]], keep))
+            .find(|&j| along(&poses[path[at]], &poses[path[j]], &holds))
             .unwrap_or(at + 1);
         kept.push(path[next]);
         at = next;
