@@ -34,7 +34,7 @@ pub const SUBSTEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
 /// How far from the object a finger comes to before it touches and goes to after it lets go
 /// (m): it approaches and leaves along the surface normal, never through the object. Where
-/// that pose is out of reach, the nearer ones of [`STANDOFFS`] are tried.
+/// that pose is out of reach, the nearer ones of `STANDOFFS` are tried.
 pub const STANDOFF: f64 = 8e-3;
 /// Stand-off distances tried, farthest first (m); all beyond the estimator's release distance.
 const STANDOFFS: [f64; 4] = [STANDOFF, 6e-3, 4.5e-3, 3e-3];
@@ -100,8 +100,7 @@ fn radians(deg: &[f64]) -> Vec<f64> {
 /// [`icrflow_plan::route::LINK_MARGIN`] off it. On a circular section (the sphere): the
 /// fingertip at least `r` (less 0.2 mm) from the centre, `r` a contact pose's fingertip
 /// distance, and the links beyond the circle of radius `r` less the fingertip's. On another
-/// section: the fingertip's gap to `surface` turned by `theta`, and the links beyond its
-/// inscribed circle (the links are checked against a circle, a fingertip against the section).
+/// section: the fingertip's and the links' gaps to `surface` turned by `theta`.
 fn outside(
     f: &icrflow_plan::hand::Finger,
     a: &[f64],
@@ -114,15 +113,10 @@ fn outside(
         Surface::Circle { .. } => {
             icrflow_plan::route::clear(f, a, b, Keepout::new(r - 2e-4, r - f.tip_radius))
         }
-        Surface::Curve(_) => {
-            let links = Keepout {
-                tip: 0.0,
-                links: surface.inscribed() + icrflow_plan::route::LINK_MARGIN,
-            };
-            icrflow_plan::route::along(a, b, |q| {
-                links.holds(f, q) && surface.contact_of(&tip(f, q), f, theta).gap >= -2e-4
-            })
-        }
+        Surface::Curve(_) => icrflow_plan::route::along(a, b, |q| {
+            surface.contact_of(&tip(f, q), f, theta).gap >= -2e-4
+                && surface.link_gap(f, q, theta).0 >= icrflow_plan::route::LINK_MARGIN
+        }),
     }
 }
 
@@ -198,22 +192,19 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand, surface: &Surface) -
                         icrflow_plan::route::route(f, &start, &end, reach)
                     }
                     // Another section: the fingertip's gap to it (turned as in the step) at
-                    // least the clearance, the links beyond its inscribed circle, the roadmap
+                    // least the clearance, the links' at least the link margin, the roadmap
                     // beyond its farthest point.
                     Surface::Curve(_) => {
                         let theta = base.rotation_deg.to_radians();
-                        let links = Keepout {
-                            tip: 0.0,
-                            links: surface.inscribed() + icrflow_plan::route::LINK_MARGIN,
-                        };
                         icrflow_plan::route::route_with(
                             f,
                             &start,
                             &end,
                             surface.circumscribed() + f.tip_radius + CLEARANCE,
                             |q| {
-                                links.holds(f, q)
-                                    && surface.contact_of(&tip(f, q), f, theta).gap >= CLEARANCE
+                                surface.contact_of(&tip(f, q), f, theta).gap >= CLEARANCE
+                                    && surface.link_gap(f, q, theta).0
+                                        >= icrflow_plan::route::LINK_MARGIN
                             },
                         )
                     }
@@ -704,11 +695,20 @@ mod tests {
                     crate::estimator::RELEASE
                 };
                 for theta in [a.rotation_deg, b.rotation_deg].map(f64::to_radians) {
-                    let mut lowest = f64::INFINITY;
+                    let (mut lowest, mut links) = (f64::INFINITY, f64::INFINITY);
                     icrflow_plan::route::along(&qa, &qb, |q| {
                         lowest = lowest.min(surface.contact_of(&tip(f, q), f, theta).gap);
+                        links = links.min(surface.link_gap(f, q, theta).0);
                         true
                     });
+                    assert!(
+                        links >= icrflow_plan::route::LINK_MARGIN - 1e-9,
+                        "steps {} -> {}: finger {}'s links come {:.2} mm from the object",
+                        a.step,
+                        b.step,
+                        f.id,
+                        links * 1e3
+                    );
                     assert!(
                         lowest >= margin,
                         "steps {} -> {} ({:?} -> {:?}): finger {} comes {:.2} mm from the \

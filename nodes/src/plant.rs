@@ -41,7 +41,6 @@ pub fn run(ctx: &Context) -> Result<()> {
         &object.section,
         [object.centre_of_mass.x, object.centre_of_mass.y],
     )?;
-    let r_in = surface.inscribed();
     // The true state starts in the initial grasp, as the planner computes it.
     let (contacts, _) = ctx
         .setup
@@ -193,14 +192,14 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
                 intruding[slot] = inside;
                 // The same for the links (the planner keeps them off the object).
-                let (d, link) = f.link_distance(&q[slot]);
-                let through = d < r_in - TOUCH;
+                let (gap, link) = surface.link_gap(f, &q[slot], theta);
+                let through = gap < -TOUCH;
                 if through && !link_intruding[slot] {
                     eprintln!(
                         "icrflow-plant: finger {}'s link {link} passes through the object \
                          ({:.2} mm deep): a real hand would hit it here",
                         f.id,
-                        (r_in - d) * 1e3
+                        -gap * 1e3
                     );
                 }
                 link_intruding[slot] = through;

@@ -96,6 +96,8 @@ pub struct Curve {
 const ROUND: f64 = 1e-9;
 /// Samples on each side of the one nearest in polar angle searched for the nearest point.
 const WINDOW: usize = 8;
+/// Points (beyond the first) at which a link is measured against a non-circular section.
+pub const LINK_POINTS: usize = 12;
 /// Most steps of the search for the foot of a point on a segment (it converges in a few).
 const REFINE: usize = 12;
 
@@ -257,6 +259,35 @@ impl Surface {
             sin * t.centre[0] + cos * t.centre[1],
         ];
         self.contact(body, finger.tip_radius)
+    }
+
+    /// How close the links of `finger` at `q` come to the object turned by `theta` (m,
+    /// negative inside), and which link. On a circle: their distance from the centre less the
+    /// radius; otherwise, links nearer the centre than the section's farthest point are
+    /// measured against the section at [`LINK_POINTS`] points each.
+    pub fn link_gap(&self, finger: &Finger, q: &[f64], theta: f64) -> (f64, usize) {
+        let (d, link) = finger.link_distance(q);
+        let far = self.circumscribed();
+        match self {
+            Self::Circle { radius, .. } => (d - radius, link),
+            Self::Curve(_) if d >= far => (d - far, link),
+            Self::Curve(_) => {
+                let (sin, cos) = (-theta).sin_cos();
+                let mut closest = (f64::INFINITY, link);
+                finger.link_segments(q, |link, a, b| {
+                    for i in 0..=LINK_POINTS {
+                        let t = i as f64 / LINK_POINTS as f64;
+                        let (x, y) = (a.x + t * (b.x - a.x), a.y + t * (b.y - a.y));
+                        let body = [cos * x - sin * y, sin * x + cos * y];
+                        let gap = self.contact(body, 0.0).gap;
+                        if gap < closest.0 {
+                            closest = (gap, link);
+                        }
+                    }
+                });
+                closest
+            }
+        }
     }
 
     /// Whether the fingertip `t` touches the object turned by `theta` (within `tolerance`, m).
