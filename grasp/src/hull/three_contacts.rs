@@ -66,7 +66,9 @@
 //! # Tolerances and when it declines
 //! With `scale` the largest coordinate magnitude and `tol = 1e-10 * scale` (the tolerance of
 //! [`super::beneath_beyond`], so that both agree on which points lie on a facet):
-//! - input: exactly 3 contacts of `s` wrenches in R^6 with `3 <= s <=` [`MAX_EDGES`], finite;
+//! - input: exactly 3 contacts of `s` wrenches in R^6 with `3 <= s <=` [`MAX_EDGES`], finite,
+//!   the largest coordinate magnitude within `[1e-50, 1e50]` (the screens multiply five
+//!   coordinates);
 //! - each contact's wrenches must fit `c + cos(phi_j) U + sin(phi_j) V` (least squares) within
 //!   `1e-3 tol` in every coordinate (planar, in cyclic order, an affine regular polygon), and
 //!   be clearly convex: the smallest singular value of `[U V]` times `1 - cos(2 pi / s)` (how
@@ -138,6 +140,9 @@ pub enum Decline {
     /// A point lies within the band of a candidate hyperplane, or a candidate's system is too
     /// ill-conditioned to decide (a degenerate configuration).
     Ambiguous,
+    /// The largest coordinate magnitude is outside `[1e-50, 1e50]`, where the screens'
+    /// degree-5 products could overflow or their bounds underflow.
+    Scale,
     /// The facets found are not a plausible hull (repeated, or fewer than 7).
     Inconsistent,
 }
@@ -537,6 +542,9 @@ struct Setup {
     band: Real,
     /// `64 eps scale`: the band grows by this over `cond`.
     rounding: Real,
+    /// `256 eps max(scale, 1)`: the rounding of a point's or a plane's coordinates in a null
+    /// space (7-term dot products whose homogeneous coordinate is 1, whatever the scale).
+    model_rounding: Real,
     /// `FIT tol`: the largest residual of a polygon fit.
     fit: Real,
     /// Per edge `(j, j + 1)` of the regular polygon `q_j = (1, cos phi_j, sin phi_j)`, its
@@ -564,6 +572,9 @@ impl Setup {
             .iter()
             .fold(0.0, |m: Real, x| m.max(x.abs()))
             .max(Real::MIN_POSITIVE);
+        if !(1e-50..=1e50).contains(&scale) {
+            return Err(Decline::Scale);
+        }
         let tol = RELATIVE_TOLERANCE * scale;
         let mut mean = [0.0; D];
         for p in points.chunks_exact(D) {
@@ -640,6 +651,7 @@ impl Setup {
             planes,
             band: BAND * tol,
             rounding: ROUNDING * Real::EPSILON * scale,
+            model_rounding: 4.0 * ROUNDING * Real::EPSILON * scale.max(1.0),
             fit: FIT * tol,
             edge_normals,
             kappa: dot(&q(s - 1), &edge_normals[0]),
@@ -782,8 +794,13 @@ impl Setup {
                             let gm: [Real; 5] =
                                 array(|c| n3[0] * g2[0][c] + n3[1] * g2[1][c] + n3[2] * g2[2][c]);
                             let h = first.combine(&gm);
+                            let a_norm = norm(&h);
+                            if !self.model_plane_fits(&h, a_norm, &[a2, b2, pu, pv]) {
+                                self.exact_candidate(&first, e1, e2, e3, out)?;
+                                continue;
+                            }
                             let set = base | (1u64 << pu) | (1u64 << pv);
-                            out.push_plane(set, &h, sign / norm(&h), &self.mean);
+                            out.push_plane(set, &h, sign / a_norm, &self.mean);
                         }
                         Verdict::Ambiguous => self.exact_candidate(&first, e1, e2, e3, out)?,
                     }
@@ -797,7 +814,7 @@ impl Setup {
     /// values from the band of its exact values, for the first edge's null space `first`,
     /// the planes' images `a2`, `a3` and the outer neighbours `outer`. In 2-norms:
     /// - `e_z >= |z_j - A_i q_j|`: the fit residual (at most `FIT tol` per coordinate) through
-    ///   `|F| <= nf`, plus rounding;
+    ///   `|F| <= nf`, plus the rounding of the coordinates (`model_rounding`);
     /// - `R >= |A_i q_j|, |z_j|` (`|a_i0| + |(a_i1, a_i2)|`, plus `e_z`), `O >= |z_o|, R`;
     /// - every 5 x 5 determinant of four polygon points and a neighbour is at most `R^4 O`
     ///   (Hadamard), and replacing the model points by the exact ones (five slots at most)
@@ -816,7 +833,7 @@ impl Setup {
         outer: &[[Real; 5]; 2],
     ) -> Real {
         let nf = first.norm;
-        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
+        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.model_rounding);
         let reach = |a: &[[Real; 5]; 3]| {
             dot(&a[0], &a[0]).sqrt() + (dot(&a[1], &a[1]) + dot(&a[2], &a[2])).sqrt()
         };
@@ -829,6 +846,19 @@ impl Setup {
         nf * r4 * (self.band + self.rounding / first.pivot)
             + 5.0 * e_z * r * r * r * o
             + COFACTOR_ROUNDING * Real::EPSILON * r4 * o
+    }
+
+    /// Whether an accepted candidate's hyperplane `h` from the fitted polygons (normal part of
+    /// norm `a_norm`) may be recorded: at the facet's `points` taken from the fitted planes,
+    /// where the exact hyperplane is 0, it must be within a quarter of `tol` (checked on the
+    /// exact points). Otherwise (a poorly conditioned candidate, whose small `|a|` magnifies
+    /// the fit's residual) its exact hyperplane is computed instead.
+    #[inline(always)]
+    fn model_plane_fits(&self, h: &[Real; W], a_norm: Real, points: &[usize]) -> bool {
+        let off = points
+            .iter()
+            .fold(0.0, |m: Real, &p| m.max(dot(h, &self.y[p]).abs()));
+        off * 6.0 <= self.band * a_norm
     }
 
     /// Decides the (1,1,1) candidate of edges `e1`, `e2`, `e3` on its exact values, as every
@@ -939,12 +969,23 @@ impl Setup {
                                     ne[0] * cof[0][i] + ne[1] * cof[1][i] + ne[2] * cof[2][i]
                                 });
                                 let h = first.combine(&g);
-                                out.push_plane(
-                                    base | (1u64 << pt),
-                                    &h,
-                                    sign / norm(&h),
-                                    &self.mean,
-                                );
+                                let a_norm = norm(&h);
+                                if self.model_plane_fits(&h, a_norm, &[pa, pb]) {
+                                    out.push_plane(
+                                        base | (1u64 << pt),
+                                        &h,
+                                        sign / a_norm,
+                                        &self.mean,
+                                    );
+                                } else {
+                                    self.exact_whole_edge_vertex(
+                                        &first,
+                                        &z,
+                                        [pa, pb, pt],
+                                        polygon,
+                                        out,
+                                    )?;
+                                }
                             }
                             Verdict::Ambiguous => self.exact_whole_edge_vertex(
                                 &first,
@@ -969,7 +1010,7 @@ impl Setup {
     #[inline(always)]
     fn vertex_bound(&self, first: &NullSpace<W, 4>, a: &[[Real; 4]; 3], o: Real) -> Real {
         let nf = first.norm;
-        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.rounding);
+        let e_z = nf * (6.0_f64.sqrt() * self.fit + self.model_rounding);
         let r = dot(&a[0], &a[0]).sqrt() + (dot(&a[1], &a[1]) + dot(&a[2], &a[2])).sqrt() + e_z;
         let o = o.max(r);
         nf * r * r * o * (self.band + self.rounding / first.pivot)
@@ -1353,6 +1394,11 @@ mod tests {
         let mut bad = w.clone();
         bad[7] = Real::NAN;
         assert_eq!(hull(&bad, 8).err(), Some(Decline::NonFinite));
+        // Scaled beyond what the screens' products allow.
+        for factor in [1e55, 1e-55] {
+            let scaled: Vec<Real> = w.iter().map(|x| x * factor).collect();
+            assert_eq!(hull(&scaled, 8).err(), Some(Decline::Scale));
+        }
         // Two wrenches of the second contact swapped: not in cyclic order.
         let mut swapped = w.clone();
         for k in 0..D {
