@@ -59,9 +59,10 @@
 //! whose planes span the 5-flat together, so every vertex of either polygon is extreme in
 //! the facet, hence in the hull. Facets are in the canonical order of [`Hull`] (by their
 //! point sets), so the result does not depend on which construction ran. A facet decided by
-//! a screen (below) has the hyperplane of the fitted polygons, which passes within the fit's
-//! residual (at most `1e-3 tol`, through the conditioning) of its points rather than through
-//! them up to rounding; the others' are computed from the points.
+//! a screen (below) has the hyperplane of the fitted polygons where that passes within
+//! `tol / 4` of its points (checked on them: the fit's residual, at most `1e-3 tol`, is
+//! magnified by a poorly conditioned candidate), otherwise the one computed from its points,
+//! as the others have.
 //!
 //! # Tolerances and when it declines
 //! With `scale` the largest coordinate magnitude and `tol = 1e-10 * scale` (the tolerance of
