@@ -11,6 +11,25 @@ use common::{icrflow, root, scratch};
 /// machine's cores), and the kill test finds its nodes by name.
 static PIPELINE: Mutex<()> = Mutex::new(());
 
+/// A run's summary `s` against its offline plan: the same total rotation (360 deg, within the
+/// estimator's noise), the same switches, every planned step after the start executed, and
+/// never below the margin.
+fn like_offline(s: &serde_json::Value, offline: &serde_json::Value) {
+    let rotation = s["rotation_deg"].as_f64().unwrap();
+    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
+    assert_eq!(s["switches"], offline["switches"], "{s}");
+    assert_eq!(
+        s["steps"].as_u64().unwrap() + 1,
+        offline["steps"].as_u64().unwrap(),
+        "every planned step after the start executed"
+    );
+    let alpha = s["alpha"].as_f64().unwrap();
+    assert!(
+        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
+        "{s}"
+    );
+}
+
 fn json(bytes: &[u8]) -> serde_json::Value {
     serde_json::from_slice(bytes).expect("one JSON object")
 }
@@ -61,20 +80,7 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
         err.contains("realtime_priority = 50 is not available"),
         "{err}"
     );
-    // The same total rotation (within the estimator's noise) and the same switches.
-    let rotation = s["rotation_deg"].as_f64().unwrap();
-    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
-    assert_eq!(s["switches"], offline["switches"], "{s}");
-    assert_eq!(
-        s["steps"].as_u64().unwrap() + 1,
-        offline["steps"].as_u64().unwrap(),
-        "every planned step after the start executed"
-    );
-    let alpha = s["alpha"].as_f64().unwrap();
-    assert!(
-        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
-        "{s}"
-    );
+    like_offline(&s, &offline);
     assert_eq!(s["restarts"], 0);
     // Every tracking command carries the whole trace of the measurement that caused it, so
     // the end-to-end latency and each of its parts have one sample per tracking command.
@@ -155,19 +161,7 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
     assert!(o.status.success(), "run failed: {err}");
     let s = json(&std::fs::read(&summary).unwrap());
     assert_eq!(s["completed"], true, "{s}");
-    let rotation = s["rotation_deg"].as_f64().unwrap();
-    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}");
-    assert_eq!(s["switches"], offline["switches"], "{s}");
-    assert_eq!(
-        s["steps"].as_u64().unwrap() + 1,
-        offline["steps"].as_u64().unwrap(),
-        "every planned step after the start executed"
-    );
-    let alpha = s["alpha"].as_f64().unwrap();
-    assert!(
-        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
-        "{s}"
-    );
+    like_offline(&s, &offline);
     assert_eq!(s["restarts"], 0, "{s}");
     assert!(!err.contains("inside the object"), "{err}");
     assert!(!err.contains("passes through the object"), "{err}");

@@ -567,21 +567,28 @@ mod tests {
 
     use icrflow_scenario::{Config, Setup};
 
+    /// The scenario of `config/NAME`, its plan, its object's surface and the targets.
+    fn planned(name: &str) -> (Setup, icrflow_plan::planner::Plan, Surface, Vec<Target>) {
+        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
+        let config =
+            Config::load(&std::path::PathBuf::from(dir).join("../config").join(name)).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+        let o = &setup.object;
+        let surface = Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y]).unwrap();
+        let list = targets(&plan.steps, &setup.hand, &surface);
+        (setup, plan, surface, list)
+    }
+
     /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
     /// from the object; every move of a finger that is not rolling starts from a contact or a
     /// way point (where the planner waits for it) and stays outside the object.
     #[test]
     fn fingers_approach_and_leave_along_the_normal() {
-        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
-        let path = std::path::PathBuf::from(dir).join("../config/paper_sphere.toml");
-        let config = Config::load(&path).unwrap();
-        let setup = Setup::new(&config).unwrap();
-        let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+        let (setup, plan, _, list) = planned("paper_sphere.toml");
         let hand = &setup.hand;
         let r = setup.object.max_radius();
-        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
-        let list = targets(&plan.steps, hand, &surface);
         let (mut approaches, mut retreats, mut free_moves) = (0, 0, 0);
         for w in list.windows(2) {
             let (a, b) = (&w[0].step, &w[1].step);
@@ -665,17 +672,9 @@ mod tests {
     /// estimator's release distance elsewhere, and every switch has its stand-offs.
     #[test]
     fn free_fingers_keep_off_a_non_circular_object() {
-        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
-        let path = std::path::PathBuf::from(dir).join("../config/ellipsoid_spatial.toml");
-        let config = Config::load(&path).unwrap();
-        let setup = Setup::new(&config).unwrap();
-        let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+        let (setup, plan, surface, list) = planned("ellipsoid_spatial.toml");
         let hand = &setup.hand;
-        let o = &setup.object;
-        let surface = Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y]).unwrap();
         assert!(matches!(surface, Surface::Curve(_)));
-        let list = targets(&plan.steps, hand, &surface);
         let (mut approaches, mut retreats) = (0, 0);
         for w in list.windows(2) {
             let (a, b) = (&w[0].step, &w[1].step);
