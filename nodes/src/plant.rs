@@ -180,7 +180,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                 let after = tip(f, &q[slot]);
                 // The simulation lets a fingertip pass through the object; a real one would
                 // hit it. Said on entering, always: it is a planning or tracking fault.
-                let depth = -surface.contact_of(&after, f, theta).gap;
+                // The fingertip's gap to the object (the object turns after every finger moved).
+                let gap = surface.contact_of(&after, f, theta).gap;
+                let depth = -gap;
                 let inside = !contact[slot] && depth > TOUCH;
                 if inside && !intruding[slot] {
                     eprintln!(
@@ -192,14 +194,14 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
                 intruding[slot] = inside;
                 // The same for the links (the planner keeps them off the object).
-                let (gap, link) = surface.link_gap(f, &q[slot], theta);
-                let through = gap < -TOUCH;
+                let (link_gap, link) = surface.link_gap(f, &q[slot], theta);
+                let through = link_gap < -TOUCH;
                 if through && !link_intruding[slot] {
                     eprintln!(
                         "icrflow-plant: finger {}'s link {link} passes through the object \
                          ({:.2} mm deep): a real hand would hit it here",
                         f.id,
-                        -gap * 1e3
+                        -link_gap * 1e3
                     );
                 }
                 link_intruding[slot] = through;
@@ -209,8 +211,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
                 // A pressing finger comes into contact where its motion ends on the surface.
                 let was = contact[slot];
-                contact[slot] = pressing
-                    && (contact[slot] || (arrived && surface.touches(&after, f, theta, TOUCH)));
+                contact[slot] = pressing && (contact[slot] || (arrived && gap.abs() <= TOUCH));
                 if contact[slot] != was && log_contacts {
                     eprintln!(
                         "icrflow-plant: finger {} {} the object",

@@ -290,11 +290,6 @@ impl Surface {
         }
     }
 
-    /// Whether the fingertip `t` touches the object turned by `theta` (within `tolerance`, m).
-    pub fn touches(&self, t: &Tip, finger: &Finger, theta: f64, tolerance: f64) -> bool {
-        self.contact_of(t, finger, theta).gap.abs() <= tolerance
-    }
-
     /// The object's rotation implied by a fingertip rolling from `a` to `b`, the object at
     /// `theta` when the fingertip was at `a`.
     pub fn rotation(&self, a: &Tip, b: &Tip, finger: &Finger, theta: f64) -> f64 {
