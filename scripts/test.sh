@@ -8,4 +8,7 @@ export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
 scripts/setup.sh
 export ICRFLOW_PYTHON="${ICRFLOW_PYTHON:-$(scripts/setup-python.sh | tail -n 1)}"
+# The pipeline tests start every node binary (the bridge's and the visualizer's too), which
+# `cargo test` builds only for the packages whose own integration tests use them: build all.
+cargo build --release --workspace --bins
 cargo test --release --workspace "$@"

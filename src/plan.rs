@@ -37,6 +37,10 @@ pub fn validate(path: &Path) -> Result<()> {
     let config = Config::load(path)?;
     let setup = Setup::new(&config)?;
     let (contacts, quality) = setup.scenario(&config).start().context("cannot start")?;
+    let surface = crate::run::surface(&setup);
+    if let Ok(s) = &surface {
+        crate::run::slip(&config, s)?;
+    }
     let mut o = std::io::stdout().lock();
     writeln!(o, "config     {} is valid", path.display())?;
     writeln!(
@@ -49,11 +53,20 @@ pub fn validate(path: &Path) -> Result<()> {
     for w in &setup.object.warnings {
         writeln!(o, "warning    {w}")?;
     }
-    match crate::run::surface(&setup) {
+    match &surface {
         Ok(s) => writeln!(
             o,
-            "pipeline   the plant rolls fingertips on {}",
-            s.describe()
+            "pipeline   the plant rolls fingertips on {}{}",
+            s.describe(),
+            if config.pipeline.slip != 0.0 {
+                format!(
+                    "; the object slips by {:.1} deg at {} s",
+                    config.pipeline.slip.to_degrees(),
+                    config.pipeline.slip_at
+                )
+            } else {
+                String::new()
+            }
         )?,
         Err(e) => writeln!(o, "warning    `run` cannot take this object: {e:#}")?,
     }

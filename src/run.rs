@@ -216,6 +216,9 @@ pub struct RunSummary {
     /// The last plan step commanded (the plan's step number; the start is 0), i.e. the number
     /// of plan steps executed after the start.
     pub steps: usize,
+    /// Times the planner node planned again from the estimate (the object stopped off its
+    /// target, e.g. after `pipeline.slip_deg`): `start` plan steps after step 0.
+    pub replans: usize,
     /// Smallest quality alpha* of the grasp a tracking command was computed with.
     pub min_quality: f64,
     /// The margin.
@@ -462,12 +465,29 @@ pub fn surface(setup: &Setup) -> Result<icrflow_nodes::rolling::Surface> {
         .context("object: the pipeline's plant and estimator cannot roll fingertips on it")
 }
 
+/// Refuses `pipeline.slip_deg` on a section other than a circle: the simulated slip turns the
+/// object under fingertips that stay where they are, which keeps them on it only when the
+/// section is a circle about the centre.
+pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Result<()> {
+    if config.pipeline.slip != 0.0
+        && !matches!(surface, icrflow_nodes::rolling::Surface::Circle { .. })
+    {
+        anyhow::bail!(
+            "pipeline.slip_deg: the simulated slip turns the object under fingertips that stay \
+             where they are, which keeps them on it only for a circular section; this object's \
+             is {}",
+            surface.describe()
+        );
+    }
+    Ok(())
+}
+
 /// Runs the verb; returns the exit code.
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
-    surface(&setup)?;
+    slip(&config, &surface(&setup)?)?;
     setup
         .scenario(&config)
         .start()
@@ -625,6 +645,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let timeout = Duration::from_secs(600);
         let mut last_step = 0u64;
         let mut attaches = std::collections::BTreeSet::new();
+        let mut replans = std::collections::BTreeSet::new();
         let mut min_quality = f64::INFINITY;
         let mut rotation = 0.0;
         let (mut holds, mut sent, mut stale_tracked) = (0u64, 0u64, 0u64);
@@ -662,6 +683,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                         last_step = last_step.max(p.step);
                         if p.phase == PlanPhase::Attach as u32 {
                             attaches.insert(p.step);
+                        }
+                        if p.phase == PlanPhase::Start as u32 && p.step > 0 {
+                            replans.insert(p.step);
                         }
                     }
                 })?;
@@ -816,6 +840,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             reason,
             rotation,
             attaches: attaches.len(),
+            replans: replans.len(),
             steps: last_step as usize,
             min_quality,
             holds,
@@ -845,6 +870,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         rotation_deg: stats.rotation.to_degrees(),
         goal_deg: goal.to_degrees(),
         switches: stats.attaches,
+        replans: stats.replans,
         steps: stats.steps,
         min_quality: if stats.min_quality.is_finite() {
             stats.min_quality
@@ -883,8 +909,15 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     )?;
     writeln!(
         o,
-        "rotation   {:.1} deg of {:.1} deg, {} plan steps, {} finger switches",
-        summary.rotation_deg, summary.goal_deg, summary.steps, summary.switches
+        "rotation   {:.1} deg of {:.1} deg, {} plan steps, {} finger switches{}",
+        summary.rotation_deg,
+        summary.goal_deg,
+        summary.steps,
+        summary.switches,
+        match summary.replans {
+            0 => String::new(),
+            n => format!(", planned again from the estimate {n} time(s)"),
+        }
     )?;
     if config.pipeline.nodes.iter().any(|n| n == "command") {
         writeln!(
@@ -1032,6 +1065,7 @@ struct Stats {
     reason: String,
     rotation: f64,
     attaches: usize,
+    replans: usize,
     steps: usize,
     min_quality: f64,
     holds: u64,

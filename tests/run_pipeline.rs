@@ -169,10 +169,57 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The object slips in the hand mid-run (`pipeline.slip_deg`: it turns by 12 degrees under the
+/// fingertips, off the plan's candidate grid): the planner node notices that it stopped off
+/// its target, plans again from the estimate, and the run still turns it to the goal, never
+/// below the margin, with no finger or link through the object.
+#[test]
+fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("slip");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let config = dir.join("slip.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "{good}\n[pipeline]\nslip_deg = 12.0\nslip_at_s = 4.0\n\n[zenoh]\nenabled = false\n"
+        ),
+    )
+    .unwrap();
+    let summary = dir.join("summary.json");
+    let o = icrflow(&[
+        "run",
+        config.to_str().unwrap(),
+        "--no-visualizer",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "run failed: {err}");
+    assert!(err.contains("slips by +12.0 deg"), "{err}");
+    assert!(err.contains("planned again from the estimate"), "{err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(s["completed"], true, "{s}");
+    assert!(s["replans"].as_u64().unwrap() >= 1, "{s}");
+    let rotation = s["rotation_deg"].as_f64().unwrap();
+    assert!((rotation - 360.0).abs() < 1.0, "rotation {rotation}: {s}");
+    let alpha = s["alpha"].as_f64().unwrap();
+    assert!(
+        s["min_quality"].as_f64().unwrap() >= alpha * (1.0 - 1e-9),
+        "{s}"
+    );
+    assert_eq!(s["restarts"], 0, "{s}");
+    assert!(!err.contains("inside the object"), "{err}");
+    assert!(!err.contains("passes through the object"), "{err}");
+    assert_eq!(shm_left(&s), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn run_refuses_a_bad_config_before_starting_anything() {
     let dir = scratch("run-bad");
     let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let ellipsoid = std::fs::read_to_string(root().join("config/ellipsoid_spatial.toml")).unwrap();
     for (name, text, needle) in [
         ("key", good.replace("step_deg", "step_degs"), "step_degs"),
         (
@@ -199,6 +246,23 @@ fn run_refuses_a_bad_config_before_starting_anything() {
             "users",
             format!("{good}\n[zenoh]\nusers_file = \"no-such-users.txt\"\n"),
             "zenoh.users_file",
+        ),
+        (
+            "slip",
+            format!("{good}\n[pipeline]\nslip_deg = 120.0\n"),
+            "pipeline.slip_deg",
+        ),
+        // A slip would move a non-circular section into or away from the fingertips.
+        (
+            "slip-ellipsoid",
+            format!(
+                "{}\n[pipeline]\nslip_deg = 10.0\n",
+                ellipsoid.replace(
+                    "meshes/",
+                    &format!("{}/", root().join("config/meshes").display())
+                )
+            ),
+            "pipeline.slip_deg",
         ),
     ] {
         let path = dir.join(format!("{name}.toml"));

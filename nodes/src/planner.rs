@@ -6,6 +6,14 @@
 //! [`SETTLED_TOLERANCE`] of it), then the next. Each published step carries its
 //! grasp's ICRs. After the last step it publishes `Done`. Restarted after a crash, it plans
 //! again and resumes at the step nearest to the estimated state.
+//!
+//! When the object stops short of a rolling step's target for good (it slipped in the hand,
+//! or the rolling went astray: the estimate has the step's contacts and the free fingers at
+//! their free pose, but the object has stood still for [`REPLAN_NS`] farther than
+//! [`SETTLED_TOLERANCE`] from the target), the node plans again from the estimate
+//! ([`replan`]): from the estimated rotation, contacts, cap angles and joints to the goal. The
+//! plan-step stream pauses while it plans, so the hand command node holds the grasp; the new
+//! plan's steps are numbered on from the last one, its first step is a `Start`.
 
 use std::time::Duration;
 
@@ -15,7 +23,8 @@ use icrflow_interfaces::{
     FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
     topics,
 };
-use icrflow_plan::planner::{Phase, Step};
+use icrflow_plan::hand::wrap;
+use icrflow_plan::planner::{Phase, Start, Step};
 use icrflow_plan::route::Keepout;
 
 use crate::rolling::{Surface, tip};
@@ -370,8 +379,185 @@ pub const SETTLED_NS: u64 = 500_000_000;
 /// Rotation change below which the object counts as still (rad).
 pub const STILL: f64 = 0.05 * std::f64::consts::PI / 180.0;
 
+/// How long the object must stand still short of a rolling step's target before the node
+/// plans again from the estimate (ns): longer than [`SETTLED_NS`], so that a step that
+/// settles within [`SETTLED_TOLERANCE`] counts as reached first.
+pub const REPLAN_NS: u64 = 1_000_000_000;
+/// Band the estimated rotation must stay in for the object to count as stopped, for a re-plan
+/// (rad): wider than the estimate's noise (the pose measurements' 0.2 deg, corrected with
+/// [`crate::estimator::GAIN`]), far narrower than a rolling hand turns it in [`REPLAN_NS`].
+pub const STOPPED: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
 /// Most ICR points a plan step carries (all fingers' regions together).
 pub const MAX_REGION_POINTS: usize = 4096;
+
+/// Whether the hand is stuck short of `target`, a rolling step: the estimate has its contacts
+/// and the free fingers at their free pose, and the object, stopped (within [`STOPPED`]) for
+/// `stopped_ns` (>= [`REPLAN_NS`]), stands farther than [`SETTLED_TOLERANCE`] from its
+/// rotation. A hand at its target does not turn the object on, so the node would wait for
+/// ever.
+fn stalled(target: &Target, g: &GraspState, stopped_ns: u64, joint_tolerance: f64) -> bool {
+    let step = &target.step;
+    step.phase == Phase::Rolling
+        && !target.way_point
+        && stopped_ns >= REPLAN_NS
+        && same_contacts(step, g)
+        && free_joint_error(step, g) <= joint_tolerance
+        && (g.rotation - step.rotation_deg.to_radians()).abs() > SETTLED_TOLERANCE
+}
+
+/// A plan made again from the estimated grasp `g`, its steps numbered from `first`: the
+/// targets, the plan, and the rotation offset `delta` (rad) it was planned with.
+///
+/// The plan starts from the contacts of the estimated hand (forward kinematics of its joints,
+/// the object at the estimated rotation `theta`), with their cap angles and the estimated
+/// joints. The contacts lie between candidates (after a slip, anywhere), so the planner works
+/// at the rotation `theta + delta` that puts them on candidates together: `delta`, within a
+/// candidate spacing, makes the farthest of them from its nearest candidate the nearest (on a
+/// circle, all of them on candidates), and those candidates are the contacts. The steps it
+/// returns are turned back by `delta`, so that their rotations are the object's and their
+/// fingertip poses the hand's. The goal is the scenario's: the last step turns the object to
+/// it.
+fn replan(
+    setup: &icrflow_scenario::Setup,
+    config: &icrflow_scenario::Config,
+    g: &GraspState,
+    surface: &Surface,
+    first: usize,
+) -> Result<(Vec<Target>, icrflow_plan::planner::Plan, f64)> {
+    let hand = &setup.hand;
+    let normals = &setup.problem.candidates().normals;
+    let n = (g.finger_count as usize).min(MAX_FINGERS);
+    let joints = |slot: usize, f: &icrflow_plan::hand::Finger| -> Vec<f64> {
+        g.joints[slot].iter().take(f.dof()).copied().collect()
+    };
+    // Each contact: its finger, its joints, and its normal's body angle (from the estimated
+    // joints and rotation, not snapped to a candidate).
+    let mut touching = Vec::with_capacity(n);
+    for (slot, c) in g.fingers.iter().enumerate().take(n) {
+        if c.in_contact != 1 {
+            continue;
+        }
+        let f = hand
+            .finger(c.finger)
+            .with_context(|| format!("the estimate names finger {}, not in the hand", c.finger))?;
+        let q = joints(slot, f);
+        let normal = surface.contact_of(&tip(f, &q), f, g.rotation).normal;
+        touching.push((f, q, normal));
+    }
+    if touching.is_empty() {
+        anyhow::bail!("the estimate has no finger in contact");
+    }
+    // The offset `delta` that puts every contact nearest to a candidate together (the worst
+    // one's distance the least), tried from each contact's two nearest candidates: the
+    // estimator snaps each contact on its own, and contacts halfway between two candidates
+    // would be snapped to either side.
+    let angles: Vec<f64> = normals.iter().map(|n| n.y.atan2(n.x)).collect();
+    let nearest = |a: f64| -> (usize, f64) {
+        angles
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (i, wrap(a - c).abs()))
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .unwrap_or((0, f64::INFINITY))
+    };
+    let mut trials = Vec::with_capacity(4 * touching.len());
+    for (_, _, normal) in &touching {
+        // The nearest candidate and the nearer of its neighbours (the section's samples go
+        // round in order).
+        let (i, _) = nearest(*normal);
+        let off = |j: usize| wrap(normal - angles[j]);
+        let (after, before) = (
+            (i + 1) % angles.len(),
+            (i + angles.len() - 1) % angles.len(),
+        );
+        let next = if off(after).abs() < off(before).abs() {
+            after
+        } else {
+            before
+        };
+        trials.push(off(i));
+        trials.push(off(next));
+    }
+    let worst = |delta: f64| {
+        touching
+            .iter()
+            .map(|(_, _, normal)| nearest(normal - delta).1)
+            .fold(0.0, f64::max)
+    };
+    let delta = trials
+        .into_iter()
+        .min_by(|&a, &b| {
+            // Equally near (to rounding): the smaller turn.
+            let (wa, wb) = (worst(a), worst(b));
+            if (wa - wb).abs() > 1e-9 {
+                wa.total_cmp(&wb)
+            } else {
+                a.abs().total_cmp(&b.abs())
+            }
+        })
+        .unwrap_or(0.0);
+    let contacts: Vec<_> = touching
+        .into_iter()
+        .map(|(f, q, normal)| {
+            let (candidate, _) = nearest(normal - delta);
+            (f, candidate, q, wrap(normal - delta - angles[candidate]))
+        })
+        .collect();
+    let theta = g.rotation + delta;
+    let mut scenario = setup.scenario(config);
+    scenario.initial = Vec::with_capacity(contacts.len());
+    for (f, candidate, q, _) in &contacts {
+        // The cap angle: from the fingertip's axis to the contact's inward normal.
+        let (_, _, phi) = f
+            .planar_pose(q)
+            .with_context(|| format!("finger {} does not move in the hand's plane", f.id))?;
+        let n = normals[*candidate];
+        let inward = n.y.atan2(n.x) + theta + std::f64::consts::PI;
+        scenario
+            .initial
+            .push((f.id, *candidate, Some(wrap(inward - phi))));
+    }
+    scenario.start = Start {
+        rotation: theta,
+        joints: hand
+            .fingers
+            .iter()
+            .filter_map(|f| {
+                let slot = (0..n).find(|&s| g.fingers[s].finger == f.id)?;
+                Some((f.id, joints(slot, f)))
+            })
+            .collect(),
+    };
+    scenario.settings.goal += delta;
+    let mut plan = scenario.plan(&mut |_| {}).with_context(|| {
+        let angle = |c: usize| normals[c].y.atan2(normals[c].x).to_degrees();
+        let list: Vec<String> = contacts
+            .iter()
+            .zip(&scenario.initial)
+            .map(|((f, c, _, off), (_, _, gamma))| {
+                format!(
+                    "finger {} at {:.1} deg ({:+.2} deg off it), cap angle {:.1} deg",
+                    f.id,
+                    angle(*c),
+                    off.to_degrees(),
+                    gamma.unwrap_or(0.0).to_degrees()
+                )
+            })
+            .collect();
+        format!(
+            "from {:.2} deg (estimate {:.2} deg), contacts: {}",
+            theta.to_degrees(),
+            g.rotation.to_degrees(),
+            list.join("; ")
+        )
+    })?;
+    for step in &mut plan.steps {
+        step.step += first;
+        step.rotation_deg -= delta.to_degrees();
+    }
+    Ok((targets(&plan.steps, hand, surface), plan, delta))
+}
 
 /// A target's regions as its plan-step messages carry them: the target's index, the members
 /// (each finger's region, then the rendezvous region), each finger's region length, and the
@@ -387,7 +573,9 @@ pub fn run(ctx: &Context) -> Result<()> {
         &object.section,
         [object.centre_of_mass.x, object.centre_of_mass.y],
     )?;
-    let steps = &targets(&plan.steps, &ctx.setup.hand, &surface);
+    let mut steps = targets(&plan.steps, &ctx.setup.hand, &surface);
+    // Plans made again from the estimate (see `replan`); 0 while the first plan is followed.
+    let mut replans = 0u32;
     let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.config.pipeline.joint_noise;
     let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let problem = &ctx.setup.problem;
@@ -403,13 +591,20 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut last_input: Option<(Header, u64)> = None;
     // The step being commanded; chosen from the first grasp state seen (a restart resumes).
     let mut current: Option<usize> = None;
-    // The ICR members of step `.0` (the concatenated regions, their lengths, and the
-    // rendezvous region's finger and length).
-    let mut icrs: Option<StepRegions> = None;
+    // The ICR members of target `.0` of plan `replans` (the concatenated regions, their
+    // lengths, and the rendezvous region's finger and length).
+    let mut icrs: Option<(u32, StepRegions)> = None;
 
-    // Since when, at which rotation and on which step the object has been still.
+    // Since when, at which rotation and on which step the object has been still (within
+    // STILL), and stopped (within STOPPED).
     let mut still = (0u64, f64::NAN, usize::MAX);
-    let mut publish = |k: usize, input: Option<(Header, u64)>, seq: &mut Sequence| -> Result<()> {
+    let mut stopped = still;
+    let mut publish = |steps: &[Target],
+                       plan: u32,
+                       k: usize,
+                       input: Option<(Header, u64)>,
+                       seq: &mut Sequence|
+     -> Result<()> {
         let done = k >= steps.len();
         let at = k.min(steps.len() - 1);
         let step = &steps[at].step;
@@ -430,7 +625,10 @@ pub fn run(ctx: &Context) -> Result<()> {
             quality: step.quality,
             ..Default::default()
         };
-        if icrs.as_ref().is_none_or(|(of, ..)| *of != at) {
+        if icrs
+            .as_ref()
+            .is_none_or(|(p, (of, ..))| (*p, *of) != (plan, at))
+        {
             // The step's ICRs, computed once per step.
             let mut members = Vec::with_capacity(MAX_REGION_POINTS);
             let mut lengths = [0u32; MAX_FINGERS];
@@ -457,9 +655,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                 members.extend(sw.brute_force.iter().take(room).map(|&c| c as u32));
                 (sw.attached, (members.len() - before) as u32)
             });
-            icrs = Some((at, members, lengths, rendezvous));
+            icrs = Some((plan, (at, members, lengths, rendezvous)));
         }
-        let (_, members, lengths, rendezvous) = icrs.as_ref().expect("computed above");
+        let (_, (_, members, lengths, rendezvous)) = icrs.as_ref().expect("computed above");
         h.region_lengths = *lengths;
         (h.rendezvous_finger, h.rendezvous_length) = *rendezvous;
         for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
@@ -518,7 +716,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                         if log_steps {
                             eprintln!("icrflow-planner: starting at target {k}/{}", steps.len());
                         }
-                        publish(k, last_input, &mut seq)?;
+                        publish(&steps, replans, k, last_input, &mut seq)?;
                         k
                     }
                 };
@@ -527,7 +725,61 @@ pub fn run(ctx: &Context) -> Result<()> {
                 if (g.rotation - still.1).abs() > STILL || still.2 != k {
                     still = (t, g.rotation, k);
                 }
+                if (g.rotation - stopped.1).abs() > STOPPED || stopped.2 != k {
+                    stopped = (t, g.rotation, k);
+                }
                 let settled = t.saturating_sub(still.0) >= SETTLED_NS;
+                if k < steps.len()
+                    && !reached(&steps[k], &g, settled, joint_tolerance)
+                    && stalled(&steps[k], &g, t.saturating_sub(stopped.0), joint_tolerance)
+                {
+                    // Stuck short of the target: plan again from the estimate. The stream
+                    // pauses meanwhile (the command node holds the grasp).
+                    let target = steps[k].step.rotation_deg;
+                    let first = steps[k].step.step + 1;
+                    match replan(&ctx.setup, &ctx.config, &g, &surface, first) {
+                        Ok((next, plan, delta)) => {
+                            replans += 1;
+                            eprintln!(
+                                "icrflow-planner: the object stopped at {:.1} deg, {:+.1} deg \
+                                 off the target {:.1} deg: planned again from the estimate \
+                                 (re-plan {replans}: {} steps from step {first}, {} switches, \
+                                 {:.1} deg to go; the plan's candidates {:+.2} deg from the contacts)",
+                                g.rotation.to_degrees(),
+                                g.rotation.to_degrees() - target,
+                                target,
+                                plan.steps.len(),
+                                plan.summary.switches,
+                                plan.summary.goal_deg
+                                    - plan.steps[0].rotation_deg
+                                    - delta.to_degrees(),
+                                delta.to_degrees(),
+                            );
+                            if !plan.summary.completed {
+                                eprintln!(
+                                    "icrflow-planner: the new plan stops short of the goal: {}",
+                                    plan.summary.stop_reason.as_deref().unwrap_or("?")
+                                );
+                            }
+                            steps = next;
+                            current = Some(0);
+                            still = (now(), g.rotation, usize::MAX);
+                            stopped = still;
+                            publish(&steps, replans, 0, last_input, &mut seq)?;
+                            return Ok(());
+                        }
+                        Err(e) => {
+                            // Tried again after another REPLAN_NS; the hand holds the step.
+                            eprintln!(
+                                "icrflow-planner: the object stopped at {:.1} deg, off the \
+                                 target {target:.1} deg, and planning again from the estimate \
+                                 failed: {e:#}",
+                                g.rotation.to_degrees()
+                            );
+                            stopped.0 = now();
+                        }
+                    }
+                }
                 if k < steps.len() && reached(&steps[k], &g, settled, joint_tolerance) {
                     current = Some(k + 1);
                     // Logged: the switching targets (rolling ones are many and alike).
@@ -547,7 +799,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                             next.step.rotation_deg
                         );
                     }
-                    publish(k + 1, last_input, &mut seq)?;
+                    publish(&steps, replans, k + 1, last_input, &mut seq)?;
                 }
             }
         }
@@ -555,7 +807,13 @@ pub fn run(ctx: &Context) -> Result<()> {
             && let Some(k) = current
         {
             // Taken up again now: the trace's last stage is this publication alone.
-            publish(k, last_input.map(|(h, _)| (h, now())), &mut seq)?;
+            publish(
+                &steps,
+                replans,
+                k,
+                last_input.map(|(h, _)| (h, now())),
+                &mut seq,
+            )?;
         }
         Ok(())
     })
@@ -567,12 +825,16 @@ mod tests {
 
     use icrflow_scenario::{Config, Setup};
 
-    /// The scenario of `config/NAME`, its plan, its object's surface and the targets.
-    fn planned(name: &str) -> (Setup, icrflow_plan::planner::Plan, Surface, Vec<Target>) {
+    /// The config `config/NAME`.
+    fn config(name: &str) -> Config {
         let dir = std::env::var_os("CARGO_MANIFEST_DIR")
             .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
-        let config =
-            Config::load(&std::path::PathBuf::from(dir).join("../config").join(name)).unwrap();
+        Config::load(&std::path::PathBuf::from(dir).join("../config").join(name)).unwrap()
+    }
+
+    /// The scenario of `config/NAME`, its plan, its object's surface and the targets.
+    fn planned(name: &str) -> (Setup, icrflow_plan::planner::Plan, Surface, Vec<Target>) {
+        let config = config(name);
         let setup = Setup::new(&config).unwrap();
         let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
         let o = &setup.object;
@@ -733,5 +995,63 @@ mod tests {
             retreats, plan.summary.switches,
             "a retreat before every detach"
         );
+    }
+
+    /// After the object slipped by 12 deg under the fingertips during a rolling step of the
+    /// paper's plan (off the 5 deg candidate grid), a plan made again from that state starts
+    /// with the hand where it is and the object where it is, and turns it to the goal.
+    #[test]
+    fn a_plan_made_again_after_a_slip_starts_where_the_hand_and_object_are() {
+        let config = config("paper_sphere.toml");
+        let (setup, plan, surface, _) = planned("paper_sphere.toml");
+        let step = plan
+            .steps
+            .iter()
+            .find(|s| s.phase == Phase::Rolling && s.rotation_deg >= 100.0)
+            .unwrap();
+        let slip = 12.0;
+        let mut g = GraspState {
+            rotation: (step.rotation_deg + slip).to_radians(),
+            finger_count: step.fingers.len() as u32,
+            ..Default::default()
+        };
+        for (slot, f) in step.fingers.iter().enumerate() {
+            g.fingers[slot].finger = f.finger;
+            g.fingers[slot].in_contact = u32::from(f.contact.is_some());
+            for (j, d) in f.joints_deg.iter().enumerate() {
+                g.joints[slot][j] = d.to_radians();
+            }
+        }
+        let (list, again, delta) = replan(&setup, &config, &g, &surface, 40).unwrap();
+        assert!(again.summary.completed, "{:?}", again.summary.stop_reason);
+        // The contacts were 12 deg off the grid: 2 deg short of a candidate.
+        assert!(
+            (delta.to_degrees() + 2.0).abs() < 1e-6,
+            "{}",
+            delta.to_degrees()
+        );
+        let first = &again.steps[0];
+        assert_eq!((first.step, first.phase), (40, Phase::Start));
+        assert!((first.rotation_deg - step.rotation_deg - slip).abs() < 1e-9);
+        for (a, b) in step.fingers.iter().zip(&first.fingers) {
+            assert_eq!(a.contact.is_some(), b.contact.is_some());
+            for (x, y) in a.joints_deg.iter().zip(&b.joints_deg) {
+                assert!((x - y).abs() < 1e-6, "finger {}: {x} vs {y} deg", a.finger);
+            }
+        }
+        let last = again.steps.last().unwrap();
+        assert!(
+            (last.rotation_deg - 360.0).abs() < 1e-9,
+            "{}",
+            last.rotation_deg
+        );
+        assert!(again.summary.min_quality >= config.grasp.alpha * (1.0 - 1e-9));
+        assert_eq!(list.first().map(|t| t.step.step), Some(40));
+        // An estimate with no finger in contact is refused by what is wrong.
+        for f in &mut g.fingers {
+            f.in_contact = 0;
+        }
+        let e = replan(&setup, &config, &g, &surface, 40).unwrap_err();
+        assert!(e.to_string().contains("no finger in contact"), "{e}");
     }
 }

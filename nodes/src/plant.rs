@@ -13,6 +13,11 @@
 //! Fingertips and links pass through the object (collisions are not simulated); a fingertip
 //! that goes inside it, not in contact, or a link that does, is reported on stderr.
 //!
+//! With `pipeline.slip_deg`, the object slips once, `pipeline.slip_at_s` after the plant
+//! started: it turns by that much under the fingertips, which stay where they are (a knock on
+//! the object; `run` allows it on circular sections only, where the fingertips stay on the
+//! surface). The estimator sees it in the pose measurements; the planner node plans again.
+//!
 //! The plant stands for the physical hand and object, whose state outlives any process: it
 //! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
 //! from it instead of from the initial grasp.
@@ -68,15 +73,18 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut intruding = vec![false; hand.fingers.len()];
     let mut link_intruding = vec![false; hand.fingers.len()];
     let mut theta = 0.0;
+    // Whether the configured slip has happened (never, without one).
+    let mut slipped = p.slip == 0.0;
     let state_file = ctx.bus.config().root.join("plant.state");
     if let Ok(text) = std::fs::read_to_string(&state_file) {
         let values: Vec<f64> = text
             .split_whitespace()
             .filter_map(|v| v.parse().ok())
             .collect();
-        let needed = 1 + hand.fingers.len() * 2 + q.iter().map(Vec::len).sum::<usize>();
+        let needed = 2 + hand.fingers.len() * 2 + q.iter().map(Vec::len).sum::<usize>();
         if values.len() == needed {
             theta = values[0];
+            slipped |= values[needed - 1] != 0.0;
             let mut at = 1;
             for (slot, joints) in q.iter_mut().enumerate() {
                 contact[slot] = values[at] != 0.0;
@@ -110,6 +118,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.
     let period = Duration::from_secs_f64(dt);
+    let slip_at = Instant::now() + Duration::from_secs_f64(p.slip_at);
     let mut next = Instant::now();
     let mut last_tick = next;
     loop {
@@ -228,6 +237,16 @@ pub fn run(ctx: &Context) -> Result<()> {
         if rolling > 0 {
             theta += turn / rolling as f64;
         }
+        if !slipped && at >= slip_at {
+            slipped = true;
+            theta += p.slip;
+            eprintln!(
+                "icrflow-plant: the object slips by {:+.1} deg under the fingertips \
+                 (pipeline.slip_deg), to {:.1} deg",
+                p.slip.to_degrees(),
+                theta.to_degrees()
+            );
+        }
         if ticks.is_multiple_of(10) {
             saved.store(|text| {
                 let _ = write!(text, "{theta:e}");
@@ -237,6 +256,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                         let _ = write!(text, " {a:e}");
                     }
                 }
+                text.push_str(if slipped { " 1" } else { " 0" });
             });
         }
         history.push_back((t, theta));

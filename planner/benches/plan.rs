@@ -12,7 +12,7 @@ use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::Hand;
 use icrflow_plan::paper;
-use icrflow_plan::planner::{Roll, Scenario, Settings};
+use icrflow_plan::planner::{Roll, Scenario, Settings, Start};
 
 struct Setup {
     object: Object,
@@ -50,6 +50,7 @@ fn scenario(s: &Setup) -> Scenario<'_> {
             (2, at(-30.0), None),
             (4, at(140.0), None),
         ],
+        start: Start::default(),
         settings: Settings {
             alpha: 0.1,
             goal: 2.0 * PI,

@@ -94,8 +94,23 @@ pub struct Scenario<'a> {
     /// Initial contacts: (finger, candidate, cap angle). Without a cap angle the planner
     /// picks the one with the most rolling room.
     pub initial: Vec<(u32, usize, Option<Real>)>,
+    /// Where the plan starts: the object's rotation and the hand's pose.
+    pub start: Start,
     /// Settings.
     pub settings: Settings,
+}
+
+/// Where a plan starts. A scenario starts at rotation 0 with the hand at its home pose
+/// (`Start::default()`); a plan made again from an estimated state (the pipeline's planner
+/// node, after the object slipped) starts where the object and the hand are.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Start {
+    /// The object's rotation (rad). The plan turns it from here to [`Settings::goal`].
+    pub rotation: Real,
+    /// Joint angles (rad) per finger that the initial contacts' inverse kinematics starts
+    /// from (the solution nearest to them is taken); a finger not listed starts from its
+    /// home pose.
+    pub joints: Vec<(u32, Vec<Real>)>,
 }
 
 /// Why a scenario is refused before planning.
@@ -567,6 +582,12 @@ impl Scenario<'_> {
             }
         };
         positive("rotation_deg", s.goal)?;
+        if !self.start.rotation.is_finite() {
+            return Err(PlanError::Settings(format!(
+                "the start rotation must be finite, got {}",
+                self.start.rotation
+            )));
+        }
         positive("step_deg", s.step)?;
         positive("attach_resolution_deg", s.attach_resolution)?;
         if !(s.cap_margin.is_finite() && s.cap_margin >= 0.0) {
@@ -689,7 +710,7 @@ impl Scenario<'_> {
         self.check()?;
         let alpha = self.settings.alpha;
         let floor = alpha * (1.0 - QUALITY_SLACK);
-        let theta = 0.0;
+        let theta = self.start.rotation;
         // The initial grasp.
         let idx: Vec<usize> = self.initial.iter().map(|c| c.1).collect();
         let e = self.problem.evaluate(&idx)?;
@@ -705,6 +726,12 @@ impl Scenario<'_> {
         let mut contacts = Vec::with_capacity(self.initial.len());
         for &(id, c, cap) in &self.initial {
             let f = self.finger(id);
+            let near = self
+                .start
+                .joints
+                .iter()
+                .find(|(finger, q)| *finger == id && q.len() == f.dof())
+                .map_or(&f.home, |(_, q)| q);
             let unreachable = |reason: String| PlanError::Unreachable {
                 finger: id,
                 where_: self.describe(c),
@@ -712,21 +739,16 @@ impl Scenario<'_> {
             };
             let (gamma, q) = match cap {
                 Some(gamma) => {
-                    let q = self
-                        .place(f, c, theta, gamma, &f.home, false)
-                        .map_err(|b| {
-                            unreachable(format!(
-                                "with cap angle {:.1} deg: {b}",
-                                gamma.to_degrees()
-                            ))
-                        })?;
+                    let q = self.place(f, c, theta, gamma, near, false).map_err(|b| {
+                        unreachable(format!("with cap angle {:.1} deg: {b}", gamma.to_degrees()))
+                    })?;
                     (gamma, q)
                 }
                 None => self
                     .best_attach(f, c, theta)
                     .map(|(g, q, _)| (g, q))
                     .ok_or_else(|| {
-                        unreachable(match self.place(f, c, theta, 0.0, &f.home, false) {
+                        unreachable(match self.place(f, c, theta, 0.0, near, false) {
                             Err(b) => format!("at any cap angle (at the cap's centre: {b})"),
                             Ok(_) => "at any cap angle".into(),
                         })
@@ -750,7 +772,7 @@ impl Scenario<'_> {
     pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
         let s = self.settings.clone();
         let alpha = s.alpha;
-        let mut theta = 0.0;
+        let mut theta = self.start.rotation;
         let (mut contacts, quality) = self.start()?;
         let mut steps = vec![self.record(0, Phase::Start, theta, quality, &contacts)];
         let mut min_quality = quality;

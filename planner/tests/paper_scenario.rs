@@ -8,7 +8,9 @@ use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::{Hand, wrap};
 use icrflow_plan::paper;
-use icrflow_plan::planner::{Phase, Plan, PlanError, Scenario, Settings, Step, link_clearance};
+use icrflow_plan::planner::{
+    Phase, Plan, PlanError, Scenario, Settings, Start, Step, link_clearance,
+};
 
 const ALPHA: Real = 0.1;
 
@@ -51,6 +53,7 @@ fn scenario<'a>(
         centre: o.centre_of_mass,
         angles: Some(&o.section.angles),
         initial: contacts.iter().map(|&(f, a)| (f, at(a), None)).collect(),
+        start: Start::default(),
         settings: settings(alpha),
     }
 }
@@ -325,4 +328,67 @@ fn links_keep_off_the_object_and_a_link_through_it_is_found() {
         "{inside:?} vs {expected}"
     );
     assert_eq!(inside.step, steps[1].step);
+}
+
+/// A plan started again from a rolling step of the paper's plan (its rotation, contacts, cap
+/// angles and joints: what the planner node re-plans from) starts at that step's pose and
+/// continues exactly like the rest of the plan.
+#[test]
+fn a_plan_started_mid_way_continues_like_the_whole_plan() {
+    let (o, p, hand, plan) = paper_plan();
+    let k = plan
+        .steps
+        .iter()
+        .position(|s| s.phase == Phase::Rolling && s.rotation_deg >= 100.0)
+        .unwrap();
+    let from = &plan.steps[k];
+    let mut again = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
+    again.initial = from
+        .fingers
+        .iter()
+        .filter_map(|f| Some((f.finger, f.contact?, Some(f.cap_angle_deg?.to_radians()))))
+        .collect();
+    again.start = Start {
+        rotation: from.rotation_deg.to_radians(),
+        joints: from
+            .fingers
+            .iter()
+            .map(|f| {
+                (
+                    f.finger,
+                    f.joints_deg.iter().map(|d| d.to_radians()).collect(),
+                )
+            })
+            .collect(),
+    };
+    let rest = again.plan(&mut |_| {}).unwrap();
+    assert!(rest.summary.completed, "{:?}", rest.summary.stop_reason);
+    assert_eq!(rest.steps[0].phase, Phase::Start);
+    assert_eq!(rest.steps.len(), plan.steps.len() - k);
+    for (a, b) in plan.steps[k..].iter().zip(&rest.steps) {
+        assert!(
+            (a.rotation_deg - b.rotation_deg).abs() < 1e-9,
+            "{} vs {}",
+            a.step,
+            b.step
+        );
+        assert_eq!(contacts_of(a), contacts_of(b), "step {}", a.step);
+        for (fa, fb) in a.fingers.iter().zip(&b.fingers) {
+            for (x, y) in fa.joints_deg.iter().zip(&fb.joints_deg) {
+                assert!((x - y).abs() < 1e-6, "step {}: joints {x} vs {y}", a.step);
+            }
+        }
+    }
+    assert_eq!(
+        rest.summary.switches,
+        plan.summary.switches
+            - plan.steps[..k]
+                .iter()
+                .filter(|s| s.switch.is_some())
+                .count()
+    );
+    // A start rotation that is not a number is refused by name.
+    again.start.rotation = f64::NAN;
+    let e = again.plan(&mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("start rotation"), "{e}");
 }

@@ -474,6 +474,12 @@ pub struct PipelineSpec {
     pub min_normal_force: Real,
     /// Longest hold a scenario run waits through before it gives up (s).
     pub max_hold: Real,
+    /// A slip the simulated plant makes once (rad; 0: none): the object turns by this much
+    /// under the fingertips, which stay where they are (a knock; a disturbance for the
+    /// planner node to recover from). Circular sections only (`run` refuses others).
+    pub slip: Real,
+    /// When the slip happens, from the plant's start (s).
+    pub slip_at: Real,
     /// Seed of the simulated noise.
     pub seed: u64,
     /// The nodes this host runs ([`icrflow_interfaces::topics::NODES`] by default); the
@@ -980,6 +986,11 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         )? * 1e-3,
         min_normal_force: nonneg("pipeline.min_normal_force", raw.min_normal_force, 1.0)?,
         max_hold: positive("pipeline.max_hold_s", raw.max_hold_s.unwrap_or(30.0))?,
+        slip: match raw.slip_deg.unwrap_or(0.0) {
+            x if x.is_finite() && x.abs() <= 90.0 => x.to_radians(),
+            x => bail!("pipeline.slip_deg: must be a number from -90 to 90 (degrees), got {x}"),
+        },
+        slip_at: nonneg("pipeline.slip_at_s", raw.slip_at_s, 5.0)?,
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
         realtime_priority: match raw.realtime_priority.unwrap_or(DEFAULT_REALTIME_PRIORITY) {

@@ -60,6 +60,8 @@ pub struct RawPipeline {
     pub max_input_age_ms: Option<f64>,
     pub min_normal_force: Option<f64>,
     pub max_hold_s: Option<f64>,
+    pub slip_deg: Option<f64>,
+    pub slip_at_s: Option<f64>,
     pub seed: Option<u64>,
     pub nodes: Option<Vec<String>>,
     pub realtime_priority: Option<i64>,

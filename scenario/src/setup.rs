@@ -6,7 +6,7 @@ use icrflow_grasp::object::Object;
 use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::WrenchFrame;
 use icrflow_plan::hand::Hand;
-use icrflow_plan::planner::Scenario;
+use icrflow_plan::planner::{Scenario, Start};
 
 use crate::config::{Config, ContactSpec};
 
@@ -84,6 +84,7 @@ impl Setup {
             centre: self.object.centre_of_mass,
             angles: Some(&self.object.section.angles),
             initial: self.initial.clone(),
+            start: Start::default(),
             settings: config.plan.clone(),
         }
     }
