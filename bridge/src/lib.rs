@@ -26,7 +26,6 @@ pub mod link;
 pub use zenoh;
 
 use anyhow::{Context as _, Result, anyhow};
-use iceoryx2::prelude::*;
 use icrflow_interfaces::{
     Facet, GraspState, HandCommand, JointState, NodeHealth, PlanStepHeader, WrenchSpaceHeader,
     topics,
@@ -240,12 +239,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut text: Vec<u8> = Vec::with_capacity(4096);
     let mut bytes: Vec<u8> = Vec::with_capacity(1 << 16);
     let mut imported = 0;
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _wake = exports
-        .iter()
-        .map(|e| ws.attach_notification(e.listener()))
-        .collect::<Result<Vec<_>, _>>()?;
-    let served = serve(ctx.name, &ws, |_| {
+    let wake: Vec<_> = exports.iter().map(|e| e.listener()).collect();
+    let served = serve(ctx, &wake, None, |_| {
         for export in &exports {
             // A blocked link blocks here (congestion control `Block`), never the nodes.
             match export.forward(&mut bytes) {

@@ -14,9 +14,12 @@
 //! - `iox2-poll`: raw iceoryx2 publish-subscribe, the receiver busy-polls
 //!   `Subscriber::receive` (iceoryx2's own benchmark style);
 //! - `iox2-event`: the project's bus, [`Pub::send`] publishes and notifies, the receiver
-//!   sleeps in a WaitSet on the topic's listener and then drains [`Sub`] (how the nodes wake);
+//!   sleeps in `ppoll(2)` on the topic's listener ([`Waiter`]) and then drains [`Sub`] (how
+//!   the nodes wake, `runtime::serve`);
+//! - `iox2-waitset`: the same, but the receiver sleeps in an iceoryx2 WaitSet (how the nodes
+//!   woke until session 10);
 //! - `spin-then-block-Wus`: the same bus, but after each message the receiver keeps polling
-//!   [`Sub::drain`] for a window W before it goes back to sleep in the WaitSet;
+//!   [`Sub::drain`] for a window W before it goes back to sleep in the [`Waiter`];
 //! - `uds`: a Unix datagram socket, blocking `recv`.
 //!
 //! Patterns: `ping-pong` sends back-to-back round trips (the receiver echoes over a second
@@ -46,6 +49,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use icrflow_nodes::bus::{Bus, BusConfig, Pub, Sub};
+use icrflow_nodes::runtime::Waiter;
 use nix::time::{ClockId, clock_gettime};
 
 /// The message: a send time and a tag in its first bytes, zeros after.
@@ -73,9 +77,10 @@ const QUEUE: usize = 8;
 const POLLS_PER_CLOCK_READ: u32 = 1024;
 
 /// The table's rows, in order: every pattern of every mode.
-const MODES: [Mode; 5] = [
+const MODES: [Mode; 6] = [
     Mode::Poll,
     Mode::Event,
+    Mode::WaitSet,
     Mode::SpinThenBlock(Duration::from_micros(50)),
     Mode::SpinThenBlock(Duration::from_micros(200)),
     Mode::Uds,
@@ -383,6 +388,7 @@ impl Timing {
 enum Mode {
     Poll,
     Event,
+    WaitSet,
     SpinThenBlock(Duration),
     Uds,
 }
@@ -392,6 +398,7 @@ impl fmt::Display for Mode {
         match self {
             Self::Poll => f.write_str("iox2-poll"),
             Self::Event => f.write_str("iox2-event"),
+            Self::WaitSet => f.write_str("iox2-waitset"),
             Self::SpinThenBlock(w) => write!(f, "spin-then-block-{}us", w.as_micros()),
             Self::Uds => f.write_str("uds"),
         }
@@ -409,6 +416,7 @@ impl FromStr for Mode {
         Ok(match s {
             "iox2-poll" => Self::Poll,
             "iox2-event" => Self::Event,
+            "iox2-waitset" => Self::WaitSet,
             "uds" => Self::Uds,
             _ => Self::SpinThenBlock(spin(s).with_context(|| format!("unknown mode {s:?}"))?),
         })
@@ -498,8 +506,9 @@ fn with_link<T>(
     let (out, inc) = (cell.channel(out), cell.channel(inc));
     match cell.mode {
         Mode::Poll => body(&mut PollLink::new(bus, &out, &inc)?),
-        Mode::Event => with_bus_link(bus, &out, &inc, Duration::ZERO, body),
-        Mode::SpinThenBlock(window) => with_bus_link(bus, &out, &inc, window, body),
+        Mode::Event => with_bus_link(bus, &out, &inc, Duration::ZERO, false, body),
+        Mode::WaitSet => with_bus_link(bus, &out, &inc, Duration::ZERO, true, body),
+        Mode::SpinThenBlock(window) => with_bus_link(bus, &out, &inc, window, false, body),
         Mode::Uds => body(&mut UdsLink::new(&bus.config().root, &out, &inc)?),
     }
 }
@@ -559,31 +568,49 @@ impl Link for PollLink {
     }
 }
 
-/// The project's bus; `recv` polls for `spin` after the previous message, then sleeps in a
-/// WaitSet until notified.
+/// The project's bus; `recv` polls for `spin` after the previous message, then sleeps until
+/// notified.
 struct BusLink<'a> {
     publisher: Pub<Payload>,
     subscriber: &'a Sub<Payload>,
-    waitset: &'a WaitSet<ipc::Service>,
+    sleep: Sleep<'a>,
     spin: Duration,
     queue: VecDeque<Payload>,
 }
 
-/// Opens a [`BusLink`] (its subscriber attached to a fresh WaitSet) and runs `body` on it.
+/// How a [`BusLink`] sleeps on its subscriber's listener.
+enum Sleep<'a> {
+    /// `ppoll(2)` on its file descriptor (the nodes' way).
+    Ppoll(Waiter<'a>),
+    /// An iceoryx2 WaitSet with the listener attached.
+    WaitSet(&'a WaitSet<ipc::Service>),
+}
+
+/// Opens a [`BusLink`] (sleeping in a [`Waiter`], or with `waitset` in an iceoryx2 WaitSet, on
+/// its subscriber's listener) and runs `body` on it.
 fn with_bus_link<T>(
     bus: &Bus,
     out: &str,
     inc: &str,
     spin: Duration,
+    waitset: bool,
     body: impl FnOnce(&mut dyn Link) -> Result<T>,
 ) -> Result<T> {
     let subscriber = bus.subscriber::<Payload>(inc)?;
-    let waitset = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _attachment = waitset.attach_notification(subscriber.listener())?;
+    let set = WaitSetBuilder::new().create::<ipc::Service>()?;
+    let _attachment = if waitset {
+        Some(set.attach_notification(subscriber.listener())?)
+    } else {
+        None
+    };
     body(&mut BusLink {
         publisher: bus.publisher(out)?,
         subscriber: &subscriber,
-        waitset: &waitset,
+        sleep: if waitset {
+            Sleep::WaitSet(&set)
+        } else {
+            Sleep::Ppoll(Waiter::new(&[subscriber.listener()]))
+        },
         spin,
         queue: VecDeque::new(),
     })
@@ -617,14 +644,17 @@ impl Link for BusLink<'_> {
                 start.elapsed() < RECV_TIMEOUT,
                 "nothing received in {RECV_TIMEOUT:?}"
             );
-            let woke = self.waitset.wait_and_process_once_with_timeout(
-                |_| CallbackProgression::Continue,
-                RECV_TIMEOUT,
-            )?;
-            if matches!(
-                woke,
-                WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
-            ) {
+            let woke = match &mut self.sleep {
+                Sleep::Ppoll(waiter) => waiter.wait(RECV_TIMEOUT)?,
+                Sleep::WaitSet(set) => !matches!(
+                    set.wait_and_process_once_with_timeout(
+                        |_| CallbackProgression::Continue,
+                        RECV_TIMEOUT,
+                    )?,
+                    WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
+                ),
+            };
+            if !woke {
                 bail!("interrupted");
             }
             self.poll()?;

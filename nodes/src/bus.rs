@@ -1,6 +1,6 @@
 //! The local bus: iceoryx2 publish-subscribe topics, each paired with an event service of the
-//! same name so that a receiving node sleeps in a WaitSet until a sender notifies it (no busy
-//! polling; only listeners can be attached to a WaitSet in iceoryx2 0.10).
+//! same name so that a receiving node sleeps on the event's listener until a sender notifies
+//! it (no busy polling; [`crate::runtime::serve`] waits on the listeners' file descriptors).
 //!
 //! Isolation: every run uses its own iceoryx2 *prefix* (the name prefix of its shared-memory
 //! objects) and *root* directory (its service, node and socket files), so two runs, or a test
@@ -189,7 +189,7 @@ pub struct SliceSub<
     topic: String,
 }
 
-/// A subscriber with the listener a WaitSet waits on.
+/// A subscriber with the listener its node sleeps on.
 pub struct Sub<T: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<ipc::Service, T, ()>,
     listener: Listener<ipc::Service>,
@@ -454,7 +454,7 @@ impl<T: Debug + ZeroCopySend + Message + 'static> Pub<T> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
-    /// The listener to attach to a WaitSet.
+    /// The listener its node sleeps on ([`crate::runtime::serve`]).
     pub fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }
@@ -525,7 +525,7 @@ impl<
 impl<H: Debug + ZeroCopySend + Copy + 'static, T: Debug + ZeroCopySend + Copy + 'static>
     SliceSub<H, T>
 {
-    /// The listener to attach to a WaitSet.
+    /// The listener its node sleeps on ([`crate::runtime::serve`]).
     pub fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }

@@ -23,7 +23,6 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use anyhow::Result;
-use iceoryx2::prelude::*;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
@@ -66,87 +65,89 @@ pub fn run(ctx: &Context) -> Result<()> {
     let watchdog_ns = (WATCHDOG_PERIODS * period * 1e9) as u64;
     let mut last_sent = now();
 
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _plan = ws.attach_notification(plans.listener())?;
-    let _wrench = ws.attach_notification(wrenches.listener())?;
-    let tick = ws.attach_interval(Duration::from_secs_f64(period))?;
-    serve(ctx.name, &ws, |id| {
-        health.tick()?;
-        let plan = plans.latest(&mut regions)?;
-        let wrench = wrenches.latest(&mut facets)?;
-        if wrench.is_some() {
-            grasps.drain(|g| {
-                if recent.len() == RECENT {
-                    recent.pop_front();
-                }
-                recent.push_back(*g);
-            })?;
-        }
-        // The clock is read after the inputs, so that every input's age is measured at the
-        // decision: one published between a clock reading and the reads would count as 0 old.
-        let t = now();
-        if let Some(m) = plan {
-            health.processed += 1;
-            if let Err(e) = gate.offer_plan(&m, t) {
-                health.refuse(e);
+    let tick = Some(Duration::from_secs_f64(period));
+    serve(
+        ctx,
+        &[plans.listener(), wrenches.listener()],
+        tick,
+        |ticked| {
+            health.tick()?;
+            let plan = plans.latest(&mut regions)?;
+            let wrench = wrenches.latest(&mut facets)?;
+            if wrench.is_some() {
+                grasps.drain(|g| {
+                    if recent.len() == RECENT {
+                        recent.pop_front();
+                    }
+                    recent.push_back(*g);
+                })?;
             }
-        }
-        // The answer to a wrench space: the header of the command it causes (None: hold).
-        let mut answer: Option<Option<Header>> = None;
-        if let Some(w) = wrench {
-            health.processed += 1;
-            let behind = recent
-                .iter()
-                .rev()
-                .find(|g| g.header.sequence == w.header.input_sequence);
-            let accepted = match behind {
-                None => Err(format!(
-                    "wrench space {}: its grasp state {} was not received",
-                    w.header.sequence, w.header.input_sequence
-                )),
-                Some(g) => gate
-                    .offer_grasp(g, t)
-                    .and_then(|()| gate.offer_wrench(&w, t))
-                    .map_err(|e| e.to_string()),
-            };
-            answer = Some(match accepted {
-                Ok(()) => Some(Header::after(Kind::HandCommand, 0, &w.header, t)),
-                Err(why) => {
-                    health.refuse(why);
-                    None
+            // The clock is read after the inputs, so that every input's age is measured at the
+            // decision: one published between a clock reading and the reads would count as 0 old.
+            let t = now();
+            if let Some(m) = plan {
+                health.processed += 1;
+                if let Err(e) = gate.offer_plan(&m, t) {
+                    health.refuse(e);
                 }
-            });
-        }
-        let command = match answer {
-            Some(Some(header)) => match gate.decide(t) {
-                Ok(plan) => match tracker.track(plan, &gate, header, t) {
-                    Ok(c) => Some(c),
+            }
+            // The answer to a wrench space: the header of the command it causes (None: hold).
+            let mut answer: Option<Option<Header>> = None;
+            if let Some(w) = wrench {
+                health.processed += 1;
+                let behind = recent
+                    .iter()
+                    .rev()
+                    .find(|g| g.header.sequence == w.header.input_sequence);
+                let accepted = match behind {
+                    None => Err(format!(
+                        "wrench space {}: its grasp state {} was not received",
+                        w.header.sequence, w.header.input_sequence
+                    )),
+                    Some(g) => gate
+                        .offer_grasp(g, t)
+                        .and_then(|()| gate.offer_wrench(&w, t))
+                        .map_err(|e| e.to_string()),
+                };
+                answer = Some(match accepted {
+                    Ok(()) => Some(Header::after(Kind::HandCommand, 0, &w.header, t)),
                     Err(why) => {
                         health.refuse(why);
                         None
                     }
+                });
+            }
+            let command = match answer {
+                Some(Some(header)) => match gate.decide(t) {
+                    Ok(plan) => match tracker.track(plan, &gate, header, t) {
+                        Ok(c) => Some(c),
+                        Err(why) => {
+                            health.refuse(why);
+                            None
+                        }
+                    },
+                    Err(hold) => {
+                        health.refuse(&hold);
+                        None
+                    }
                 },
-                Err(hold) => {
-                    health.refuse(&hold);
+                Some(None) => None,
+                None if ticked && t.saturating_sub(last_sent) > watchdog_ns => {
+                    let quiet = Hold::Quiet {
+                        ms: t.saturating_sub(last_sent) as f64 * 1e-6,
+                    };
+                    health.refuse(gate.decide(t).err().unwrap_or(quiet));
                     None
                 }
-            },
-            Some(None) => None,
-            None if id.has_event_from(&tick) && t.saturating_sub(last_sent) > watchdog_ns => {
-                let quiet = Hold::Quiet {
-                    ms: t.saturating_sub(last_sent) as f64 * 1e-6,
-                };
-                health.refuse(gate.decide(t).err().unwrap_or(quiet));
-                None
-            }
-            None => return Ok(()),
-        };
-        let mut c = command.unwrap_or_else(|| tracker.hold(&health.last_problem));
-        c.header.sequence = seq.advance();
-        out.publish(c)?;
-        last_sent = t;
-        Ok(())
-    })
+                None => return Ok(()),
+            };
+            let mut c = command.unwrap_or_else(|| tracker.hold(&health.last_problem));
+            c.header.sequence = seq.advance();
+            out.publish(c)?;
+            last_sent = t;
+            Ok(())
+        },
+    )
 }
 
 /// Tracking commands: the plan step's joint targets within limits and speed, and balancing

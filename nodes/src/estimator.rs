@@ -16,7 +16,6 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use iceoryx2::prelude::*;
 use icrflow_interfaces::{
     FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, ObjectPose, topics,
 };
@@ -69,10 +68,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut tips: Vec<Option<(Tip, bool)>> = Vec::with_capacity(hand.fingers.len());
     let saved = Checkpoint::new(checkpoint)?;
 
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _joints = ws.attach_notification(joints.listener())?;
-    let _poses = ws.attach_notification(poses.listener())?;
-    serve(ctx.name, &ws, |_| {
+    serve(ctx, &[joints.listener(), poses.listener()], None, |_| {
         health.tick()?;
         if let Some(m) = poses.latest()? {
             let [w, _, _, z] = m.orientation;

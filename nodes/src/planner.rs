@@ -18,7 +18,6 @@
 use std::time::Duration;
 
 use anyhow::{Context as _, Result};
-use iceoryx2::prelude::*;
 use icrflow_interfaces::{
     FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
     topics,
@@ -679,10 +678,8 @@ pub fn run(ctx: &Context) -> Result<()> {
         Ok(())
     };
 
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _grasps = ws.attach_notification(grasps.listener())?;
-    let tick = ws.attach_interval(Duration::from_secs_f64(REPUBLISH))?;
-    serve(ctx.name, &ws, |id| {
+    let tick = Some(Duration::from_secs_f64(REPUBLISH));
+    serve(ctx, &[grasps.listener()], tick, |ticked| {
         health.tick()?;
         if let Some(g) = grasps.latest()? {
             if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last_grasp) {
@@ -803,9 +800,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 }
             }
         }
-        if id.has_event_from(&tick)
-            && let Some(k) = current
-        {
+        if ticked && let Some(k) = current {
             // Taken up again now: the trace's last stage is this publication alone.
             publish(
                 &steps,

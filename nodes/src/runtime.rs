@@ -6,8 +6,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result, anyhow, bail};
-use iceoryx2::prelude::{CallbackProgression, LogLevel, WaitSetAttachmentId, ipc, set_log_level};
-use iceoryx2::waitset::WaitSet;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::prelude::{FileDescriptorBased, LogLevel, ipc, set_log_level};
 use icrflow_interfaces::{Header, Kind, NodeHealth, NodeState, now_ns, topics, write_text};
 use icrflow_scenario::{Config, Setup};
 
@@ -113,32 +113,108 @@ pub fn promote(name: &str) {
 /// [`serve`]).
 pub const RESYNC: Duration = Duration::from_millis(10);
 
-/// Node `name`'s event loop: calls `handle` on every wake-up of the WaitSet until a
-/// termination signal stops the WaitSet (`Ok`) or `handle` fails (its error). The loop runs
-/// under SCHED_FIFO when `run` asked for it ([`promote`]).
+/// Node `ctx.name`'s event loop: sleeps until a sender notifies one of `listeners` (the
+/// iceoryx2 event of each topic the node waits on), or `tick` (if any) or [`RESYNC`] is due,
+/// and calls `handle(ticked)` on every wake-up, `ticked` whether it is `tick`'s; until a
+/// termination signal (SIGTERM or SIGINT, as iceoryx2's handler records them) stops it
+/// (`Ok`), or `handle` fails (its error). The loop runs under SCHED_FIFO when `run` asked for
+/// it ([`promote`]).
 ///
-/// `handle` must read every one of its subscribers on every wake-up, whichever attachment
-/// woke it (reading is non-blocking and resets the subscriber's event): iceoryx2 0.10's
-/// listener can lose a wake-up for good when a notifier sends while the listener is draining
-/// (the datagram is consumed, the shared state stays "notified", and later notifiers skip
-/// sending; see [`crate::bus`]). So the loop also wakes every [`RESYNC`], which bounds such a
-/// stall to that period.
+/// It sleeps in `ppoll(2)` on the listeners' file descriptors, with a timeout to the next
+/// deadline, and allocates nothing per wake-up: iceoryx2 0.10's WaitSet, which it replaces,
+/// collected the triggered file descriptors in fresh vectors at every wake-up (one or two heap
+/// allocations, a node's largest share of them; see `nodes/README.md`).
+///
+/// `handle` must read every one of its subscribers on every wake-up, whichever woke it
+/// (reading is non-blocking and consumes the subscriber's pending events, so the descriptors
+/// are quiet again): iceoryx2 0.10's listener can lose a wake-up for good when a notifier
+/// sends while the listener is draining (the datagram is consumed, the shared state stays
+/// "notified", and later notifiers skip sending; see [`crate::bus`]). So the loop also wakes
+/// every [`RESYNC`], which bounds such a stall to that period.
 pub fn serve(
-    name: &str,
-    ws: &WaitSet<ipc::Service>,
-    mut handle: impl FnMut(WaitSetAttachmentId<ipc::Service>) -> Result<()>,
+    ctx: &Context,
+    listeners: &[&Listener<ipc::Service>],
+    tick: Option<Duration>,
+    mut handle: impl FnMut(bool) -> Result<()>,
 ) -> Result<()> {
-    let _resync = ws.attach_interval(RESYNC)?;
-    promote(name);
-    let mut failure = None;
-    ws.wait_and_process(|id| match handle(id) {
-        Ok(()) => CallbackProgression::Continue,
-        Err(e) => {
-            failure = Some(e);
-            CallbackProgression::Stop
+    use std::time::Instant;
+
+    let node = ctx.bus.node();
+    // Checks for a termination request; the first call installs iceoryx2's signal handler.
+    let terminated = || node.wait(Duration::ZERO).is_err();
+    if terminated() {
+        return Ok(());
+    }
+    let mut waiter = Waiter::new(listeners);
+    promote(ctx.name);
+    let start = Instant::now();
+    let mut next_tick = tick.map(|t| start + t);
+    let mut next_resync = start + RESYNC;
+    loop {
+        let deadline = next_tick.map_or(next_resync, |t| t.min(next_resync));
+        let woken = waiter
+            .wait(deadline.saturating_duration_since(Instant::now()))
+            .with_context(|| format!("{}: waiting for input", ctx.name))?;
+        // A signal: a termination request, or another one (then on as usual).
+        if !woken && terminated() {
+            return Ok(());
         }
-    })?;
-    failure.map_or(Ok(()), Err)
+        let now = Instant::now();
+        if now >= next_resync {
+            next_resync = now + RESYNC;
+            // A termination request that came while `handle` ran is seen here at the latest.
+            if terminated() {
+                return Ok(());
+            }
+        }
+        let ticked = match (next_tick, tick) {
+            (Some(due), Some(period)) if now >= due => {
+                // The next one a period on; missed ones are skipped, not made up in a burst.
+                let next = due + period;
+                next_tick = Some(if next > now { next } else { now + period });
+                true
+            }
+            _ => false,
+        };
+        handle(ticked)?;
+    }
+}
+
+/// Sleeps on listeners' file descriptors (the iceoryx2 events their senders notify) with
+/// `ppoll(2)`: allocates nothing per wait. How [`serve`] and the hop benchmark wait.
+pub struct Waiter<'a> {
+    fds: Vec<nix::poll::PollFd<'a>>,
+}
+
+impl<'a> Waiter<'a> {
+    /// A waiter on `listeners`.
+    pub fn new(listeners: &[&'a Listener<ipc::Service>]) -> Self {
+        let fds = listeners
+            .iter()
+            .map(|l| nix::poll::PollFd::new(descriptor(l), nix::poll::PollFlags::POLLIN))
+            .collect();
+        Self { fds }
+    }
+
+    /// Sleeps until a listener has a notification pending (reading its subscriber consumes
+    /// it) or `timeout` has passed: `true`; or a signal came: `false`.
+    pub fn wait(&mut self, timeout: Duration) -> Result<bool> {
+        let timeout = nix::sys::time::TimeSpec::from_duration(timeout);
+        match nix::poll::ppoll(&mut self.fds, Some(timeout), None) {
+            Ok(_) => Ok(true),
+            Err(nix::errno::Errno::EINTR) => Ok(false),
+            Err(e) => Err(anyhow!("ppoll on the listeners failed: {e}")),
+        }
+    }
+}
+
+/// The file descriptor `listener` is woken on, borrowed for as long as the listener.
+#[allow(unsafe_code)]
+fn descriptor(listener: &Listener<ipc::Service>) -> std::os::fd::BorrowedFd<'_> {
+    // SAFETY: `native_handle` is unsafe because the raw descriptor must not outlive its
+    // owner, nor be closed by anyone else: the borrow ties it to `listener`, and nothing here
+    // closes it (ppoll only reads it).
+    unsafe { std::os::fd::BorrowedFd::borrow_raw(listener.file_descriptor().native_handle()) }
 }
 
 /// Sequence numbers of one publisher. They start at the current time in microseconds since

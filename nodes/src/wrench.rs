@@ -9,7 +9,6 @@
 //! when a contact moves to another candidate.
 
 use anyhow::Result;
-use iceoryx2::prelude::*;
 use icrflow_interfaces::{Facet, GraspState, Header, Kind, MAX_FINGERS, WrenchSpaceHeader, topics};
 
 use crate::runtime::{Context, Health, Sequence, serve};
@@ -36,9 +35,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let n = problem.candidates().points.len();
 
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _grasps = ws.attach_notification(grasps.listener())?;
-    serve(ctx.name, &ws, |_| {
+    serve(ctx, &[grasps.listener()], None, |_| {
         health.tick()?;
         let Some(g) = grasps.latest()? else {
             return Ok(());
