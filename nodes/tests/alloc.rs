@@ -14,8 +14,12 @@ use common::{isolated, remove};
 static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
     &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
 
+/// The tests count the process's allocations, so they run one at a time.
+static ONE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 #[test]
 fn receiving_allocates_nothing_and_sending_once() {
+    let _one = ONE.lock().unwrap_or_else(|e| e.into_inner());
     let c = isolated("alloc");
     {
         let a = Bus::new("sender", &c).unwrap();
@@ -56,6 +60,94 @@ fn receiving_allocates_nothing_and_sending_once() {
         assert!(counts[0] <= n, "send allocates more than once: {counts:?}");
         assert_eq!(counts[1], 0, "draining a message allocates");
         assert_eq!(counts[2], 0, "polling an empty subscriber allocates");
+    }
+    remove(&c);
+}
+
+/// The same for a topic with a dynamic slice (the wrench space's facets): receiving into a
+/// reused vector allocates nothing; sending allocates once, in iceoryx2 0.10 (as above).
+#[test]
+fn a_slice_topic_allocates_only_in_iceoryx2s_send() {
+    let _one = ONE.lock().unwrap_or_else(|e| e.into_inner());
+    use icrflow_interfaces::{Facet, WrenchSpaceHeader};
+    let c = isolated("alloc-slice");
+    {
+        let a = Bus::new("sender", &c).unwrap();
+        let b = Bus::new("receiver", &c).unwrap();
+        let sub = b
+            .slice_subscriber::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE)
+            .unwrap();
+        let publisher = a
+            .slice_publisher::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE, 64)
+            .unwrap();
+        let header = WrenchSpaceHeader {
+            header: Header::new(Kind::WrenchSpace, 1, 0, 0),
+            ..Default::default()
+        };
+        let facets = vec![Facet::default(); 40];
+        let mut received: Vec<Facet> = Vec::with_capacity(64);
+        for _ in 0..100 {
+            publisher.send(header, &facets).unwrap();
+            sub.latest(&mut received).unwrap();
+        }
+        let n = 1000;
+        let (mut sent, mut taken) = (0, 0);
+        for _ in 0..n {
+            let t0 = allocations();
+            publisher.send(header, &facets).unwrap();
+            let t1 = allocations();
+            assert!(sub.latest(&mut received).unwrap().is_some());
+            let t2 = allocations();
+            sent += t1 - t0;
+            taken += t2 - t1;
+        }
+        println!(
+            "per operation: slice send {:.2}, latest {:.2}",
+            sent as f64 / n as f64,
+            taken as f64 / n as f64
+        );
+        assert_eq!(received.len(), 40);
+        assert_eq!(taken, 0, "receiving a slice allocates");
+        assert!(sent <= n, "a slice send allocates more than once: {sent}");
+    }
+    remove(&c);
+}
+
+/// How the nodes sleep (`runtime::Waiter`, ppoll on the listener): a send wakes the waiter,
+/// waiting allocates nothing, and with nothing sent it sleeps out its timeout.
+#[test]
+fn waiting_on_a_listener_allocates_nothing() {
+    let _one = ONE.lock().unwrap_or_else(|e| e.into_inner());
+    let c = isolated("alloc-wait");
+    {
+        let a = Bus::new("sender", &c).unwrap();
+        let b = Bus::new("receiver", &c).unwrap();
+        let sub = b.subscriber::<JointState>(topics::JOINT_STATE).unwrap();
+        let publisher = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let mut waiter = icrflow_nodes::runtime::Waiter::new(&[sub.listener()]);
+        let m = JointState {
+            header: Header::new(Kind::JointState, 1, 0, 0),
+            ..Default::default()
+        };
+        let mut waits = 0;
+        for _ in 0..200 {
+            publisher.send(m).unwrap();
+            let t0 = allocations();
+            assert!(waiter.wait(std::time::Duration::from_secs(5)).unwrap());
+            waits += allocations() - t0;
+            assert_eq!(sub.drain(|_| {}).unwrap(), 1);
+        }
+        assert_eq!(waits, 0, "waiting allocates");
+        // Nothing pending: it sleeps for its timeout.
+        let timeout = std::time::Duration::from_millis(20);
+        let start = std::time::Instant::now();
+        assert!(waiter.wait(timeout).unwrap());
+        assert!(
+            start.elapsed() >= timeout,
+            "woke after {:?}",
+            start.elapsed()
+        );
+        assert!(sub.latest().unwrap().is_none());
     }
     remove(&c);
 }
