@@ -460,7 +460,7 @@ fn replan(
             .min_by(|x, y| x.1.total_cmp(&y.1))
             .unwrap_or((0, f64::INFINITY))
     };
-    let mut trials = Vec::with_capacity(4 * touching.len());
+    let mut trials = Vec::with_capacity(2 * touching.len());
     for (_, _, normal) in &touching {
         // The nearest candidate and the nearer of its neighbours (the section's samples go
         // round in order).
