@@ -726,8 +726,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                     stopped = (t, g.rotation, k);
                 }
                 let settled = t.saturating_sub(still.0) >= SETTLED_NS;
+                let at_target = k < steps.len() && reached(&steps[k], &g, settled, joint_tolerance);
                 if k < steps.len()
-                    && !reached(&steps[k], &g, settled, joint_tolerance)
+                    && !at_target
                     && stalled(&steps[k], &g, t.saturating_sub(stopped.0), joint_tolerance)
                 {
                     // Stuck short of the target: plan again from the estimate. The stream
@@ -777,7 +778,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                         }
                     }
                 }
-                if k < steps.len() && reached(&steps[k], &g, settled, joint_tolerance) {
+                if at_target {
                     current = Some(k + 1);
                     // Logged: the switching targets (rolling ones are many and alike).
                     if log_steps
@@ -836,6 +837,23 @@ mod tests {
         let surface = Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y]).unwrap();
         let list = targets(&plan.steps, &setup.hand, &surface);
         (setup, plan, surface, list)
+    }
+
+    /// One approach (a finger coming into contact from a stand-off) before every attach and
+    /// one retreat before every detach of `plan`.
+    fn one_approach_and_retreat_per_switch(
+        approaches: usize,
+        retreats: usize,
+        plan: &icrflow_plan::planner::Plan,
+    ) {
+        assert_eq!(
+            approaches, plan.summary.switches,
+            "an approach before every attach"
+        );
+        assert_eq!(
+            retreats, plan.summary.switches,
+            "a retreat before every detach"
+        );
     }
 
     /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
@@ -913,14 +931,7 @@ mod tests {
             free_moves >= 4 * plan.summary.switches,
             "{free_moves} free moves"
         );
-        assert_eq!(
-            approaches, plan.summary.switches,
-            "an approach before every attach"
-        );
-        assert_eq!(
-            retreats, plan.summary.switches,
-            "a retreat before every detach"
-        );
+        one_approach_and_retreat_per_switch(approaches, retreats, &plan);
     }
 
     /// On a non-circular section (the ellipsoid mesh of `config/ellipsoid_spatial.toml`): every
@@ -982,14 +993,7 @@ mod tests {
                 retreats += usize::from(touching(a) && !touching(b));
             }
         }
-        assert_eq!(
-            approaches, plan.summary.switches,
-            "an approach before every attach"
-        );
-        assert_eq!(
-            retreats, plan.summary.switches,
-            "a retreat before every detach"
-        );
+        one_approach_and_retreat_per_switch(approaches, retreats, &plan);
     }
 
     /// After the object slipped by 12 deg under the fingertips during a rolling step of the
