@@ -401,8 +401,21 @@ impl Finger {
             Ok(q) => return Ok(q),
             Err(e) => e,
         };
-        for t in [1.0, 0.5, 0.25, 0.75] {
-            let seed: Vec<Real> = q0.iter().zip(&mid).map(|(a, m)| a + t * (m - a)).collect();
+        // Then from seeds moved toward the middle of the joint ranges, and toward their lower
+        // and upper ends (a pose near a limit and a straight finger can hold the descent in a
+        // local minimum short of the target).
+        let lower: Vec<Real> = self.joints.iter().map(|j| j.lower).collect();
+        let upper: Vec<Real> = self.joints.iter().map(|j| j.upper).collect();
+        let toward = [
+            (&mid, 1.0),
+            (&mid, 0.5),
+            (&mid, 0.25),
+            (&mid, 0.75),
+            (&lower, 0.5),
+            (&upper, 0.5),
+        ];
+        for (to, t) in toward {
+            let seed: Vec<Real> = q0.iter().zip(to).map(|(a, m)| a + t * (m - a)).collect();
             match self.dls(target, &seed) {
                 Ok(q) => return Ok(q),
                 Err(e) => {
