@@ -17,7 +17,8 @@
 //! steps, and the fingertips follow the planned rolling), and its forces balance zero external
 //! wrench inside
 //! the exact friction cones with the configured minimum normal force
-//! ([`icrflow_plan::forces::balance`]; infeasible holds).
+//! ([`icrflow_plan::forces::ForceSolver`], kept across commands so a new contact set costs no
+//! allocation; infeasible holds).
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -28,7 +29,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
     WrenchSpaceHeader, topics, write_text,
 };
-use icrflow_plan::forces::{ForceContact, balance};
+use icrflow_plan::forces::{ForceContact, ForceSolver, Load};
 
 use crate::runtime::{Context, Health, Sequence, now, serve};
 use crate::safety::{Gate, Hold};
@@ -58,7 +59,9 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut tracker = Tracker {
         ctx,
         contacts: Vec::with_capacity(MAX_FINGERS),
-        forces: None,
+        solver: ForceSolver::new(),
+        solved_for: None,
+        forces: Vec::with_capacity(MAX_FINGERS),
         last: None,
     };
     let period = 1.0 / p.rate_hz;
@@ -155,8 +158,11 @@ pub fn run(ctx: &Context) -> Result<()> {
 struct Tracker<'a> {
     ctx: &'a Context,
     contacts: Vec<ForceContact>,
-    /// The body-frame forces of a contact set (candidates in slot order, padded with MAX).
-    forces: Option<([u32; MAX_FINGERS], Vec<Vec3>)>,
+    solver: ForceSolver,
+    /// The contact set `forces` balance (candidates in slot order, padded with MAX).
+    solved_for: Option<[u32; MAX_FINGERS]>,
+    /// The body-frame forces of that contact set, one per contact.
+    forces: Vec<Vec3>,
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
 }
@@ -191,7 +197,8 @@ impl Tracker<'_> {
         // The forces in the object's frame, solved once per contact set: with no external
         // load the problem is invariant under rotation (cones, equilibrium, and the least
         // squared force alike), so the hand-frame forces are these rotated.
-        if self.forces.as_ref().is_none_or(|(of, _)| *of != set) {
+        if self.solved_for != Some(set) {
+            self.solved_for = None;
             self.contacts.clear();
             for &c in set.iter().take(count) {
                 self.contacts.push(ForceContact {
@@ -199,18 +206,18 @@ impl Tracker<'_> {
                     normal: cands.normals[c as usize],
                 });
             }
-            let forces = balance(
-                &self.contacts,
-                &Vec3::zeros(),
-                ctx.config.grasp.model.mu(),
-                p.min_normal_force,
-                &Vec3::zeros(),
-                &Vec3::zeros(),
-            )
-            .map_err(|e| format!("forces: {e}"))?;
-            self.forces = Some((set, forces));
+            self.solver
+                .solve(
+                    &self.contacts,
+                    &Load::none(),
+                    ctx.config.grasp.model.mu(),
+                    p.min_normal_force,
+                    &mut self.forces,
+                )
+                .map_err(|e| format!("forces: {e}"))?;
+            self.solved_for = Some(set);
         }
-        let (_, forces) = self.forces.as_ref().expect("solved above");
+        let forces = &self.forces;
         let mut c = HandCommand {
             header,
             mode: CommandMode::Track as u32,

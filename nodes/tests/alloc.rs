@@ -151,3 +151,64 @@ fn waiting_on_a_listener_allocates_nothing() {
     }
     remove(&c);
 }
+
+/// The hand command node's force solve (`forces::ForceSolver`, kept across commands): once it
+/// has met a number of contacts, a new contact set of that size allocates once, inside
+/// clarabel 0.11 (`DefaultSolver::solve` resets its timers, which drops and rebuilds the map
+/// of the "IP iteration" timer's sub-timers; the timers cannot be turned off). A fresh solver
+/// per set, as before, allocated about 130 times.
+#[test]
+fn a_kept_force_solver_solves_new_contact_sets_without_allocating() {
+    use icrflow_grasp::math::Vec3;
+    use icrflow_plan::forces::{ForceContact, ForceSolver, Load};
+    let _one = ONE.lock().unwrap_or_else(|e| e.into_inner());
+    let ring = |angles: &[f64], turn: f64| -> Vec<ForceContact> {
+        angles
+            .iter()
+            .map(|a| {
+                let a = (a + turn).to_radians();
+                let n = Vec3::new(a.cos(), a.sin(), 0.1 * a.sin()).normalize();
+                ForceContact {
+                    point: 0.0475 * n,
+                    normal: n,
+                }
+            })
+            .collect()
+    };
+    let mut solver = ForceSolver::new();
+    let mut forces = Vec::with_capacity(8);
+    let (three, four): (&[f64], &[f64]) = (&[30.0, -30.0, 140.0], &[30.0, -30.0, 140.0, 200.0]);
+    // The first of each size builds its solver.
+    for set in [three, four] {
+        solver
+            .solve(&ring(set, 0.0), &Load::none(), 0.3, 1.0, &mut forces)
+            .unwrap();
+    }
+    let sets: Vec<Vec<ForceContact>> = (1..200)
+        .map(|k| ring(if k % 3 == 0 { four } else { three }, 0.7 * k as f64))
+        .collect();
+    let mut previous = forces.clone();
+    let t0 = allocations();
+    for contacts in &sets {
+        solver
+            .solve(contacts, &Load::none(), 0.3, 1.0, &mut forces)
+            .unwrap();
+        assert_eq!(forces.len(), contacts.len());
+        assert_ne!(
+            forces[0], previous[0],
+            "the same forces for a new contact set"
+        );
+        previous.clear();
+        previous.extend_from_slice(&forces);
+    }
+    let solving = allocations() - t0;
+    println!(
+        "per solve: {:.2} allocations",
+        solving as f64 / sets.len() as f64
+    );
+    assert!(
+        solving <= sets.len() as u64,
+        "{} solves allocated {solving} times",
+        sets.len()
+    );
+}

@@ -46,6 +46,9 @@ pub enum ForceError {
 /// Solves for the fingertip forces (one per contact, in the contacts' frame) that balance
 /// the external wrench `(force, torque)` about `centre`, inside cones of friction `mu`, each
 /// with a normal component of at least `min_normal`.
+///
+/// A one-off solve: a caller that solves again and again keeps a [`ForceSolver`], which
+/// allocates only the first time it meets a number of contacts.
 pub fn balance(
     contacts: &[ForceContact],
     centre: &Vec3,
@@ -54,108 +57,221 @@ pub fn balance(
     external_force: &Vec3,
     external_torque: &Vec3,
 ) -> Result<Vec<Vec3>, ForceError> {
-    let n = contacts.len();
-    if n == 0 {
-        return Err(ForceError::Input("no contacts".into()));
+    let mut forces = Vec::with_capacity(contacts.len());
+    ForceSolver::new().solve(
+        contacts,
+        &Load {
+            centre: *centre,
+            force: *external_force,
+            torque: *external_torque,
+        },
+        mu,
+        min_normal,
+        &mut forces,
+    )?;
+    Ok(forces)
+}
+
+/// The external load on the object: a force and a torque about `centre`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Load {
+    /// The point torques are taken about (the contacts' frame).
+    pub centre: Vec3,
+    /// External force on the object.
+    pub force: Vec3,
+    /// External torque about `centre`.
+    pub torque: Vec3,
+}
+
+impl Load {
+    /// No load, torques about the origin.
+    pub fn none() -> Self {
+        Self {
+            centre: Vec3::zeros(),
+            force: Vec3::zeros(),
+            torque: Vec3::zeros(),
+        }
     }
-    if !(mu.is_finite() && mu >= 0.0 && min_normal.is_finite() && min_normal >= 0.0) {
-        return Err(ForceError::Input(format!(
-            "friction {mu} and minimum normal force {min_normal} must be finite and >= 0"
-        )));
+}
+
+/// Nonzeros per column of the constraint matrix: one force-balance row, two torque rows, the
+/// minimum-normal row and the three rows of the friction cone.
+const COLUMN_NONZEROS: usize = 7;
+
+/// [`balance`] for a caller that solves repeatedly, as the hand command node does once per
+/// contact set: it keeps one clarabel solver per number of contacts, built on the first
+/// problem of that size, and afterwards only overwrites the constraint values (whose
+/// sparsity pattern depends on the number of contacts alone) before solving. Solving again
+/// then allocates once, inside clarabel 0.11 (its `solve` resets its timers, rebuilding one
+/// map), where a fresh solver allocates about 130 times (`nodes/tests/alloc.rs` counts it).
+///
+/// The solver's equilibration (its diagonal scaling) stays that of the first problem of each
+/// size: it only conditions the problem, the solution is that of the new data (the tests
+/// compare it with a fresh solve).
+#[derive(Default)]
+pub struct ForceSolver {
+    /// One solver per number of contacts, in the order they were first met.
+    solvers: Vec<(usize, DefaultSolver<Real>)>,
+    /// Scratch: the constraint matrix's values, column by column, and its right-hand side.
+    values: Vec<Real>,
+    rhs: Vec<Real>,
+}
+
+impl std::fmt::Debug for ForceSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ForceSolver")
+            .field(
+                "contact_counts",
+                &self.solvers.iter().map(|(n, _)| *n).collect::<Vec<_>>(),
+            )
+            .finish()
     }
-    let finite = |v: &Vec3| v.iter().all(|x| x.is_finite());
-    if !finite(centre) || !finite(external_force) || !finite(external_torque) {
-        return Err(ForceError::Input(
-            "non-finite centre or external wrench".into(),
-        ));
+}
+
+impl ForceSolver {
+    /// A solver with nothing built yet.
+    pub fn new() -> Self {
+        Self::default()
     }
-    let mut inward = Vec::with_capacity(n);
-    for (i, c) in contacts.iter().enumerate() {
-        if !finite(&c.point) || !finite(&c.normal) || c.normal.norm() < 1e-9 {
+
+    /// Solves the problem of [`balance`] and writes the forces, one per contact, into
+    /// `forces` (cleared first; left empty on an error).
+    pub fn solve(
+        &mut self,
+        contacts: &[ForceContact],
+        load: &Load,
+        mu: Real,
+        min_normal: Real,
+        forces: &mut Vec<Vec3>,
+    ) -> Result<(), ForceError> {
+        forces.clear();
+        let n = contacts.len();
+        if n == 0 {
+            return Err(ForceError::Input("no contacts".into()));
+        }
+        if !(mu.is_finite() && mu >= 0.0 && min_normal.is_finite() && min_normal >= 0.0) {
             return Err(ForceError::Input(format!(
-                "contact {i}: non-finite point or zero normal"
+                "friction {mu} and minimum normal force {min_normal} must be finite and >= 0"
             )));
         }
-        inward.push(-c.normal.normalize());
-    }
-    let nv = 3 * n;
-    // Rows: 6 equilibrium (zero cone), n minimum-normal (nonnegative), 3n friction (SOC).
-    let rows = 6 + n + 3 * n;
-    let mut dense = vec![vec![0.0; nv]; rows];
-    let mut b = vec![0.0; rows];
-    for (i, c) in contacts.iter().enumerate() {
-        let r = c.point - centre;
-        for k in 0..3 {
-            // Force balance: sum f = -F_ext.
-            dense[k][3 * i + k] = 1.0;
-            // Torque balance: sum r x f = -tau_ext; (r x f)_k = sum_j [r]x_{kj} f_j.
-            let e = Vec3::ith(k, 1.0);
-            let col = r.cross(&e); // r x e_k: column k of [r]x
-            for (j, v) in col.iter().enumerate() {
-                dense[3 + j][3 * i + k] = *v;
+        let finite = |v: &Vec3| v.iter().all(|x| x.is_finite());
+        if !finite(&load.centre) || !finite(&load.force) || !finite(&load.torque) {
+            return Err(ForceError::Input(
+                "non-finite centre or external wrench".into(),
+            ));
+        }
+        for (i, c) in contacts.iter().enumerate() {
+            if !finite(&c.point) || !finite(&c.normal) || c.normal.norm() < 1e-9 {
+                return Err(ForceError::Input(format!(
+                    "contact {i}: non-finite point or zero normal"
+                )));
             }
         }
-    }
-    for k in 0..3 {
-        b[k] = -external_force[k];
-        b[3 + k] = -external_torque[k];
-    }
-    for (i, n_in) in inward.iter().enumerate() {
-        // s = n_in . f - f_min >= 0  <=>  -n_in . f + s = -f_min.
-        let row = 6 + i;
-        for k in 0..3 {
-            dense[row][3 * i + k] = -n_in[k];
+        self.fill(contacts, load, mu, min_normal);
+        let solver = match self.solvers.iter().position(|(m, _)| *m == n) {
+            Some(k) => {
+                let solver = &mut self.solvers[k].1;
+                solver
+                    .update_A(&self.values)
+                    .and_then(|()| solver.update_b(&self.rhs))
+                    .map_err(|e| ForceError::Input(format!("solver update: {e}")))?;
+                solver
+            }
+            None => {
+                let solver = self.build(n)?;
+                self.solvers.push((n, solver));
+                &mut self.solvers.last_mut().expect("pushed above").1
+            }
+        };
+        solver.solve();
+        match solver.solution.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {
+                forces.extend(
+                    solver
+                        .solution
+                        .x
+                        .chunks_exact(3)
+                        .map(|f| Vec3::new(f[0], f[1], f[2])),
+                );
+                Ok(())
+            }
+            status => Err(ForceError::Infeasible {
+                status: format!("{status:?}"),
+            }),
         }
-        b[row] = -min_normal;
-        // s = (mu n_in . f, t1 . f, t2 . f) in SOC.
-        let (t1, t2) = tangent_basis(&(-n_in));
-        let base = 6 + n + 3 * i;
+    }
+
+    /// Writes the constraint matrix's values (column by column, rows ascending, the pattern
+    /// of [`Self::build`]) and the right-hand side for these contacts.
+    ///
+    /// Rows: 6 equilibrium (zero cone), `n` minimum-normal (nonnegative), `3n` friction
+    /// (second-order cones); column `3i + k` is component `k` of contact `i`'s force.
+    fn fill(&mut self, contacts: &[ForceContact], load: &Load, mu: Real, min_normal: Real) {
+        let n = contacts.len();
+        self.values.clear();
+        self.rhs.clear();
+        self.rhs.resize(6 + 4 * n, 0.0);
         for k in 0..3 {
-            dense[base][3 * i + k] = -mu * n_in[k];
-            dense[base + 1][3 * i + k] = -t1[k];
-            dense[base + 2][3 * i + k] = -t2[k];
+            // Force balance: sum f = -F_ext; torque balance: sum r x f = -tau_ext.
+            self.rhs[k] = -load.force[k];
+            self.rhs[3 + k] = -load.torque[k];
+        }
+        for (i, c) in contacts.iter().enumerate() {
+            let n_in = -c.normal.normalize();
+            let r = c.point - load.centre;
+            // s = (mu n_in . f, t1 . f, t2 . f) in the second-order cone.
+            let (t1, t2) = tangent_basis(&(-n_in));
+            for k in 0..3 {
+                self.values.push(1.0);
+                // (r x f)_j = sum_k [r]x_{jk} f_k; column k of [r]x is r x e_k, whose k-th
+                // entry is zero: the two rows j != k.
+                let col = r.cross(&Vec3::ith(k, 1.0));
+                for j in (0..3).filter(|&j| j != k) {
+                    self.values.push(col[j]);
+                }
+                // s = n_in . f - f_min >= 0  <=>  -n_in . f + s = -f_min.
+                self.values.push(-n_in[k]);
+                self.values.push(-mu * n_in[k]);
+                self.values.push(-t1[k]);
+                self.values.push(-t2[k]);
+            }
+            self.rhs[6 + i] = -min_normal;
         }
     }
-    let mut colptr = Vec::with_capacity(nv + 1);
-    let mut rowval = Vec::new();
-    let mut nzval = Vec::new();
-    colptr.push(0);
-    for col in 0..nv {
-        for (r, row) in dense.iter().enumerate() {
-            if row[col] != 0.0 {
-                rowval.push(r);
-                nzval.push(row[col]);
+
+    /// A solver for `n` contacts on the values [`Self::fill`] just wrote.
+    fn build(&self, n: usize) -> Result<DefaultSolver<Real>, ForceError> {
+        let nv = 3 * n;
+        let rows = 6 + 4 * n;
+        let mut rowval = Vec::with_capacity(COLUMN_NONZEROS * nv);
+        for i in 0..n {
+            for k in 0..3 {
+                rowval.push(k);
+                rowval.extend((0..3).filter(|&j| j != k).map(|j| 3 + j));
+                rowval.push(6 + i);
+                rowval.extend([6 + n + 3 * i, 6 + n + 3 * i + 1, 6 + n + 3 * i + 2]);
             }
         }
-        colptr.push(rowval.len());
-    }
-    let a = CscMatrix::new(rows, nv, colptr, rowval, nzval);
-    // P = I (upper triangle), q = 0.
-    let p = CscMatrix::new(nv, nv, (0..=nv).collect(), (0..nv).collect(), vec![1.0; nv]);
-    let q = vec![0.0; nv];
-    let mut cones = vec![
-        SupportedConeT::ZeroConeT(6),
-        SupportedConeT::NonnegativeConeT(n),
-    ];
-    cones.extend(std::iter::repeat_n(SupportedConeT::SecondOrderConeT(3), n));
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(100)
-        .build()
-        .map_err(|e| ForceError::Input(format!("solver settings: {e}")))?;
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
-        .map_err(|e| ForceError::Input(format!("solver setup: {e}")))?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(solver
-            .solution
-            .x
-            .chunks_exact(3)
-            .map(|f| Vec3::new(f[0], f[1], f[2]))
-            .collect()),
-        status => Err(ForceError::Infeasible {
-            status: format!("{status:?}"),
-        }),
+        let colptr = (0..=nv).map(|c| COLUMN_NONZEROS * c).collect();
+        let a = CscMatrix::new(rows, nv, colptr, rowval, self.values.clone());
+        // P = I (upper triangle), q = 0.
+        let p = CscMatrix::new(nv, nv, (0..=nv).collect(), (0..nv).collect(), vec![1.0; nv]);
+        let q = vec![0.0; nv];
+        let mut cones = vec![
+            SupportedConeT::ZeroConeT(6),
+            SupportedConeT::NonnegativeConeT(n),
+        ];
+        cones.extend(std::iter::repeat_n(SupportedConeT::SecondOrderConeT(3), n));
+        // Presolve off and structural zeros kept: the data may then be overwritten.
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .max_iter(100)
+            .presolve_enable(false)
+            .input_sparse_dropzeros(false)
+            .build()
+            .map_err(|e| ForceError::Input(format!("solver settings: {e}")))?;
+        DefaultSolver::new(&p, &q, &a, &self.rhs, &cones, settings)
+            .map_err(|e| ForceError::Input(format!("solver setup: {e}")))
     }
 }
 
@@ -247,6 +363,65 @@ mod tests {
             ),
             Err(ForceError::Input(_))
         ));
+    }
+
+    /// A kept solver, fed contact sets of changing sizes (one infeasible among them), finds
+    /// what a fresh solve finds: overwriting the data keeps the first problem's scaling only.
+    #[test]
+    fn a_kept_solver_solves_each_new_contact_set_like_a_fresh_one() {
+        let mut kept = ForceSolver::new();
+        let mut forces = Vec::new();
+        let sets: [&[Real]; 7] = [
+            &[30.0, -30.0, 140.0],
+            &[0.0, 90.0, 180.0, 270.0],
+            &[35.0, -25.0, 150.0],
+            &[10.0, -10.0], // one-sided: infeasible
+            &[50.0, -80.0, 170.0],
+            &[0.0, 180.0],
+            &[20.0, 110.0, 200.0, 290.0],
+        ];
+        for (k, angles) in sets.iter().enumerate() {
+            // The load and the minimum force change too: both are on the right-hand side.
+            let weight = Vec3::new(0.0, 0.0, -0.3 - 0.1 * k as Real);
+            let min_normal = 0.3 + 0.05 * k as Real;
+            // Off-centre, tilted contacts so every structural entry is nonzero in some set.
+            let tilt = nalgebra::Rotation3::from_euler_angles(0.1 * k as Real, -0.2, 0.05);
+            let c: Vec<ForceContact> = ring(angles, 0.04 + 0.002 * k as Real)
+                .into_iter()
+                .map(|c| ForceContact {
+                    point: tilt * c.point + Vec3::new(0.001, -0.002, 0.003),
+                    normal: tilt * c.normal,
+                })
+                .collect();
+            let load = Load {
+                centre: Vec3::new(0.001, -0.002, 0.003),
+                force: weight,
+                torque: Vec3::new(0.0, 0.001, 0.0),
+            };
+            let fresh = balance(&c, &load.centre, 0.5, min_normal, &load.force, &load.torque);
+            let again = kept.solve(&c, &load, 0.5, min_normal, &mut forces);
+            match fresh {
+                Ok(f) => {
+                    again.unwrap_or_else(|e| panic!("set {k}: kept solver: {e}"));
+                    assert_eq!(forces.len(), f.len());
+                    for (a, b) in f.iter().zip(&forces) {
+                        assert!((a - b).norm() < 1e-6, "set {k}: fresh {a} vs kept {b}");
+                    }
+                }
+                Err(e) => {
+                    assert!(matches!(e, ForceError::Infeasible { .. }), "set {k}: {e}");
+                    assert!(
+                        matches!(again, Err(ForceError::Infeasible { .. })),
+                        "set {k}: kept solver {again:?}"
+                    );
+                    assert!(forces.is_empty());
+                }
+            }
+        }
+        assert_eq!(
+            format!("{kept:?}"),
+            "ForceSolver { contact_counts: [3, 4, 2] }"
+        );
     }
 
     #[test]
