@@ -12,7 +12,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, JointState, NodeHealth, PlanPhase, PlanStepHeader,
     read_text, topics,
 };
-use icrflow_nodes::bus::{Bus, BusConfig};
+use icrflow_nodes::bus::{Bus, BusConfig, Sub};
 use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 use icrflow_scenario::{Config, Recording, Setup};
 use serde::Serialize;
@@ -20,7 +20,8 @@ use serde::Serialize;
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
 
-/// The visualizer's node name (started last when the visualizer is on).
+/// The visualizer's node name (when the visualizer is on, started first and alone: the loop
+/// starts once it listens).
 pub const VISUALIZER: &str = "visualizer";
 /// coreutils' `nice`, which starts the visualizer at a lower CPU priority.
 const NICE: &str = "/usr/bin/nice";
@@ -639,8 +640,34 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let mut tracks = std::collections::BTreeMap::<String, AllocationTrack>::new();
         // The visualizer's frames recorded and dropped, per process (a restart counts anew).
         let mut frames = std::collections::BTreeMap::<u32, (u64, u64)>::new();
-        for e in supervisor.start()? {
-            report(&e);
+        // The visualizer listens before the loop begins, or its recording would miss the
+        // first plan steps (it starts at a lower priority, and sets up as long as a node).
+        let mut waited = VisualizerStart::Listening;
+        if recording.is_some() {
+            for e in supervisor.start_first(VISUALIZER)? {
+                report(&e);
+            }
+            waited = visualizer_listening(&bus, &mut supervisor, &healths, |h| {
+                frames.insert(h.pid, (h.processed, h.refused));
+                tracks.entry(VISUALIZER.into()).or_default().report(
+                    h.pid,
+                    h.allocations,
+                    h.processed,
+                    Instant::now(),
+                );
+            })?;
+            if waited == VisualizerStart::Late {
+                eprintln!(
+                    "run: the visualizer is not listening after {} s; the loop starts without it (its recording may miss the first plan steps)",
+                    VISUALIZER_READY.as_secs()
+                );
+            }
+        }
+        // Interrupted meanwhile: the loop below ends at once, as on a Ctrl-C.
+        if waited != VisualizerStart::Interrupted {
+            for e in supervisor.start()? {
+                report(&e);
+            }
         }
         let timeout = Duration::from_secs(600);
         let mut last_step = 0u64;
@@ -1092,6 +1119,56 @@ fn remove_run_files(bus: &BusConfig) {
             }
         }
     }
+}
+
+/// How long `run` waits for the visualizer to listen before it starts the loop anyway.
+pub const VISUALIZER_READY: Duration = Duration::from_secs(15);
+
+/// How waiting for the visualizer ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum VisualizerStart {
+    /// It reported its health: it has subscribed to its inputs.
+    Listening,
+    /// It did not report within [`VISUALIZER_READY`], or exited meanwhile (the run goes on
+    /// without waiting: the visualizer never holds the run).
+    Late,
+    /// Ctrl-C or SIGTERM came meanwhile.
+    Interrupted,
+}
+
+/// Waits until the visualizer, started alone, reports its health (it subscribes to its
+/// inputs before its first report), at most [`VISUALIZER_READY`]; `seen` takes its reports.
+fn visualizer_listening(
+    bus: &Bus,
+    supervisor: &mut Supervisor,
+    healths: &Sub<NodeHealth>,
+    mut seen: impl FnMut(&NodeHealth),
+) -> Result<VisualizerStart> {
+    let deadline = Instant::now() + VISUALIZER_READY;
+    let mut listening = false;
+    while Instant::now() < deadline {
+        healths.drain(|h| {
+            if read_text(&h.node) == VISUALIZER {
+                listening = true;
+                seen(h);
+            }
+        })?;
+        if listening {
+            return Ok(VisualizerStart::Listening);
+        }
+        let events = supervisor.poll(Instant::now())?;
+        for e in &events {
+            report(e);
+        }
+        if events.iter().any(|e| matches!(e, Event::Exited { .. })) {
+            return Ok(VisualizerStart::Late);
+        }
+        // Sleeps; an error is a termination request (iceoryx2's signal handler).
+        if bus.node().wait(Duration::from_millis(5)).is_err() {
+            return Ok(VisualizerStart::Interrupted);
+        }
+    }
+    Ok(VisualizerStart::Late)
 }
 
 fn report(e: &Event) {

@@ -109,6 +109,8 @@ struct Managed {
     total_restarts: u32,
     restart_at: Option<Instant>,
     given_up: bool,
+    /// Started once (restarts are [`Supervisor::poll`]'s).
+    launched: bool,
 }
 
 /// The supervisor of one run's node processes.
@@ -160,6 +162,7 @@ impl Supervisor {
                     total_restarts: 0,
                     restart_at: None,
                     given_up: false,
+                    launched: false,
                 })
                 .collect(),
             quiet,
@@ -184,10 +187,26 @@ impl Supervisor {
         })
     }
 
-    /// Starts every node.
+    /// Starts every node not started yet.
     pub fn start(&mut self) -> Result<Vec<Event>, SuperviseError> {
+        self.start_where(|_| true)
+    }
+
+    /// Starts the node called `name` (if there is one, and it was not started yet): a node
+    /// that must be listening before the others begin.
+    pub fn start_first(&mut self, name: &str) -> Result<Vec<Event>, SuperviseError> {
+        self.start_where(|spec| spec.name == name)
+    }
+
+    fn start_where(
+        &mut self,
+        pick: impl Fn(&NodeSpec) -> bool,
+    ) -> Result<Vec<Event>, SuperviseError> {
         let mut events = Vec::new();
         for i in 0..self.nodes.len() {
+            if self.nodes[i].launched || !pick(&self.nodes[i].spec) {
+                continue;
+            }
             let child = self.spawn(&self.nodes[i].spec)?;
             events.push(Event::Started {
                 name: self.nodes[i].spec.name.clone(),
@@ -195,6 +214,7 @@ impl Supervisor {
                 attempt: 0,
             });
             self.nodes[i].child = Some(child);
+            self.nodes[i].launched = true;
         }
         Ok(events)
     }

@@ -108,3 +108,46 @@ fn a_killed_node_is_restarted_and_shutdown_escalates_to_sigkill() {
         assert!(!std::path::Path::new(&format!("/proc/{p}")).exists());
     }
 }
+
+/// A node started first (the run's visualizer, which must listen before the loop begins) runs
+/// alone; `start` then starts the others and leaves it be, even after it exited and is in
+/// its restart backoff.
+#[test]
+fn a_node_started_first_runs_alone_until_the_others_start() {
+    let slow = RestartPolicy {
+        backoff: Duration::from_secs(20),
+        max_backoff: Duration::from_secs(20),
+        ..fast(3)
+    };
+    let mut s = Supervisor::new(
+        bus("first"),
+        vec![
+            sh("loop", "exec sleep 30", fast(3)),
+            sh("viewer", "exit 0", slow),
+        ],
+        true,
+    );
+    let events = s.start_first("viewer").unwrap();
+    assert!(
+        matches!(&events[..], [Event::Started { name, attempt: 0, .. }] if name == "viewer"),
+        "{events:?}"
+    );
+    assert_eq!(s.pid("loop"), None);
+    let events = run(&mut s, |e| {
+        e.iter().any(|x| matches!(x, Event::Exited { .. }))
+    });
+    assert!(
+        matches!(&events[..], [Event::Exited { name, .. }] if name == "viewer"),
+        "{events:?}"
+    );
+    // `start` starts the rest only: the exited viewer waits out its backoff.
+    let events = s.start().unwrap();
+    assert!(
+        matches!(&events[..], [Event::Started { name, .. }] if name == "loop"),
+        "{events:?}"
+    );
+    assert!(s.pid("loop").is_some());
+    assert_eq!(s.pid("viewer"), None);
+    assert!(s.start().unwrap().is_empty(), "started twice");
+    s.shutdown(Duration::from_millis(300));
+}
