@@ -558,10 +558,75 @@ fn replan(
     Ok((targets(&plan.steps, hand, surface), plan, delta))
 }
 
-/// A target's regions as its plan-step messages carry them: the target's index, the members
-/// (each finger's region, then the rendezvous region), each finger's region length, and the
-/// attaching finger with the rendezvous region's length.
-type StepRegions = (usize, Vec<u32>, [u32; MAX_FINGERS], (u32, u32));
+/// A target's regions as its plan-step messages carry them: the members (each finger's ICR,
+/// then the rendezvous region), each finger's region length, and the attaching finger with
+/// the rendezvous region's length.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Regions {
+    members: Vec<u32>,
+    lengths: [u32; MAX_FINGERS],
+    rendezvous: (u32, u32),
+}
+
+impl Regions {
+    /// The regions of `step`: the ICRs of its grasp (none where it has no force closure) and,
+    /// for an attach step, where the attaching finger may touch (the exact region its contact
+    /// was chosen from), as much of it as fits in [`MAX_REGION_POINTS`].
+    fn of(step: &Step, problem: &icrflow_grasp::quality::GraspProblem, alpha: f64) -> Self {
+        let mut r = Regions::default();
+        let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
+        let icrs = problem
+            .evaluate(&contacts)
+            .ok()
+            .and_then(|e| problem.icrs(&contacts, &e, alpha).ok());
+        let mut region = 0;
+        for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
+            if f.contact.is_some() {
+                if let Some(icr) = icrs.as_ref().and_then(|r| r.get(region)) {
+                    let room = MAX_REGION_POINTS.saturating_sub(r.members.len());
+                    let members = &icr.members[..icr.members.len().min(room)];
+                    r.lengths[slot] = members.len() as u32;
+                    r.members.extend_from_slice(members);
+                }
+                region += 1;
+            }
+        }
+        if let Some(sw) = &step.switch {
+            let room = MAX_REGION_POINTS.saturating_sub(r.members.len());
+            let before = r.members.len();
+            r.members
+                .extend(sw.brute_force.iter().take(room).map(|&c| c as u32));
+            r.rendezvous = (sw.attached, (r.members.len() - before) as u32);
+        }
+        r
+    }
+}
+
+/// Every target's regions (`.1[k]` indexes `.0` for target `k`), computed with the plan, so
+/// that following it computes and allocates nothing per step. Consecutive targets of one grasp
+/// and switch (a step's sub-targets, a finger's way points) share one computation.
+fn regions(
+    steps: &[Target],
+    problem: &icrflow_grasp::quality::GraspProblem,
+    alpha: f64,
+) -> (Vec<Regions>, Vec<usize>) {
+    let same = |a: &Step, b: &Step| {
+        a.switch == b.switch
+            && a.fingers.len() == b.fingers.len()
+            && a.fingers
+                .iter()
+                .zip(&b.fingers)
+                .all(|(f, g)| f.contact == g.contact)
+    };
+    let (mut distinct, mut of_target) = (Vec::<Regions>::new(), Vec::with_capacity(steps.len()));
+    for (k, t) in steps.iter().enumerate() {
+        if k == 0 || !same(&steps[k - 1].step, &t.step) {
+            distinct.push(Regions::of(&t.step, problem, alpha));
+        }
+        of_target.push(distinct.len() - 1);
+    }
+    (distinct, of_target)
+}
 
 /// Runs the planner node.
 pub fn run(ctx: &Context) -> Result<()> {
@@ -579,6 +644,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let problem = &ctx.setup.problem;
     let alpha = ctx.config.grasp.alpha;
+    // The regions each target's messages carry, computed now rather than per step.
+    let mut step_regions = regions(&steps, problem, alpha);
     let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
     let out = ctx
         .bus
@@ -590,19 +657,16 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut last_input: Option<(Header, u64)> = None;
     // The step being commanded; chosen from the first grasp state seen (a restart resumes).
     let mut current: Option<usize> = None;
-    // The ICR members of target `.0` of plan `replans` (the concatenated regions, their
-    // lengths, and the rendezvous region's finger and length).
-    let mut icrs: Option<(u32, StepRegions)> = None;
 
     // Since when, at which rotation and on which step the object has been still (within
     // STILL), and stopped (within STOPPED).
     let mut still = (0u64, f64::NAN, usize::MAX);
     let mut stopped = still;
-    let mut publish = |steps: &[Target],
-                       plan: u32,
-                       k: usize,
-                       input: Option<(Header, u64)>,
-                       seq: &mut Sequence|
+    let publish = |steps: &[Target],
+                   regions: &(Vec<Regions>, Vec<usize>),
+                   k: usize,
+                   input: Option<(Header, u64)>,
+                   seq: &mut Sequence|
      -> Result<()> {
         let done = k >= steps.len();
         let at = k.min(steps.len() - 1);
@@ -624,41 +688,9 @@ pub fn run(ctx: &Context) -> Result<()> {
             quality: step.quality,
             ..Default::default()
         };
-        if icrs
-            .as_ref()
-            .is_none_or(|(p, (of, ..))| (*p, *of) != (plan, at))
-        {
-            // The step's ICRs, computed once per step.
-            let mut members = Vec::with_capacity(MAX_REGION_POINTS);
-            let mut lengths = [0u32; MAX_FINGERS];
-            let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
-            let regions = problem
-                .evaluate(&contacts)
-                .ok()
-                .and_then(|e| problem.icrs(&contacts, &e, alpha).ok());
-            let mut region = 0;
-            for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
-                if f.contact.is_some() {
-                    if let Some(r) = regions.as_ref().and_then(|r| r.get(region)) {
-                        lengths[slot] = r.members.len() as u32;
-                        members.extend_from_slice(&r.members);
-                    }
-                    region += 1;
-                }
-            }
-            // An attach step also carries where the attaching finger may touch (the exact
-            // region its contact was chosen from), as much of it as fits.
-            let rendezvous = step.switch.as_ref().map_or((0, 0), |sw| {
-                let room = MAX_REGION_POINTS.saturating_sub(members.len());
-                let before = members.len();
-                members.extend(sw.brute_force.iter().take(room).map(|&c| c as u32));
-                (sw.attached, (members.len() - before) as u32)
-            });
-            icrs = Some((plan, (at, members, lengths, rendezvous)));
-        }
-        let (_, (_, members, lengths, rendezvous)) = icrs.as_ref().expect("computed above");
-        h.region_lengths = *lengths;
-        (h.rendezvous_finger, h.rendezvous_length) = *rendezvous;
+        let r = &regions.0[regions.1[at]];
+        h.region_lengths = r.lengths;
+        (h.rendezvous_finger, h.rendezvous_length) = r.rendezvous;
         for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
             let t = &mut h.targets[slot];
             *t = FingerTarget {
@@ -674,7 +706,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 t.joints[j] = d.to_radians();
             }
         }
-        out.publish(h, members)?;
+        out.publish(h, &r.members)?;
         Ok(())
     };
 
@@ -713,7 +745,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                         if log_steps {
                             eprintln!("icrflow-planner: starting at target {k}/{}", steps.len());
                         }
-                        publish(&steps, replans, k, last_input, &mut seq)?;
+                        publish(&steps, &step_regions, k, last_input, &mut seq)?;
                         k
                     }
                 };
@@ -759,11 +791,12 @@ pub fn run(ctx: &Context) -> Result<()> {
                                     plan.summary.stop_reason.as_deref().unwrap_or("?")
                                 );
                             }
+                            step_regions = regions(&next, problem, alpha);
                             steps = next;
                             current = Some(0);
                             still = (now(), g.rotation, usize::MAX);
                             stopped = still;
-                            publish(&steps, replans, 0, last_input, &mut seq)?;
+                            publish(&steps, &step_regions, 0, last_input, &mut seq)?;
                             return Ok(());
                         }
                         Err(e) => {
@@ -797,7 +830,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                             next.step.rotation_deg
                         );
                     }
-                    publish(&steps, replans, k + 1, last_input, &mut seq)?;
+                    publish(&steps, &step_regions, k + 1, last_input, &mut seq)?;
                 }
             }
         }
@@ -805,7 +838,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             // Taken up again now: the trace's last stage is this publication alone.
             publish(
                 &steps,
-                replans,
+                &step_regions,
                 k,
                 last_input.map(|(h, _)| (h, now())),
                 &mut seq,
@@ -859,6 +892,43 @@ mod tests {
     /// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
     /// from the object; every move of a finger that is not rolling starts from a contact or a
     /// way point (where the planner waits for it) and stays outside the object.
+    /// The regions computed with the plan are, target for target, those of the target's own
+    /// grasp and switch: sharing one computation among consecutive targets loses nothing.
+    #[test]
+    fn regions_computed_with_the_plan_are_each_targets_own() {
+        let (setup, plan, _, list) = planned("paper_sphere.toml");
+        let alpha = config("paper_sphere.toml").grasp.alpha;
+        let (distinct, of_target) = regions(&list, &setup.problem, alpha);
+        assert_eq!(of_target.len(), list.len());
+        // Shared: one per grasp and switch, not one per sub-target.
+        assert!(
+            distinct.len() <= plan.steps.len() + 4 * plan.summary.switches,
+            "{} regions for {} targets of {} steps",
+            distinct.len(),
+            list.len(),
+            plan.steps.len()
+        );
+        for (k, t) in list.iter().enumerate() {
+            let own = Regions::of(&t.step, &setup.problem, alpha);
+            assert_eq!(distinct[of_target[k]], own, "target {k}");
+            let in_contact = t
+                .step
+                .fingers
+                .iter()
+                .filter(|f| f.contact.is_some())
+                .count();
+            if t.step.quality >= alpha && in_contact >= 2 {
+                assert!(
+                    own.lengths.iter().filter(|&&n| n > 0).count() == in_contact,
+                    "target {k}: a force-closure grasp without a region per contact: {own:?}"
+                );
+            }
+            let listed: u32 = own.lengths.iter().sum::<u32>() + own.rendezvous.1;
+            assert_eq!(listed as usize, own.members.len(), "target {k}");
+            assert_eq!(own.rendezvous.1 > 0, t.step.switch.is_some(), "target {k}");
+        }
+    }
+
     #[test]
     fn fingers_approach_and_leave_along_the_normal() {
         let (setup, plan, _, list) = planned("paper_sphere.toml");
