@@ -9,7 +9,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::{Object, SurfaceSamples};
-use icrflow_grasp::quality::GraspProblem;
+use icrflow_grasp::quality::{Evaluation, EvaluationScratch, GraspProblem};
 use icrflow_grasp::reference::{Case, cases_json};
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 
@@ -146,6 +146,15 @@ fn quality(c: &mut Criterion) {
         );
         group.bench_function(format!("{}/alpha_star", b.id), |bench| {
             bench.iter(|| black_box(p.evaluate(black_box(&b.contacts)).unwrap().quality))
+        });
+        // The same in buffers kept between evaluations, as the wrench-space node evaluates.
+        let (mut kept, mut scratch) = (Evaluation::default(), EvaluationScratch::default());
+        group.bench_function(format!("{}/alpha_star_kept", b.id), |bench| {
+            bench.iter(|| {
+                p.evaluate_in(black_box(&b.contacts), &mut kept, &mut scratch)
+                    .unwrap();
+                black_box(kept.quality)
+            })
         });
         if !b.id.starts_with("ows") {
             let alpha = 0.5 * e.quality;

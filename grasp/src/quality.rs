@@ -30,7 +30,7 @@
 
 use faer::{Accum, MatMut, MatRef, Par};
 
-use crate::hull::{Hull, HullError};
+use crate::hull::{Hull, HullError, HullScratch};
 use crate::math::Real;
 use crate::object::SurfaceSamples;
 use crate::support::SupportTree;
@@ -124,6 +124,32 @@ pub struct Evaluation {
     pub limiting_facet: Option<usize>,
     /// Absolute tolerance used for the closure test.
     pub tolerance: Real,
+}
+
+/// An evaluation of no grasp (not force closure, no hull, no wrenches): where
+/// [`GraspProblem::evaluate_in`] evaluates into.
+impl Default for Evaluation {
+    fn default() -> Self {
+        Self::without_hull(Closure::OriginOutside, Vec::new(), 0.0)
+    }
+}
+
+/// The buffers of [`GraspProblem::evaluate_in`], kept between evaluations.
+#[derive(Default)]
+pub struct EvaluationScratch {
+    hull: HullScratch,
+    /// A hull's buffers while the evaluation has none (degenerate).
+    spare: Option<Hull>,
+    /// The facets' directions `a_f / b_f` of alpha*.
+    directions: Vec<Real>,
+    order: Vec<(Real, u32)>,
+    stack: Vec<(Real, u32)>,
+}
+
+impl std::fmt::Debug for EvaluationScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EvaluationScratch").finish_non_exhaustive()
+    }
 }
 
 impl Evaluation {
@@ -280,12 +306,28 @@ impl GraspProblem {
 
     /// Evaluates the grasp with one contact at each of the given candidates.
     pub fn evaluate(&self, contacts: &[usize]) -> Result<Evaluation, GraspError> {
+        let mut e = Evaluation::default();
+        self.evaluate_in(contacts, &mut e, &mut EvaluationScratch::default())?;
+        Ok(e)
+    }
+
+    /// [`Self::evaluate`] into `e` (replaced; unspecified after an error), reusing its
+    /// buffers and `scratch`'s: for a caller that evaluates grasp after grasp (the
+    /// wrench-space node, once per contact set). Once they have met a grasp of the size, an
+    /// evaluation allocates nothing (unless its hull falls back to Qhull; see
+    /// [`Hull::of_contacts_in`]).
+    pub fn evaluate_in(
+        &self,
+        contacts: &[usize],
+        e: &mut Evaluation,
+        scratch: &mut EvaluationScratch,
+    ) -> Result<(), GraspError> {
         self.check_contacts(contacts)?;
-        let mut wrenches = Vec::with_capacity(contacts.len() * self.candidate_wrenches(0).len());
+        e.wrenches.clear();
         for &c in contacts {
-            wrenches.extend_from_slice(self.candidate_wrenches(c));
+            e.wrenches.extend_from_slice(self.candidate_wrenches(c));
         }
-        self.evaluate_wrenches(wrenches)
+        self.grade(e, scratch)
     }
 
     /// Evaluates the grasp whose primitive wrenches are given (row-major, `dim` per wrench).
@@ -294,60 +336,69 @@ impl GraspProblem {
     /// implementations failed, or non-finite wrenches): that is not a grasp outcome, and no
     /// quality is reported for it.
     pub fn evaluate_wrenches(&self, wrenches: Vec<Real>) -> Result<Evaluation, GraspError> {
+        let mut e = Evaluation::without_hull(Closure::OriginOutside, wrenches, 0.0);
+        self.grade(&mut e, &mut EvaluationScratch::default())?;
+        Ok(e)
+    }
+
+    /// Everything of `e` but its wrenches, from its wrenches.
+    fn grade(&self, e: &mut Evaluation, scratch: &mut EvaluationScratch) -> Result<(), GraspError> {
         let d = self.dim();
-        let scale = wrenches.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
-        let tolerance = RELATIVE_TOLERANCE * scale.max(Real::MIN_POSITIVE);
-        let hull = match Hull::of_contacts(&wrenches, d, self.model.edges()) {
-            Ok(h) => h,
+        let scale = e.wrenches.iter().fold(0.0, |m: Real, x| m.max(x.abs()));
+        e.tolerance = RELATIVE_TOLERANCE * scale.max(Real::MIN_POSITIVE);
+        (e.quality, e.epsilon, e.limiting_facet) = (0.0, 0.0, None);
+        let mut hull = e
+            .hull
+            .take()
+            .or_else(|| scratch.spare.take())
+            .unwrap_or_else(Hull::empty);
+        match hull.of_contacts_in(&e.wrenches, d, self.model.edges(), &mut scratch.hull) {
+            Ok(()) => {}
             Err(HullError::Degenerate { rank, .. }) => {
-                return Ok(Evaluation::without_hull(
-                    Closure::Degenerate { rank },
-                    wrenches,
-                    tolerance,
-                ));
+                scratch.spare = Some(hull);
+                e.closure = Closure::Degenerate { rank };
+                return Ok(());
             }
-            Err(e) => return Err(GraspError::Hull(e)),
-        };
+            Err(err) => {
+                scratch.spare = Some(hull);
+                return Err(GraspError::Hull(err));
+            }
+        }
         let b_min = hull
             .offsets()
             .iter()
             .copied()
             .fold(Real::INFINITY, Real::min);
-        let (closure, epsilon) = if b_min > tolerance {
+        let tolerance = e.tolerance;
+        (e.closure, e.epsilon) = if b_min > tolerance {
             (Closure::ForceClosure, b_min)
         } else if b_min >= -tolerance {
             (Closure::OriginOnBoundary, 0.0)
         } else {
             (Closure::OriginOutside, b_min)
         };
-        let mut quality = 0.0;
-        let mut limiting_facet = None;
-        if closure == Closure::ForceClosure {
+        if e.closure == Closure::ForceClosure {
             // alpha* = min_f b_f / h_f = 1 / max_{f,k} (a_f / b_f) . o_k.
-            let mut g = Vec::with_capacity(hull.normals().len());
+            let g = &mut scratch.directions;
+            g.clear();
             for (a, &b) in hull.normals().chunks_exact(d).zip(hull.offsets()) {
                 let inv = 1.0 / b;
                 g.extend(a.iter().map(|x| x * inv));
             }
-            let (mut order, mut stack) = (Vec::new(), Vec::new());
-            match self.tree.max_over(&g, 0.0, &mut order, &mut stack) {
+            match self
+                .tree
+                .max_over(g, 0.0, &mut scratch.order, &mut scratch.stack)
+            {
                 Some((f, best)) => {
-                    quality = 1.0 / best;
-                    limiting_facet = Some(f);
+                    e.quality = 1.0 / best;
+                    e.limiting_facet = Some(f);
                 }
                 // No facet direction reaches any object wrench: nothing limits the scale.
-                None => quality = Real::INFINITY,
+                None => e.quality = Real::INFINITY,
             }
         }
-        Ok(Evaluation {
-            closure,
-            quality,
-            epsilon,
-            hull: Some(hull),
-            wrenches,
-            limiting_facet,
-            tolerance,
-        })
+        e.hull = Some(hull);
+        Ok(())
     }
 
     /// OWS support function `out[f] = max_k a_f . o_k` for the row-major directions `normals`
@@ -583,5 +634,71 @@ pub(crate) mod tests {
         assert!(!e.force_closure());
         assert_eq!(e.quality, 0.0);
         assert!(e.epsilon <= 0.0);
+    }
+
+    /// Evaluating grasp after grasp in kept buffers (`evaluate_in`, as the wrench-space node
+    /// does) gives, bit for bit, what a fresh evaluation gives: planar and spatial grasps of
+    /// 1 to 9 contacts in random order (three contacts in 6D take the facet enumeration, more
+    /// than 64 wrenches a builder of their own, one contact is degenerate), and bad input.
+    #[test]
+    fn evaluating_in_kept_buffers_gives_what_a_fresh_evaluation_gives() {
+        let r = 0.05;
+        let (pts, nrm) = fibonacci_sphere(400, r);
+        let cand = unconnected(pts, nrm);
+        let spatial = GraspProblem::new(
+            &cand,
+            cand.clone(),
+            WrenchFrame::new(Vec3::zeros(), r, Space::Spatial).unwrap(),
+            ContactModel::new(0.5, 8).unwrap(),
+        )
+        .unwrap();
+        let planar = planar_sphere_problem(0.3);
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % n as u64) as usize
+        };
+        for p in [&planar, &spatial] {
+            let n = p.candidates().points.len();
+            let mut kept = Evaluation::default();
+            let mut scratch = EvaluationScratch::default();
+            let mut closures = std::collections::BTreeSet::new();
+            for round in 0..300 {
+                let count = [3, 3, 3, 2, 4, 1, 9][round % 7];
+                let contacts: Vec<usize> = (0..count).map(|_| next(n)).collect();
+                let fresh = p.evaluate(&contacts).unwrap();
+                p.evaluate_in(&contacts, &mut kept, &mut scratch).unwrap();
+                let what = format!("round {round}, contacts {contacts:?}");
+                assert_eq!(kept.closure, fresh.closure, "{what}");
+                assert_eq!(kept.quality.to_bits(), fresh.quality.to_bits(), "{what}");
+                assert_eq!(kept.epsilon.to_bits(), fresh.epsilon.to_bits(), "{what}");
+                assert_eq!(
+                    kept.tolerance.to_bits(),
+                    fresh.tolerance.to_bits(),
+                    "{what}"
+                );
+                assert_eq!(kept.limiting_facet, fresh.limiting_facet, "{what}");
+                assert_eq!(kept.wrenches, fresh.wrenches, "{what}");
+                assert_eq!(kept.hull, fresh.hull, "{what}");
+                closures.insert(
+                    format!("{:?}", fresh.closure)
+                        .chars()
+                        .take(8)
+                        .collect::<String>(),
+                );
+            }
+            // Each kind of outcome was met.
+            assert!(closures.len() >= 3, "{closures:?}");
+            assert!(matches!(
+                p.evaluate_in(&[0, n], &mut kept, &mut scratch),
+                Err(GraspError::ContactIndex { index, .. }) if index == n
+            ));
+            p.evaluate_in(&[0, n / 3, 2 * n / 3], &mut kept, &mut scratch)
+                .unwrap();
+            let fresh = p.evaluate(&[0, n / 3, 2 * n / 3]).unwrap();
+            assert_eq!(kept.hull, fresh.hull);
+        }
     }
 }

@@ -6,9 +6,11 @@
 //! same over many grasp states while a contact rolls across one facet: the node evaluates a
 //! contact set once and answers the following grasp states with the same set from that
 //! evaluation, so that the critical path (measurement to hand command) pays the hull only
-//! when a contact moves to another candidate.
+//! when a contact moves to another candidate. The evaluations are made in buffers kept for the
+//! next (`GraspProblem::evaluate_in`), so a new contact set allocates nothing either.
 
 use anyhow::Result;
+use icrflow_grasp::quality::{Evaluation, EvaluationScratch};
 use icrflow_interfaces::{Facet, GraspState, Header, Kind, MAX_FINGERS, WrenchSpaceHeader, topics};
 
 use crate::runtime::{Context, Health, Sequence, serve};
@@ -32,6 +34,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut facets: Vec<Facet> = Vec::with_capacity(MAX_FACETS);
     // The contact set of `facets` and the header fields evaluated for it.
     let mut evaluated: Option<(Vec<usize>, WrenchSpaceHeader)> = None;
+    let mut e = Evaluation::default();
+    let mut scratch = EvaluationScratch::default();
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let n = problem.candidates().points.len();
 
@@ -65,7 +69,7 @@ pub fn run(ctx: &Context) -> Result<()> {
                 };
                 facets.clear();
                 if !contacts.is_empty() {
-                    let e = problem.evaluate(&contacts)?;
+                    problem.evaluate_in(&contacts, &mut e, &mut scratch)?;
                     h.force_closure = u32::from(e.force_closure());
                     h.quality = if e.force_closure() { e.quality } else { 0.0 };
                     h.epsilon = e.epsilon;

@@ -212,3 +212,60 @@ fn a_kept_force_solver_solves_new_contact_sets_without_allocating() {
         sets.len()
     );
 }
+
+/// The wrench-space node's evaluation of a new contact set (`GraspProblem::evaluate_in`, in
+/// buffers it keeps): after the first sets, evaluating allocates nothing, in the paper's
+/// planar wrench space (beneath-beyond hulls in 3D) and in the spatial one of
+/// `ellipsoid_spatial.toml` (three contacts: the facet enumeration in 6D; four:
+/// beneath-beyond in 6D). A fresh evaluation allocates dozens of times.
+#[test]
+fn evaluating_new_contact_sets_in_kept_buffers_allocates_nothing() {
+    use icrflow_grasp::quality::{Evaluation, EvaluationScratch};
+    let _one = ONE.lock().unwrap_or_else(|e| e.into_inner());
+    for name in ["paper_sphere.toml", "ellipsoid_spatial.toml"] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../config")
+            .join(name);
+        let config = icrflow_scenario::Config::load(&path).unwrap();
+        let setup = icrflow_scenario::Setup::new(&config).unwrap();
+        let problem = &setup.problem;
+        let n = problem.candidates().points.len();
+        // Contact sets spread around the candidates, three and four contacts.
+        let sets: Vec<Vec<usize>> = (0..400)
+            .map(|k| {
+                let count = 3 + k % 2;
+                (0..count)
+                    .map(|i| (k * 7 + i * n / count + (k * i) % 5) % n)
+                    .collect()
+            })
+            .collect();
+        let mut e = Evaluation::default();
+        let mut scratch = EvaluationScratch::default();
+        // Warm up: the buffers grow to the largest hulls met.
+        for set in &sets {
+            problem.evaluate_in(set, &mut e, &mut scratch).unwrap();
+        }
+        let (mut closed, mut facets) = (0, 0);
+        let t0 = allocations();
+        for set in sets.iter().rev() {
+            problem.evaluate_in(set, &mut e, &mut scratch).unwrap();
+            closed += usize::from(e.force_closure());
+            facets += e.hull.as_ref().map_or(0, |h| h.facet_count());
+        }
+        let kept = allocations() - t0;
+        let t0 = allocations();
+        for set in &sets[..20] {
+            problem.evaluate(set).unwrap();
+        }
+        let fresh = allocations() - t0;
+        println!(
+            "{name}: {} evaluations in kept buffers allocated {kept} times ({closed} force \
+             closure, {facets} facets); a fresh evaluation {:.1} times",
+            sets.len(),
+            fresh as f64 / 20.0
+        );
+        assert!(closed > 0 && facets > 0, "{name}: nothing evaluated");
+        assert_eq!(kept, 0, "{name}: evaluating in kept buffers allocates");
+        assert!(fresh >= 20, "{name}: the comparison allocates nothing");
+    }
+}

@@ -112,20 +112,55 @@ pub fn hull(
     ),
     String,
 > {
-    let (normals, offsets, facet_offsets, facet_indices) = hull_compressed(points, dim)?;
-    let lists = facet_offsets
+    let c = hull_compressed(points, dim)?;
+    let lists = c
+        .facet_offsets
         .windows(2)
-        .map(|w| facet_indices[w[0] as usize..w[1] as usize].to_vec())
+        .map(|w| c.facet_indices[w[0] as usize..w[1] as usize].to_vec())
         .collect();
-    Ok((normals, offsets, lists))
+    Ok((c.normals, c.offsets, lists))
 }
 
 /// Normals (`F x dim`), offsets, and the facet lists in compressed form: the list of facet
-/// `f` is `indices[offsets[f]..offsets[f + 1]]`, ascending.
-pub(crate) type Compressed = (Vec<f64>, Vec<f64>, Vec<u32>, Vec<u32>);
+/// `f` is `facet_indices[facet_offsets[f]..facet_offsets[f + 1]]`, ascending.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Compressed {
+    pub normals: Vec<f64>,
+    pub offsets: Vec<f64>,
+    pub facet_offsets: Vec<u32>,
+    pub facet_indices: Vec<u32>,
+}
 
 /// [`hull`] with the facet lists in compressed form.
 pub(crate) fn hull_compressed(points: &[f64], dim: usize) -> Result<Compressed, String> {
+    let mut out = Compressed::default();
+    hull_compressed_in(points, dim, &mut Scratch::default(), &mut out)?;
+    Ok(out)
+}
+
+/// The builders [`hull_compressed_in`] keeps between hulls, one per dimension (for up to 64
+/// points), with their buffers grown to the largest input so far.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    d2: Option<Box<Builder<2, u64>>>,
+    d3: Option<Box<Builder<3, u64>>>,
+    d4: Option<Box<Builder<4, u64>>>,
+    d5: Option<Box<Builder<5, u64>>>,
+    d6: Option<Box<Builder<6, u64>>>,
+    d7: Option<Box<Builder<7, u64>>>,
+    d8: Option<Box<Builder<8, u64>>>,
+    sets: Vec<u64>,
+}
+
+/// [`hull_compressed`] into `out` (overwritten), building with `scratch`'s builders: once
+/// they have met an input of this dimension and size, a hull of up to 64 points allocates
+/// nothing (more points take a builder of their own).
+pub(crate) fn hull_compressed_in(
+    points: &[f64],
+    dim: usize,
+    scratch: &mut Scratch,
+    out: &mut Compressed,
+) -> Result<(), String> {
     if !(2..=8).contains(&dim) {
         return Err(format!("dimension {dim} is not in 2..=8"));
     }
@@ -145,36 +180,31 @@ pub(crate) fn hull_compressed(points: &[f64], dim: usize) -> Result<Compressed, 
     if let Some(i) = points.iter().position(|x| !x.is_finite()) {
         return Err(format!("point {} has a non-finite coordinate", i / dim));
     }
-    if n <= 64 {
-        by_dim::<u64>(points, dim)
-    } else {
-        by_dim::<u128>(points, dim)
+    if n > 64 {
+        let mut sets = Vec::new();
+        return match dim {
+            2 => Builder::<2, u128>::empty().run(points, out, &mut sets),
+            3 => Builder::<3, u128>::empty().run(points, out, &mut sets),
+            4 => Builder::<4, u128>::empty().run(points, out, &mut sets),
+            5 => Builder::<5, u128>::empty().run(points, out, &mut sets),
+            6 => Builder::<6, u128>::empty().run(points, out, &mut sets),
+            7 => Builder::<7, u128>::empty().run(points, out, &mut sets),
+            _ => Builder::<8, u128>::empty().run(points, out, &mut sets),
+        };
     }
-}
-
-/// Normals, offsets and the set of input points on each facet.
-type Facets<S> = (Vec<f64>, Vec<f64>, Vec<S>);
-
-fn by_dim<S: Set>(points: &[f64], dim: usize) -> Result<Compressed, String> {
-    let (normals, offsets, sets) = match dim {
-        2 => Builder::<2, S>::run(points),
-        3 => Builder::<3, S>::run(points),
-        4 => Builder::<4, S>::run(points),
-        5 => Builder::<5, S>::run(points),
-        6 => Builder::<6, S>::run(points),
-        7 => Builder::<7, S>::run(points),
-        8 => Builder::<8, S>::run(points),
-        _ => Err(format!("dimension {dim} is not in 2..=8")),
-    }?;
-    let total: u32 = sets.iter().map(|s| s.count()).sum();
-    let mut facet_offsets = Vec::with_capacity(sets.len() + 1);
-    let mut facet_indices = Vec::with_capacity(total as usize);
-    facet_offsets.push(0);
-    for set in sets {
-        facet_indices.extend(Members(set).map(|i| i as u32));
-        facet_offsets.push(facet_indices.len() as u32);
+    fn kept<const D: usize>(b: &mut Option<Box<Builder<D, u64>>>) -> &mut Builder<D, u64> {
+        b.get_or_insert_with(|| Box::new(Builder::empty()))
     }
-    Ok((normals, offsets, facet_offsets, facet_indices))
+    let sets = &mut scratch.sets;
+    match dim {
+        2 => kept(&mut scratch.d2).run(points, out, sets),
+        3 => kept(&mut scratch.d3).run(points, out, sets),
+        4 => kept(&mut scratch.d4).run(points, out, sets),
+        5 => kept(&mut scratch.d5).run(points, out, sets),
+        6 => kept(&mut scratch.d6).run(points, out, sets),
+        7 => kept(&mut scratch.d7).run(points, out, sets),
+        _ => kept(&mut scratch.d8).run(points, out, sets),
+    }
 }
 
 /// A set of point indices as a bit set.
@@ -366,16 +396,64 @@ struct Builder<const D: usize, S> {
 }
 
 impl<const D: usize, S: Set> Builder<D, S> {
-    fn run(points: &[f64]) -> Result<Facets<S>, String> {
-        let mut b = Self::new(points);
-        b.initial_simplex()?;
-        while let Some(p) = b.next_point() {
-            b.insert(p)?;
+    /// A builder with nothing allocated yet.
+    fn empty() -> Self {
+        Self {
+            pts: Vec::new(),
+            unscale: 1.0,
+            scale: 0.0,
+            tol: 0.0,
+            interior: [0.0; D],
+            facets: Vec::new(),
+            state: Vec::new(),
+            arena: Vec::new(),
+            free: Vec::new(),
+            created: 0,
+            step: 0,
+            owner: Vec::new(),
+            height: Vec::new(),
+            queue: Vec::new(),
+            visible: Vec::new(),
+            grown: Vec::new(),
+            fresh: Vec::new(),
+            keys: Vec::new(),
+            pending: Vec::new(),
+            subs: Vec::new(),
+            table: Vec::new(),
+            table_step: 0,
+            mat: Vec::new(),
         }
-        b.output()
     }
 
-    fn new(points: &[f64]) -> Self {
+    /// Builds the hull of `points` and writes it to `out` (`sets`: scratch for the facets'
+    /// point sets). The builder's buffers are kept for the next hull.
+    fn run(
+        &mut self,
+        points: &[f64],
+        out: &mut Compressed,
+        sets: &mut Vec<S>,
+    ) -> Result<(), String> {
+        self.reset(points);
+        self.initial_simplex()?;
+        while let Some(p) = self.next_point() {
+            self.insert(p)?;
+        }
+        self.output(&mut out.normals, &mut out.offsets, sets)?;
+        let total: u32 = sets.iter().map(|s| s.count()).sum();
+        out.facet_offsets.clear();
+        out.facet_indices.clear();
+        out.facet_offsets.reserve(sets.len() + 1);
+        out.facet_indices.reserve(total as usize);
+        out.facet_offsets.push(0);
+        for &set in sets.iter() {
+            out.facet_indices.extend(Members(set).map(|i| i as u32));
+            out.facet_offsets.push(out.facet_indices.len() as u32);
+        }
+        Ok(())
+    }
+
+    /// Starts over on `points`, keeping the buffers (grown to at least a fresh builder's).
+    fn reset(&mut self, points: &[f64]) {
         let n = points.len() / D;
         // Work on the points scaled by a power of two into [-1, 1]: exact, and products
         // cannot overflow whatever the input's magnitude. `output` scales the offsets back.
@@ -385,9 +463,10 @@ impl<const D: usize, S: Set> Builder<D, S> {
         } else {
             0
         };
-        let unscale = 2f64.powi(exponent);
+        self.unscale = 2f64.powi(exponent);
         let rescale = 2f64.powi(-exponent);
-        let mut pts = Vec::with_capacity(n);
+        self.pts.clear();
+        self.pts.reserve(n);
         let mut scale: f64 = 0.0;
         for c in points.chunks_exact(D) {
             let mut x = [0.0; D];
@@ -395,35 +474,41 @@ impl<const D: usize, S: Set> Builder<D, S> {
                 x[k] = c[k] * rescale;
                 scale = scale.max(x[k].abs());
             }
-            pts.push(x);
+            self.pts.push(x);
         }
-        let scale = scale.max(f64::MIN_POSITIVE);
+        self.scale = scale.max(f64::MIN_POSITIVE);
+        self.tol = RELATIVE_TOLERANCE * self.scale;
+        self.interior = [0.0; D];
         let cap = 16 * n + 64;
-        Self {
-            pts,
-            unscale,
-            scale,
-            tol: RELATIVE_TOLERANCE * scale,
-            interior: [0.0; D],
-            facets: Vec::with_capacity(cap),
-            state: Vec::with_capacity(cap),
-            arena: Vec::with_capacity(cap * (D + 2)),
-            free: Vec::with_capacity(cap),
-            created: 0,
-            step: 0,
-            owner: vec![NONE; n],
-            height: vec![0.0; n],
-            queue: Vec::with_capacity(64),
-            visible: Vec::with_capacity(64),
-            grown: Vec::with_capacity(64),
-            fresh: Vec::with_capacity(128),
-            keys: Vec::with_capacity(128 * D),
-            pending: Vec::with_capacity(64),
-            subs: Vec::with_capacity(64),
-            table: Vec::new(),
-            table_step: 0,
-            mat: vec![[0.0; D]; n],
+        fn fresh<T>(v: &mut Vec<T>, cap: usize) {
+            v.clear();
+            v.reserve(cap);
         }
+        fresh(&mut self.facets, cap);
+        fresh(&mut self.state, cap);
+        fresh(&mut self.arena, cap * (D + 2));
+        fresh(&mut self.free, cap);
+        self.created = 0;
+        self.step = 0;
+        self.owner.clear();
+        self.owner.resize(n, NONE);
+        self.height.clear();
+        self.height.resize(n, 0.0);
+        fresh(&mut self.queue, 64);
+        fresh(&mut self.visible, 64);
+        fresh(&mut self.grown, 64);
+        fresh(&mut self.fresh, 128);
+        fresh(&mut self.keys, 128 * D);
+        fresh(&mut self.pending, 64);
+        fresh(&mut self.subs, 64);
+        // The table is stamped per use (`table_step`): what is left in it is never read. Long
+        // before the stamps wrap around it starts afresh.
+        if self.table_step > u32::MAX / 2 {
+            self.table = Vec::new();
+            self.table_step = 0;
+        }
+        self.mat.clear();
+        self.mat.resize(n, [0.0; D]);
     }
 
     // ---- facets and neighbour lists --------------------------------------------------------
@@ -1106,13 +1191,21 @@ impl<const D: usize, S: Set> Builder<D, S> {
         Ok(())
     }
 
-    /// The final check: every facet against every input point. Returns the facets with the
-    /// set of input points on each.
-    fn output(&self) -> Result<Facets<S>, String> {
+    /// The final check: every facet against every input point. Writes the facets (normals,
+    /// offsets) with the set of input points on each.
+    fn output(
+        &self,
+        normals: &mut Vec<f64>,
+        offsets: &mut Vec<f64>,
+        sets: &mut Vec<S>,
+    ) -> Result<(), String> {
         let live = self.facets.iter().filter(|f| f.alive).count();
-        let mut normals = Vec::with_capacity(live * D);
-        let mut offsets = Vec::with_capacity(live);
-        let mut sets = Vec::with_capacity(live);
+        normals.clear();
+        offsets.clear();
+        sets.clear();
+        normals.reserve(live * D);
+        offsets.reserve(live);
+        sets.reserve(live);
         let n = self.pts.len();
         let tol = self.tol;
         let mut facets = self.facets.iter().filter(|f| f.alive);
@@ -1162,7 +1255,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         if sets.len() < D + 1 {
             return Err("too few facets".into());
         }
-        Ok((normals, offsets, sets))
+        Ok(())
     }
 }
 

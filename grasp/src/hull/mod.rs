@@ -101,37 +101,89 @@ impl Hull {
     /// beneath-beyond construction for small sets ([`beneath_beyond`]), falling back to
     /// Qhull for the inputs it declines.
     pub fn new(points: &[Real], dim: usize) -> Result<Self, HullError> {
-        check(points, dim)?;
-        match beneath_beyond::hull_compressed(points, dim) {
-            Ok((normals, offsets, facet_offsets, facet_indices)) => Ok(Self::from_compressed(
-                dim,
-                normals,
-                offsets,
-                facet_offsets,
-                facet_indices,
-            )),
-            Err(_) => qhull::hull(points, dim),
-        }
+        let mut hull = Self::empty();
+        hull.build(points, dim, &mut HullScratch::default())?;
+        Ok(hull)
     }
 
     /// The hull of the primitive wrenches of contacts with `edges`-edge friction cones
     /// (contact-major, edge-major within a contact, `dim` coordinates each): by the facet
     /// enumeration of [`three_contacts`] for three contacts in 6D, falling back to
     /// [`Hull::new`] elsewhere and whenever the enumeration declines. The same hull as
-    /// [`Hull::new`] either way.
+    /// [`Hull::new`] (facet for facet, in the same order).
     pub fn of_contacts(points: &[Real], dim: usize, edges: usize) -> Result<Self, HullError> {
+        let mut hull = Self::empty();
+        hull.of_contacts_in(points, dim, edges, &mut HullScratch::default())?;
+        Ok(hull)
+    }
+
+    /// [`Hull::of_contacts`] into `self` (replaced; on an error its contents are unspecified),
+    /// built in `scratch`'s buffers: for a caller that builds hull after hull (the wrench-space
+    /// node, once per contact set). Once `scratch` and `self` have met an input of the size,
+    /// a hull of up to 64 points allocates nothing, unless the construction falls back to
+    /// Qhull.
+    pub fn of_contacts_in(
+        &mut self,
+        points: &[Real],
+        dim: usize,
+        edges: usize,
+        scratch: &mut HullScratch,
+    ) -> Result<(), HullError> {
         if dim == 6
             && points.len() == 3 * edges * dim
-            && let Ok(hull) = three_contacts::hull(points, edges)
+            && three_contacts::hull_in(points, edges, &mut scratch.three, self).is_ok()
         {
-            return Ok(hull);
+            return Ok(());
         }
-        Self::new(points, dim)
+        self.build(points, dim, scratch)
+    }
+
+    /// [`Hull::new`] into `self`, in `scratch`'s buffers.
+    fn build(
+        &mut self,
+        points: &[Real],
+        dim: usize,
+        scratch: &mut HullScratch,
+    ) -> Result<(), HullError> {
+        check(points, dim, &mut scratch.residuals)?;
+        match beneath_beyond::hull_compressed_in(
+            points,
+            dim,
+            &mut scratch.builders,
+            &mut scratch.compressed,
+        ) {
+            Ok(()) => {
+                self.assign_compressed(
+                    dim,
+                    &scratch.compressed,
+                    &mut scratch.order,
+                    &mut scratch.keys,
+                    &mut scratch.bases,
+                );
+                Ok(())
+            }
+            Err(_) => {
+                *self = qhull::hull(points, dim)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// A hull with no facets: only ever a buffer to build into.
+    pub(crate) fn empty() -> Self {
+        Self {
+            dim: 0,
+            normals: Vec::new(),
+            offsets: Vec::new(),
+            facet_offsets: Vec::new(),
+            facet_indices: Vec::new(),
+            vertices: Vec::new(),
+        }
     }
 
     /// The same hull computed by Qhull alone: the reference for the fast path.
     pub fn new_qhull(points: &[Real], dim: usize) -> Result<Self, HullError> {
-        check(points, dim)?;
+        check(points, dim, &mut Vec::new())?;
         qhull::hull(points, dim)
     }
 
@@ -198,89 +250,80 @@ impl Hull {
         offsets: Vec<Real>,
         facets: Vec<Vec<u32>>,
     ) -> Self {
-        let mut facet_offsets = Vec::with_capacity(facets.len() + 1);
-        let mut facet_indices = Vec::new();
-        facet_offsets.push(0);
-        for mut f in facets {
-            f.sort_unstable();
-            facet_indices.extend_from_slice(&f);
-            facet_offsets.push(facet_indices.len() as u32);
-        }
-        Self::from_compressed(dim, normals, offsets, facet_offsets, facet_indices)
-    }
-
-    /// The hull from its facets, with ascending facet lists in compressed form (the list of
-    /// facet `f` is `facet_indices[facet_offsets[f]..facet_offsets[f + 1]]`), in any order.
-    fn from_compressed(
-        dim: usize,
-        normals: Vec<Real>,
-        offsets: Vec<Real>,
-        facet_offsets: Vec<u32>,
-        facet_indices: Vec<u32>,
-    ) -> Self {
-        let list =
-            |f: usize| &facet_indices[facet_offsets[f] as usize..facet_offsets[f + 1] as usize];
-        let count = offsets.len();
-        if (1..count).all(|f| canonical_cmp(list(f - 1), list(f)).is_lt()) {
-            return Self::from_sorted(dim, normals, offsets, facet_offsets, facet_indices);
-        }
-        let mut order: Vec<u32> = (0..count as u32).collect();
-        if facet_indices.iter().all(|&i| i < 128) {
-            let keys: Vec<u128> = (0..count).map(|f| canonical_key(list(f))).collect();
-            order.sort_unstable_by_key(|&f| std::cmp::Reverse(keys[f as usize]));
-        } else {
-            order.sort_unstable_by(|&f, &g| canonical_cmp(list(f as usize), list(g as usize)));
-        }
-        let mut sorted_normals = Vec::with_capacity(normals.len());
-        let mut sorted_offsets = Vec::with_capacity(count);
-        let mut sorted_facet_offsets = Vec::with_capacity(count + 1);
-        let mut sorted_indices = Vec::with_capacity(facet_indices.len());
-        sorted_facet_offsets.push(0);
-        for &f in &order {
-            let f = f as usize;
-            sorted_normals.extend_from_slice(&normals[f * dim..(f + 1) * dim]);
-            sorted_offsets.push(offsets[f]);
-            sorted_indices.extend_from_slice(list(f));
-            sorted_facet_offsets.push(sorted_indices.len() as u32);
-        }
-        Self::from_sorted(
-            dim,
-            sorted_normals,
-            sorted_offsets,
-            sorted_facet_offsets,
-            sorted_indices,
-        )
-    }
-
-    /// The hull from facets already in the canonical order and its vertices (ascending), for
-    /// a construction that knows them: [`three_contacts`], where every point on a facet is
-    /// extreme (see there), so the per-point rank test of [`Self::from_sorted`] is not needed.
-    fn from_sorted_with_vertices(
-        dim: usize,
-        normals: Vec<Real>,
-        offsets: Vec<Real>,
-        facet_offsets: Vec<u32>,
-        facet_indices: Vec<u32>,
-        vertices: Vec<u32>,
-    ) -> Self {
-        Self {
-            dim,
+        let mut c = beneath_beyond::Compressed {
             normals,
             offsets,
-            facet_offsets,
-            facet_indices,
-            vertices,
+            facet_offsets: Vec::with_capacity(facets.len() + 1),
+            facet_indices: Vec::new(),
+        };
+        c.facet_offsets.push(0);
+        for mut f in facets {
+            f.sort_unstable();
+            c.facet_indices.extend_from_slice(&f);
+            c.facet_offsets.push(c.facet_indices.len() as u32);
         }
+        let mut hull = Self::empty();
+        hull.assign_compressed(dim, &c, &mut Vec::new(), &mut Vec::new(), &mut Vec::new());
+        hull
     }
 
-    /// [`Self::from_compressed`] for facets already in the canonical order.
-    fn from_sorted(
+    /// Makes `self` the hull with the facets of `c` (ascending facet lists in compressed
+    /// form, in any order): the facets in the canonical order, and the vertices. `order`,
+    /// `keys` and `bases` are scratch.
+    fn assign_compressed(
+        &mut self,
         dim: usize,
-        normals: Vec<Real>,
-        offsets: Vec<Real>,
-        facet_offsets: Vec<u32>,
-        facet_indices: Vec<u32>,
-    ) -> Self {
+        c: &beneath_beyond::Compressed,
+        order: &mut Vec<u32>,
+        keys: &mut Vec<u128>,
+        bases: &mut Vec<Basis>,
+    ) {
+        let list = |f: usize| {
+            &c.facet_indices[c.facet_offsets[f] as usize..c.facet_offsets[f + 1] as usize]
+        };
+        let count = c.offsets.len();
+        order.clear();
+        order.extend(0..count as u32);
+        if !(1..count).all(|f| canonical_cmp(list(f - 1), list(f)).is_lt()) {
+            if c.facet_indices.iter().all(|&i| i < 128) {
+                keys.clear();
+                keys.extend((0..count).map(|f| canonical_key(list(f))));
+                order.sort_unstable_by_key(|&f| std::cmp::Reverse(keys[f as usize]));
+            } else {
+                order.sort_unstable_by(|&f, &g| canonical_cmp(list(f as usize), list(g as usize)));
+            }
+        }
+        self.dim = dim;
+        self.normals.clear();
+        self.offsets.clear();
+        self.facet_offsets.clear();
+        self.facet_indices.clear();
+        self.normals.reserve(c.normals.len());
+        self.offsets.reserve(count);
+        self.facet_offsets.reserve(count + 1);
+        self.facet_indices.reserve(c.facet_indices.len());
+        self.facet_offsets.push(0);
+        for &f in order.iter() {
+            let f = f as usize;
+            self.normals
+                .extend_from_slice(&c.normals[f * dim..(f + 1) * dim]);
+            self.offsets.push(c.offsets[f]);
+            self.facet_indices.extend_from_slice(list(f));
+            self.facet_offsets.push(self.facet_indices.len() as u32);
+        }
+        self.find_vertices(bases);
+    }
+
+    /// The vertices of a hull whose facets are in place (in the canonical order), into
+    /// `self.vertices`; `bases` is scratch.
+    fn find_vertices(&mut self, bases: &mut Vec<Basis>) {
+        let dim = self.dim;
+        let (normals, offsets, facet_offsets, facet_indices) = (
+            &self.normals,
+            &self.offsets,
+            &self.facet_offsets,
+            &self.facet_indices,
+        );
         debug_assert!((1..offsets.len()).all(|f| {
             let list =
                 |f: usize| &facet_indices[facet_offsets[f] as usize..facet_offsets[f + 1] as usize];
@@ -300,7 +343,8 @@ impl Hull {
             .map(|&i| i as usize + 1)
             .max()
             .unwrap_or(0);
-        let mut bases = vec![Basis::default(); count];
+        bases.clear();
+        bases.resize(count, Basis::default());
         let facets = offsets.len();
         let stride = golden_stride(facets);
         for simplices in [true, false] {
@@ -319,20 +363,32 @@ impl Hull {
                 }
             }
         }
-        let vertices = bases
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| b.rank == dim)
-            .map(|(i, _)| i as u32)
-            .collect();
-        Self::from_sorted_with_vertices(
-            dim,
-            normals,
-            offsets,
-            facet_offsets,
-            facet_indices,
-            vertices,
-        )
+        self.vertices.clear();
+        self.vertices.extend(
+            bases
+                .iter()
+                .enumerate()
+                .filter(|(_, b)| b.rank == dim)
+                .map(|(i, _)| i as u32),
+        );
+    }
+}
+
+/// The buffers of [`Hull::of_contacts_in`], kept between hulls.
+#[derive(Default)]
+pub struct HullScratch {
+    three: three_contacts::Scratch,
+    builders: beneath_beyond::Scratch,
+    compressed: beneath_beyond::Compressed,
+    residuals: Vec<Real>,
+    order: Vec<u32>,
+    keys: Vec<u128>,
+    bases: Vec<Basis>,
+}
+
+impl std::fmt::Debug for HullScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HullScratch").finish_non_exhaustive()
     }
 }
 
@@ -444,8 +500,9 @@ fn incident_facets(offsets: &[u32], indices: &[u32], count: usize) -> Vec<Vec<u3
     out
 }
 
-/// Checks the input: dimension, whole points, finite, full-dimensional.
-fn check(points: &[Real], dim: usize) -> Result<(), HullError> {
+/// Checks the input: dimension, whole points, finite, full-dimensional (`residuals`:
+/// scratch for [`affine_rank_in`]).
+fn check(points: &[Real], dim: usize, residuals: &mut Vec<Real>) -> Result<(), HullError> {
     if !(2..=8).contains(&dim) {
         return Err(HullError::Dimension { dim });
     }
@@ -459,7 +516,7 @@ fn check(points: &[Real], dim: usize) -> Result<(), HullError> {
         return Err(HullError::NonFinite { index: i / dim });
     }
     let count = points.len() / dim;
-    let rank = affine_rank(points, dim);
+    let rank = affine_rank_in(points, dim, residuals);
     if rank < dim {
         return Err(HullError::Degenerate { count, rank, dim });
     }
@@ -482,6 +539,11 @@ pub(crate) fn dot(a: &[Real], b: &[Real]) -> Real {
 
 /// Dimension of the affine hull of the points, by Gram-Schmidt with a relative tolerance.
 pub fn affine_rank(points: &[Real], dim: usize) -> usize {
+    affine_rank_in(points, dim, &mut Vec::new())
+}
+
+/// [`affine_rank`] with its residuals in `residuals` (scratch; `dim` <= 8).
+fn affine_rank_in(points: &[Real], dim: usize, residuals: &mut Vec<Real>) -> usize {
     let count = points.len() / dim;
     if count == 0 {
         return 0;
@@ -501,12 +563,15 @@ pub fn affine_rank(points: &[Real], dim: usize) -> usize {
     }
     let tol = 1e-10 * scale;
     let mut rank = 0;
-    let mut e = vec![0.0; dim];
+    let mut e = [0.0; 8];
+    let e = &mut e[..dim];
     // Greedy: repeatedly add the point whose residual after projection is largest.
-    let mut residuals: Vec<Real> = points
-        .chunks_exact(dim)
-        .flat_map(|p| p.iter().zip(origin).map(|(x, o)| x - o))
-        .collect();
+    residuals.clear();
+    residuals.extend(
+        points
+            .chunks_exact(dim)
+            .flat_map(|p| p.iter().zip(origin).map(|(x, o)| x - o)),
+    );
     while rank < dim {
         let (best, norm) = residuals
             .chunks_exact(dim)
@@ -520,8 +585,8 @@ pub fn affine_rank(points: &[Real], dim: usize) -> usize {
             *ek = x / norm;
         }
         for r in residuals.chunks_exact_mut(dim) {
-            let c = dot(r, &e);
-            for (ri, ei) in r.iter_mut().zip(&e) {
+            let c = dot(r, e);
+            for (ri, ei) in r.iter_mut().zip(e.iter()) {
                 *ri -= c * ei;
             }
         }

@@ -152,12 +152,30 @@ pub enum Decline {
 /// (`points`: `3 x edges` rows of 6, contact-major, edge-major within a contact), by facet
 /// enumeration, or why it declined. See the module documentation.
 ///
-/// It is compiled twice, the second time for AVX2 and FMA (with the steps it calls inlined),
+/// Its work (`hull_in`) is compiled twice, the second time for AVX2 and FMA (with the steps it calls inlined),
 /// and the CPU's version is chosen at run time: ~5 % faster on this project's benchmark
 /// machine. The arithmetic is the same (no fused multiply-adds are formed without an explicit
 /// `mul_add`), so both give identical results.
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 pub fn hull(points: &[Real], edges: usize) -> Result<Hull, Decline> {
+    let mut out = Hull::empty();
+    hull_in(points, edges, &mut Scratch::default(), &mut out)?;
+    Ok(out)
+}
+
+/// The buffers of [`hull_in`], kept between hulls.
+#[derive(Default)]
+pub(crate) struct Scratch(Option<Facets>);
+
+/// [`hull`] into `out` (replaced, and left as it was when the enumeration declines), with
+/// the facets gathered in `scratch`: once both have met a hull of the size, nothing is
+/// allocated.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub(crate) fn hull_in(
+    points: &[Real],
+    edges: usize,
+    scratch: &mut Scratch,
+    out: &mut Hull,
+) -> Result<(), Decline> {
     let s = edges;
     if !(3..=MAX_EDGES).contains(&s) || points.len() != 3 * s * D {
         return Err(Decline::Shape);
@@ -166,11 +184,13 @@ pub fn hull(points: &[Real], edges: usize) -> Result<Hull, Decline> {
         return Err(Decline::NonFinite);
     }
     let setup = Setup::new(points, s)?;
-    let mut out = Facets::new();
-    setup.edges_of_three(&mut out)?;
-    setup.whole_edge_vertex(&mut out)?;
-    setup.two_whole(&mut out)?;
-    out.into_hull()
+    let found = scratch.0.get_or_insert_with(Facets::new);
+    found.keys.clear();
+    found.planes.clear();
+    setup.edges_of_three(found)?;
+    setup.whole_edge_vertex(found)?;
+    setup.two_whole(found)?;
+    found.write(out)
 }
 
 /// The facets found: point sets, unit normals, offsets.
@@ -210,8 +230,10 @@ impl Facets {
         self.push(set, a, (am - h[D]) * scale);
     }
 
+    /// Writes the hull of the facets found into `out`, unless they are inconsistent (then
+    /// `out` is left as it was).
     #[inline(always)]
-    fn into_hull(mut self) -> Result<Hull, Decline> {
+    fn write(&mut self, out: &mut Hull) -> Result<(), Decline> {
         let n = self.keys.len();
         if !(D + 1..=0xFFFF).contains(&n) {
             return Err(Decline::Inconsistent);
@@ -222,28 +244,29 @@ impl Facets {
         }
         let total: u32 = self.keys.iter().map(|k| (k >> 16).count_ones()).sum();
         let mut vertex_set = 0;
-        let mut normals = Vec::with_capacity(n * D);
-        let mut offsets = Vec::with_capacity(n);
-        let mut facet_offsets = Vec::with_capacity(n + 1);
-        let mut facet_indices = Vec::with_capacity(total as usize);
-        facet_offsets.push(0);
+        out.dim = D;
+        out.normals.clear();
+        out.offsets.clear();
+        out.facet_offsets.clear();
+        out.facet_indices.clear();
+        out.normals.reserve(n * D);
+        out.offsets.reserve(n);
+        out.facet_offsets.reserve(n + 1);
+        out.facet_indices.reserve(total as usize);
+        out.facet_offsets.push(0);
         for &key in &self.keys {
             let (a, b) = &self.planes[(key & 0xFFFF) as usize];
-            normals.extend_from_slice(a);
-            offsets.push(*b);
+            out.normals.extend_from_slice(a);
+            out.offsets.push(*b);
             let set = (key >> 16).reverse_bits() >> 16;
             vertex_set |= set;
-            facet_indices.extend(members(set));
-            facet_offsets.push(facet_indices.len() as u32);
+            out.facet_indices.extend(members(set));
+            out.facet_offsets.push(out.facet_indices.len() as u32);
         }
-        Ok(Hull::from_sorted_with_vertices(
-            D,
-            normals,
-            offsets,
-            facet_offsets,
-            facet_indices,
-            members(vertex_set).collect(),
-        ))
+        // Every point on a facet is a vertex (see the module documentation).
+        out.vertices.clear();
+        out.vertices.extend(members(vertex_set));
+        Ok(())
     }
 }
 
