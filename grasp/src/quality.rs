@@ -324,6 +324,8 @@ impl GraspProblem {
     ) -> Result<(), GraspError> {
         self.check_contacts(contacts)?;
         e.wrenches.clear();
+        e.wrenches
+            .reserve(contacts.len() * self.candidate_wrenches(0).len());
         for &c in contacts {
             e.wrenches.extend_from_slice(self.candidate_wrenches(c));
         }

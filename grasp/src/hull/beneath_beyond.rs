@@ -142,13 +142,13 @@ pub(crate) fn hull_compressed(points: &[f64], dim: usize) -> Result<Compressed, 
 /// points), with their buffers grown to the largest input so far.
 #[derive(Default)]
 pub(crate) struct Scratch {
-    d2: Option<Box<Builder<2, u64>>>,
-    d3: Option<Box<Builder<3, u64>>>,
-    d4: Option<Box<Builder<4, u64>>>,
-    d5: Option<Box<Builder<5, u64>>>,
-    d6: Option<Box<Builder<6, u64>>>,
-    d7: Option<Box<Builder<7, u64>>>,
-    d8: Option<Box<Builder<8, u64>>>,
+    d2: Option<Builder<2, u64>>,
+    d3: Option<Builder<3, u64>>,
+    d4: Option<Builder<4, u64>>,
+    d5: Option<Builder<5, u64>>,
+    d6: Option<Builder<6, u64>>,
+    d7: Option<Builder<7, u64>>,
+    d8: Option<Builder<8, u64>>,
     sets: Vec<u64>,
 }
 
@@ -192,8 +192,8 @@ pub(crate) fn hull_compressed_in(
             _ => Builder::<8, u128>::empty().run(points, out, &mut sets),
         };
     }
-    fn kept<const D: usize>(b: &mut Option<Box<Builder<D, u64>>>) -> &mut Builder<D, u64> {
-        b.get_or_insert_with(|| Box::new(Builder::empty()))
+    fn kept<const D: usize>(b: &mut Option<Builder<D, u64>>) -> &mut Builder<D, u64> {
+        b.get_or_insert_with(Builder::empty)
     }
     let sets = &mut scratch.sets;
     match dim {

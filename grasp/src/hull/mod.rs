@@ -155,7 +155,7 @@ impl Hull {
             Ok(()) => {
                 self.assign_compressed(
                     dim,
-                    &scratch.compressed,
+                    &mut scratch.compressed,
                     &mut scratch.order,
                     &mut scratch.keys,
                     &mut scratch.bases,
@@ -263,37 +263,60 @@ impl Hull {
             c.facet_offsets.push(c.facet_indices.len() as u32);
         }
         let mut hull = Self::empty();
-        hull.assign_compressed(dim, &c, &mut Vec::new(), &mut Vec::new(), &mut Vec::new());
+        hull.assign_compressed(
+            dim,
+            &mut c,
+            &mut Vec::new(),
+            &mut Vec::new(),
+            &mut Vec::new(),
+        );
         hull
     }
 
     /// Makes `self` the hull with the facets of `c` (ascending facet lists in compressed
-    /// form, in any order): the facets in the canonical order, and the vertices. `order`,
-    /// `keys` and `bases` are scratch.
+    /// form, in any order): the facets in the canonical order, and the vertices. Facets
+    /// already in that order are not copied: `self`'s buffers and `c`'s are swapped (both
+    /// keep their capacity for the next hull). `order`, `keys` and `bases` are scratch.
     fn assign_compressed(
         &mut self,
         dim: usize,
-        c: &beneath_beyond::Compressed,
+        c: &mut beneath_beyond::Compressed,
         order: &mut Vec<u32>,
         keys: &mut Vec<u128>,
         bases: &mut Vec<Basis>,
     ) {
-        let list = |f: usize| {
-            &c.facet_indices[c.facet_offsets[f] as usize..c.facet_offsets[f + 1] as usize]
-        };
+        self.dim = dim;
         let count = c.offsets.len();
+        let list = |c: &beneath_beyond::Compressed, f: usize| -> std::ops::Range<usize> {
+            c.facet_offsets[f] as usize..c.facet_offsets[f + 1] as usize
+        };
+        let sorted = (1..count).all(|f| {
+            canonical_cmp(
+                &c.facet_indices[list(c, f - 1)],
+                &c.facet_indices[list(c, f)],
+            )
+            .is_lt()
+        });
+        if sorted {
+            std::mem::swap(&mut self.normals, &mut c.normals);
+            std::mem::swap(&mut self.offsets, &mut c.offsets);
+            std::mem::swap(&mut self.facet_offsets, &mut c.facet_offsets);
+            std::mem::swap(&mut self.facet_indices, &mut c.facet_indices);
+            self.find_vertices(bases);
+            return;
+        }
+        let indices = &c.facet_indices;
         order.clear();
         order.extend(0..count as u32);
-        if !(1..count).all(|f| canonical_cmp(list(f - 1), list(f)).is_lt()) {
-            if c.facet_indices.iter().all(|&i| i < 128) {
-                keys.clear();
-                keys.extend((0..count).map(|f| canonical_key(list(f))));
-                order.sort_unstable_by_key(|&f| std::cmp::Reverse(keys[f as usize]));
-            } else {
-                order.sort_unstable_by(|&f, &g| canonical_cmp(list(f as usize), list(g as usize)));
-            }
+        if indices.iter().all(|&i| i < 128) {
+            keys.clear();
+            keys.extend((0..count).map(|f| canonical_key(&indices[list(c, f)])));
+            order.sort_unstable_by_key(|&f| std::cmp::Reverse(keys[f as usize]));
+        } else {
+            order.sort_unstable_by(|&f, &g| {
+                canonical_cmp(&indices[list(c, f as usize)], &indices[list(c, g as usize)])
+            });
         }
-        self.dim = dim;
         self.normals.clear();
         self.offsets.clear();
         self.facet_offsets.clear();
@@ -301,14 +324,14 @@ impl Hull {
         self.normals.reserve(c.normals.len());
         self.offsets.reserve(count);
         self.facet_offsets.reserve(count + 1);
-        self.facet_indices.reserve(c.facet_indices.len());
+        self.facet_indices.reserve(indices.len());
         self.facet_offsets.push(0);
         for &f in order.iter() {
             let f = f as usize;
             self.normals
                 .extend_from_slice(&c.normals[f * dim..(f + 1) * dim]);
             self.offsets.push(c.offsets[f]);
-            self.facet_indices.extend_from_slice(list(f));
+            self.facet_indices.extend_from_slice(&indices[list(c, f)]);
             self.facet_offsets.push(self.facet_indices.len() as u32);
         }
         self.find_vertices(bases);
