@@ -656,11 +656,15 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                     Instant::now(),
                 );
             })?;
-            if waited == VisualizerStart::Late {
-                eprintln!(
+            match waited {
+                VisualizerStart::Late => eprintln!(
                     "run: the visualizer is not listening after {} s; the loop starts without it (its recording may miss the first plan steps)",
                     VISUALIZER_READY.as_secs()
-                );
+                ),
+                VisualizerStart::Exited => eprintln!(
+                    "run: the visualizer exited before it listened; the loop starts without it (the supervisor restarts it)"
+                ),
+                VisualizerStart::Listening | VisualizerStart::Interrupted => {}
             }
         }
         // Interrupted meanwhile: the loop below ends at once, as on a Ctrl-C.
@@ -1027,11 +1031,18 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                     .iter()
                     .map(|f| f.display().to_string())
                     .collect();
-                format!(
-                    "saved to {} (open it: rerun {})",
-                    names.join(", "),
-                    names.join(" ")
-                )
+                if names.is_empty() {
+                    format!(
+                        "none: the visualizer wrote no {} (see its messages above)",
+                        p.display()
+                    )
+                } else {
+                    format!(
+                        "saved to {} (open it: rerun {})",
+                        names.join(", "),
+                        names.join(" ")
+                    )
+                }
             }
             _ => format!("streamed to the {}", r.target),
         };
@@ -1129,9 +1140,11 @@ pub const VISUALIZER_READY: Duration = Duration::from_secs(15);
 enum VisualizerStart {
     /// It reported its health: it has subscribed to its inputs.
     Listening,
-    /// It did not report within [`VISUALIZER_READY`], or exited meanwhile (the run goes on
-    /// without waiting: the visualizer never holds the run).
+    /// It did not report within [`VISUALIZER_READY`] (the run goes on without it: the
+    /// visualizer never holds the run).
     Late,
+    /// It exited before it reported (the run goes on; the supervisor restarts it).
+    Exited,
     /// Ctrl-C or SIGTERM came meanwhile.
     Interrupted,
 }
@@ -1161,7 +1174,7 @@ fn visualizer_listening(
             report(e);
         }
         if events.iter().any(|e| matches!(e, Event::Exited { .. })) {
-            return Ok(VisualizerStart::Late);
+            return Ok(VisualizerStart::Exited);
         }
         // Sleeps; an error is a termination request (iceoryx2's signal handler).
         if bus.node().wait(Duration::from_millis(5)).is_err() {
