@@ -690,6 +690,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let mut holding: Option<(Instant, Instant)> = None;
         let mut hold_reason = [0u8; icrflow_interfaces::TEXT_BYTES];
         let max_hold = Duration::from_secs_f64(config.pipeline.max_hold);
+        // The newest plan step and since when (the plan goes on while its steps advance).
+        let mut progress = (0u64, Instant::now());
         let (mut plan_published, mut plan_compute) = (0u64, Histogram::new());
         let mut memory = std::collections::BTreeMap::<String, Memory>::new();
         let mut policies = std::collections::BTreeMap::<String, String>::new();
@@ -712,6 +714,9 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                         done = true;
                     } else {
                         last_step = last_step.max(p.step);
+                        if p.step != progress.0 {
+                            progress = (p.step, Instant::now());
+                        }
                         if p.phase == PlanPhase::Attach as u32 {
                             attaches.insert(p.step);
                         }
@@ -813,6 +818,32 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                     }
                     if started.elapsed() > timeout {
                         reason = format!("timed out after {timeout:?}");
+                        return Ok(false);
+                    }
+                    // Nor on a plan that does not go on while the hand tracks (a target it
+                    // never reaches, and the planner node does not plan again).
+                    // A plan that ended short of the goal (a plan made again from the estimate
+                    // may) does not go on either.
+                    let short = rotation < goal - 0.5f64.to_radians();
+                    if !live
+                        && (!done || short)
+                        && holding.is_none()
+                        && progress.1.elapsed() >= max_hold
+                    {
+                        reason = if done {
+                            format!(
+                                "gave up: the plan ended at step {} with the object at {:.1} deg, short of the goal (see the planner's messages)",
+                                progress.0,
+                                rotation.to_degrees()
+                            )
+                        } else {
+                            format!(
+                                "gave up: no plan step after step {} for {:.1} s (pipeline.max_hold_s); the object at {:.1} deg",
+                                progress.0,
+                                progress.1.elapsed().as_secs_f64(),
+                                rotation.to_degrees()
+                            )
+                        };
                         return Ok(false);
                     }
                     // A run to the goal does not wait for ever on a hand that cannot go on.
