@@ -648,13 +648,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                 report(&e);
             }
             waited = visualizer_listening(&bus, &mut supervisor, &healths, |h| {
-                frames.insert(h.pid, (h.processed, h.refused));
-                tracks.entry(VISUALIZER.into()).or_default().report(
-                    h.pid,
-                    h.allocations,
-                    h.processed,
-                    Instant::now(),
-                );
+                take_health(h, Instant::now(), &mut frames, &mut tracks)
             })?;
             match waited {
                 VisualizerStart::Late => eprintln!(
@@ -780,18 +774,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                         rotation = g.rotation;
                     }
                     let now = Instant::now();
-                    healths.drain(|h| {
-                        let node = read_text(&h.node);
-                        if node == VISUALIZER {
-                            frames.insert(h.pid, (h.processed, h.refused));
-                        }
-                        tracks.entry(node).or_default().report(
-                            h.pid,
-                            h.allocations,
-                            h.processed,
-                            now,
-                        );
-                    })?;
+                    healths.drain(|h| take_health(h, now, &mut frames, &mut tracks))?;
                     for e in supervisor.poll(Instant::now())? {
                         report(&e);
                     }
@@ -1161,6 +1144,24 @@ fn remove_run_files(bus: &BusConfig) {
             }
         }
     }
+}
+
+/// Takes a node's health report, taken off the bus at `now`: its allocations into its track,
+/// and the visualizer's frames recorded and dropped (per process).
+fn take_health(
+    h: &NodeHealth,
+    now: Instant,
+    frames: &mut std::collections::BTreeMap<u32, (u64, u64)>,
+    tracks: &mut std::collections::BTreeMap<String, AllocationTrack>,
+) {
+    let node = read_text(&h.node);
+    if node == VISUALIZER {
+        frames.insert(h.pid, (h.processed, h.refused));
+    }
+    tracks
+        .entry(node)
+        .or_default()
+        .report(h.pid, h.allocations, h.processed, now);
 }
 
 /// How long `run` waits for the visualizer to listen before it starts the loop anyway.
