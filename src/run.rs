@@ -606,17 +606,16 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         });
     }
     let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
-    let pid = std::process::id();
-    let bus_config = BusConfig::new(
-        &config.pipeline.rig,
-        &format!("icr{pid}_"),
-        PathBuf::from(format!("/tmp/icrflow/run-{pid}")),
-    )?;
+    let bus_config = run_bus(&config.pipeline.rig, std::process::id())?;
     set_log_level(LogLevel::Warn);
     // A run that was killed outright (SIGKILL, power loss) leaves its bus and the plant's and
     // estimator's checkpoints behind under its pid; a later run given the same pid must not
     // resume from them. No live process has our pid, so what is there is stale.
     remove_run_files(&bus_config);
+    let swept = sweep_killed_runs(&config.pipeline.rig);
+    if !swept.is_empty() {
+        eprintln!("run: removed what killed runs left in {RUNS_DIR} (pids {swept:?})");
+    }
     let mut supervisor = Supervisor::new(bus_config.clone(), specs, false);
     let started = Instant::now();
     let goal = config.plan.goal;
@@ -1131,6 +1130,50 @@ struct Stats {
     memory: std::collections::BTreeMap<String, Memory>,
     scheduling: std::collections::BTreeMap<String, String>,
     allocations: std::collections::BTreeMap<String, Allocations>,
+}
+
+/// Where runs keep their iceoryx2 files: `run-PID` each.
+const RUNS_DIR: &str = "/tmp/icrflow";
+
+/// The bus of the run whose process is `pid`.
+fn run_bus(rig: &str, pid: u32) -> Result<BusConfig> {
+    Ok(BusConfig::new(
+        rig,
+        &format!("icr{pid}_"),
+        PathBuf::from(format!("{RUNS_DIR}/run-{pid}")),
+    )?)
+}
+
+/// Removes what runs killed outright left (their bus files, shared memory and checkpoints):
+/// those whose process is gone and none of whose iceoryx2 nodes is alive (their nodes stop
+/// when the run dies, see `runtime::ENV_SUPERVISOR`). Returns their pids.
+fn sweep_killed_runs(rig: &str) -> Vec<u32> {
+    let Ok(dir) = std::fs::read_dir(RUNS_DIR) else {
+        return Vec::new();
+    };
+    let mut swept = Vec::new();
+    for e in dir.flatten() {
+        let name = e.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("run-"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid == std::process::id() || Path::new(&format!("/proc/{pid}")).exists() {
+            continue;
+        }
+        let Ok(bus) = run_bus(rig, pid) else { continue };
+        if icrflow_nodes::supervise::live_nodes(&bus) != Some(0) {
+            continue;
+        }
+        icrflow_nodes::supervise::cleanup_dead_nodes(&bus);
+        remove_run_files(&bus);
+        swept.push(pid);
+    }
+    swept.sort_unstable();
+    swept
 }
 
 /// Removes what iceoryx2 leaves of a finished run: its root directory (empty directories by

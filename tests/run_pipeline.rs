@@ -502,3 +502,115 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Whether process `pid` is running (a zombie, exited but not reaped, is not).
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|stat| {
+            stat.rsplit(')')
+                .next()?
+                .split_whitespace()
+                .next()
+                .map(String::from)
+        })
+        .is_some_and(|state| state != "Z")
+}
+
+/// `run` killed outright (SIGKILL, as by the OOM killer): its nodes do not run on
+/// unsupervised, each stops as on a shutdown (the visualizer's recording is complete), and the
+/// next run removes what the killed one left on the bus.
+#[test]
+fn a_killed_run_stops_its_nodes_and_the_next_run_removes_what_it_left() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("killed-run");
+    let rrd = dir.join("killed.rrd");
+    let mut run = spawn_run(&["config/paper_sphere.toml", "--rrd", rrd.to_str().unwrap()]);
+    std::thread::sleep(std::time::Duration::from_secs(5));
+    let nodes = [
+        "visualizer",
+        "plant",
+        "estimator",
+        "wrench",
+        "planner",
+        "command",
+        "bridge",
+    ];
+    let pids: Vec<(&str, u32)> = nodes
+        .iter()
+        .map(|n| {
+            let program = format!("icrflow-{n}");
+            let pid = find_child(&program, Some(run.id()))
+                .unwrap_or_else(|| panic!("{program} is not running"));
+            (*n, pid)
+        })
+        .collect();
+    let run_pid = run.id();
+    run.kill().unwrap();
+    run.wait().unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    while pids.iter().any(|(_, p)| running(*p)) && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let left: Vec<_> = pids.iter().filter(|(_, p)| running(*p)).collect();
+    for (_, p) in &left {
+        let _ = std::process::Command::new("kill")
+            .args(["-KILL", &p.to_string()])
+            .status();
+    }
+    assert!(
+        left.is_empty(),
+        "nodes ran on after their run was killed: {left:?}"
+    );
+    // Every node has exited, so the pipe of the run's stderr (theirs) is closed.
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut run.stderr.take().unwrap(), &mut err).unwrap();
+    for n in nodes {
+        assert!(
+            err.contains(&format!(
+                "icrflow-{n}: stopped: its supervisor (pid {run_pid}) died"
+            )),
+            "{n}: {err}"
+        );
+    }
+    assert!(err.contains("frames recorded, 0 dropped"), "{err}");
+    assert!(std::fs::metadata(&rrd).unwrap().len() > 10_000);
+    let leftovers = std::path::PathBuf::from(format!("/tmp/icrflow/run-{run_pid}"));
+    assert!(leftovers.exists(), "the killed run left no files to remove");
+
+    // The next run removes them (and its own at its end).
+    let summary = dir.join("next.json");
+    let next = spawn_run(&[
+        "--live",
+        "--no-visualizer",
+        "config/paper_sphere.toml",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let interrupted = std::process::Command::new("kill")
+        .args(["-INT", &next.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
+    let out = next.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("run: removed what killed runs left in /tmp/icrflow (pids [")
+            && err.contains(&run_pid.to_string()),
+        "{err}"
+    );
+    assert!(!leftovers.exists(), "{}", leftovers.display());
+    let prefix = format!("icr{run_pid}_");
+    let shm: Vec<String> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(&prefix))
+        .collect();
+    assert_eq!(shm, Vec::<String>::new(), "the killed run's shared memory");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(shm_left(&s), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}

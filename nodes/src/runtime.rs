@@ -31,6 +31,7 @@ pub struct Context {
 pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
     set_log_level(LogLevel::Warn);
     let result = (|| -> Result<()> {
+        let supervisor = follow_supervisor()?;
         let args: Vec<String> = std::env::args().skip(1).collect();
         let config = match args.as_slice() {
             [flag, path] if flag == "--config" => PathBuf::from(path),
@@ -44,7 +45,15 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
             config,
             setup,
             bus,
-        })
+        })?;
+        // Stopped by the supervisor's death (its SIGTERM, above). iceoryx2 removes the dead
+        // supervisor's node as the last nodes leave; its directory is the next run's to remove.
+        if let Some(pid) = supervisor
+            && std::os::unix::process::parent_id() != pid
+        {
+            eprintln!("icrflow-{name}: stopped: its supervisor (pid {pid}) died");
+        }
+        Ok(())
     })();
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -53,6 +62,29 @@ pub fn main(name: &'static str, body: fn(&Context) -> Result<()>) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The environment variable through which a [`Supervisor`](crate::supervise::Supervisor) gives
+/// the nodes it starts its process id: a node started with it stops, as on a shutdown, when
+/// that process dies however it died (SIGKILL, a crash), rather than run on unsupervised.
+pub const ENV_SUPERVISOR: &str = "ICRFLOW_SUPERVISOR_PID";
+
+/// With [`ENV_SUPERVISOR`] set: asks the kernel for SIGTERM when the parent dies
+/// (`PR_SET_PDEATHSIG`) and checks that the parent is that supervisor still (it may have died
+/// before). Returns the supervisor's pid, `None` without the variable.
+fn follow_supervisor() -> Result<Option<u32>> {
+    let Ok(text) = std::env::var(ENV_SUPERVISOR) else {
+        return Ok(None);
+    };
+    let pid: u32 = text
+        .parse()
+        .map_err(|_| anyhow!("{ENV_SUPERVISOR}={text:?} is not a process id"))?;
+    nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGTERM)
+        .context("asking for SIGTERM when the supervisor dies (prctl PR_SET_PDEATHSIG)")?;
+    if std::os::unix::process::parent_id() != pid {
+        bail!("its supervisor (pid {pid}) is gone; not starting");
+    }
+    Ok(Some(pid))
 }
 
 /// The environment variable through which `run` asks a node to run its loop under SCHED_FIFO,

@@ -147,6 +147,21 @@ pub fn cleanup_dead_nodes(bus: &BusConfig) -> usize {
     cleaned
 }
 
+/// How many of the run's iceoryx2 nodes are alive (in any process); `None` when they could
+/// not be listed.
+pub fn live_nodes(bus: &BusConfig) -> Option<usize> {
+    let cfg = bus.iceoryx().ok()?;
+    let mut alive = 0;
+    Node::<ipc::Service>::list(&cfg, |state| {
+        if let NodeState::Alive(_) = state {
+            alive += 1;
+        }
+        CallbackProgression::Continue
+    })
+    .ok()?;
+    Some(alive)
+}
+
 impl Supervisor {
     /// A supervisor for `nodes` on the run's bus. `quiet`: node output is discarded
     /// (otherwise it goes to this process's stderr).
@@ -173,6 +188,10 @@ impl Supervisor {
         let mut cmd = Command::new(&spec.program);
         cmd.args(&spec.args)
             .envs(self.bus.env())
+            .env(
+                crate::runtime::ENV_SUPERVISOR,
+                std::process::id().to_string(),
+            )
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null());
         if self.quiet {
