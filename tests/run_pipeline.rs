@@ -208,10 +208,22 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
 fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("slip");
+    let (o, s) = slipped_run(&dir, "slip_at_s = 4.0");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "run failed: {err}");
+    assert!(err.contains("slips by +12.0 deg"), "{err}");
+    completed_cleanly(&s, &err);
+    turned_to_the_goal_above_the_margin(&s);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The paper's run, without Zenoh or visualizer, its sphere slipping 12 deg (`pipeline`
+/// settings `extra` say when): the output and summary of a run that planned again.
+fn slipped_run(dir: &std::path::Path, extra: &str) -> (std::process::Output, serde_json::Value) {
     let config = paper_with(
-        &dir,
+        dir,
         "slip.toml",
-        "[pipeline]\nslip_deg = 12.0\nslip_at_s = 4.0\n\n[zenoh]\nenabled = false\n",
+        &format!("[pipeline]\nslip_deg = 12.0\n{extra}\n\n[zenoh]\nenabled = false\n"),
     );
     let summary = dir.join("summary.json");
     let o = icrflow(&[
@@ -222,14 +234,10 @@ fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
         summary.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "run failed: {err}");
-    assert!(err.contains("slips by +12.0 deg"), "{err}");
     assert!(err.contains("planned again from the estimate"), "{err}");
     let s = json(&std::fs::read(&summary).unwrap());
-    completed_cleanly(&s, &err);
     assert!(s["replans"].as_u64().unwrap() >= 1, "{s}");
-    turned_to_the_goal_above_the_margin(&s);
-    let _ = std::fs::remove_dir_all(&dir);
+    (o, s)
 }
 
 /// A slip 2.6 s into the paper's run, during a finger switch: the plan made again from the
@@ -242,23 +250,8 @@ fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
 fn a_slip_during_a_switch_ends_at_the_goal_or_where_the_new_plan_ends() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("slip-switch");
-    let config = paper_with(
-        &dir,
-        "slip.toml",
-        "[pipeline]\nslip_deg = 12.0\nslip_at_s = 2.6\nmax_hold_s = 8\n\n[zenoh]\nenabled = false\n",
-    );
-    let summary = dir.join("summary.json");
-    let o = icrflow(&[
-        "run",
-        config.to_str().unwrap(),
-        "--no-visualizer",
-        "--summary-json",
-        summary.to_str().unwrap(),
-    ]);
+    let (o, s) = slipped_run(&dir, "slip_at_s = 2.6\nmax_hold_s = 8");
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("planned again from the estimate"), "{err}");
-    let s = json(&std::fs::read(&summary).unwrap());
-    assert!(s["replans"].as_u64().unwrap() >= 1, "{s}");
     assert_eq!(s["restarts"], 0, "{s}");
     assert!(!err.contains("inside the object"), "{err}");
     assert!(!err.contains("passes through the object"), "{err}");

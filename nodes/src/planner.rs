@@ -1172,18 +1172,7 @@ mod tests {
             .find(|s| s.phase == Phase::Rolling && s.rotation_deg >= 100.0)
             .unwrap();
         let slip = 12.0;
-        let mut g = GraspState {
-            rotation: (step.rotation_deg + slip).to_radians(),
-            finger_count: step.fingers.len() as u32,
-            ..Default::default()
-        };
-        for (slot, f) in step.fingers.iter().enumerate() {
-            g.fingers[slot].finger = f.finger;
-            g.fingers[slot].in_contact = u32::from(f.contact.is_some());
-            for (j, d) in f.joints_deg.iter().enumerate() {
-                g.joints[slot][j] = d.to_radians();
-            }
-        }
+        let mut g = at_joints_of(step, step.rotation_deg + slip);
         let (list, again, delta) = replan(&setup, &config, &g, &surface, 40).unwrap();
         assert!(again.summary.completed, "{:?}", again.summary.stop_reason);
         // The contacts were 12 deg off the grid: 2 deg short of a candidate.
