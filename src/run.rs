@@ -1168,7 +1168,7 @@ fn sweep_killed_runs(rig: &str) -> Vec<u32> {
         if icrflow_nodes::supervise::live_nodes(&bus) != Some(0) {
             continue;
         }
-        icrflow_nodes::supervise::cleanup_dead_nodes(&bus);
+        // All its files go, dead iceoryx2 nodes' resources with them.
         remove_run_files(&bus);
         swept.push(pid);
     }

@@ -354,7 +354,11 @@ fn spawn_run(args: &[&str]) -> std::process::Child {
 
 /// The run's iceoryx2 shared-memory objects left in /dev/shm (its summary names the prefix).
 fn shm_left(summary: &serde_json::Value) -> Vec<String> {
-    let prefix = summary["bus_prefix"].as_str().unwrap();
+    shm_named(summary["bus_prefix"].as_str().unwrap())
+}
+
+/// The shared-memory objects in /dev/shm whose names start with `prefix`.
+fn shm_named(prefix: &str) -> Vec<String> {
     std::fs::read_dir("/dev/shm")
         .unwrap()
         .flatten()
@@ -374,22 +378,24 @@ fn find_child(program: &str, parent: Option<u32>) -> Option<u32> {
         if std::path::Path::new(&*String::from_utf8_lossy(argv0)) != path {
             return None;
         }
-        if let Some(parent) = parent {
-            // /proc/PID/stat: "pid (comm) state ppid ...".
-            let stat = std::fs::read_to_string(e.path().join("stat")).ok()?;
-            let ppid: u32 = stat
-                .rsplit(')')
-                .next()?
-                .split_whitespace()
-                .nth(1)?
-                .parse()
-                .ok()?;
-            if ppid != parent {
-                return None;
-            }
+        if let Some(parent) = parent
+            && proc_stat(pid, 1)?.parse::<u32>().ok()? != parent
+        {
+            return None;
         }
         Some(pid)
     })
+}
+
+/// Field `n` after the command name of /proc/PID/stat ("pid (comm) state ppid ..."): 0 is the
+/// state, 1 the parent's pid.
+fn proc_stat(pid: u32, n: usize) -> Option<String> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    stat.rsplit(')')
+        .next()?
+        .split_whitespace()
+        .nth(n)
+        .map(String::from)
 }
 
 /// The pid of a running `program` from beside the tested `icrflow`.
@@ -552,16 +558,7 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
 
 /// Whether process `pid` is running (a zombie, exited but not reaped, is not).
 fn running(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|stat| {
-            stat.rsplit(')')
-                .next()?
-                .split_whitespace()
-                .next()
-                .map(String::from)
-        })
-        .is_some_and(|state| state != "Z")
+    proc_stat(pid, 0).is_some_and(|state| state != "Z")
 }
 
 /// `run` killed outright (SIGKILL, as by the OOM killer): its nodes do not run on
@@ -649,14 +646,11 @@ fn a_killed_run_stops_its_nodes_and_the_next_run_removes_what_it_left() {
         "{err}"
     );
     assert!(!leftovers.exists(), "{}", leftovers.display());
-    let prefix = format!("icr{run_pid}_");
-    let shm: Vec<String> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(&prefix))
-        .collect();
-    assert_eq!(shm, Vec::<String>::new(), "the killed run's shared memory");
+    assert_eq!(
+        shm_named(&format!("icr{run_pid}_")),
+        Vec::<String>::new(),
+        "the killed run's shared memory"
+    );
     let s = json(&std::fs::read(&summary).unwrap());
     assert_eq!(shm_left(&s), Vec::<String>::new());
     let _ = std::fs::remove_dir_all(&dir);
