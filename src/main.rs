@@ -5,6 +5,7 @@ mod cli;
 mod monitor;
 mod plan;
 mod run;
+mod watch;
 
 use std::process::ExitCode;
 

@@ -488,7 +488,23 @@ pub struct PipelineSpec {
     /// SCHED_FIFO priority of the nodes on the measurement-to-command path (1 to 99), or 0:
     /// normal scheduling.
     pub realtime_priority: u8,
+    /// Largest smoothed pose innovation of the estimate the hand command node tracks on
+    /// (rad); beyond, it holds (the estimate is off the pose measurements).
+    pub max_pose_innovation: Real,
+    /// Largest root-mean-square distance of the fingertips in contact from the object at
+    /// the estimated pose the hand command node tracks on (m).
+    pub max_contact_residual: Real,
+    /// A node that has sent no heartbeat (health report) for this long is killed and
+    /// restarted by `run` (s); one silent for a second is reported at once.
+    pub hung_restart: Real,
 }
+
+/// `pipeline.max_pose_innovation_deg` by default.
+pub const DEFAULT_MAX_POSE_INNOVATION_DEG: Real = 3.0;
+/// `pipeline.max_contact_residual_mm` by default.
+pub const DEFAULT_MAX_CONTACT_RESIDUAL_MM: Real = 1.5;
+/// `pipeline.hung_restart_s` by default.
+pub const DEFAULT_HUNG_RESTART_S: Real = 10.0;
 
 impl PipelineSpec {
     /// Whether some of the loop's nodes run on another host.
@@ -968,7 +984,7 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         }
         Ok(x)
     };
-    Ok(PipelineSpec {
+    let spec = PipelineSpec {
         rig,
         rate_hz: positive("pipeline.rate_hz", raw.rate_hz.unwrap_or(1000.0))?,
         joint_speed: positive(
@@ -993,13 +1009,60 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         slip_at: nonneg("pipeline.slip_at_s", raw.slip_at_s, 5.0)?,
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
+        max_pose_innovation: within(
+            "pipeline.max_pose_innovation_deg",
+            raw.max_pose_innovation_deg,
+            DEFAULT_MAX_POSE_INNOVATION_DEG,
+            [0.5, 45.0],
+            "degrees: from what the pose noise allows to what a hand can still hold",
+        )?
+        .to_radians(),
+        max_contact_residual: within(
+            "pipeline.max_contact_residual_mm",
+            raw.max_contact_residual_mm,
+            DEFAULT_MAX_CONTACT_RESIDUAL_MM,
+            [0.1, 10.0],
+            "millimetres",
+        )? * 1e-3,
+        hung_restart: within(
+            "pipeline.hung_restart_s",
+            raw.hung_restart_s,
+            DEFAULT_HUNG_RESTART_S,
+            [1.0, 600.0],
+            "seconds: a node silent for a second is reported at once",
+        )?,
         realtime_priority: match raw.realtime_priority.unwrap_or(DEFAULT_REALTIME_PRIORITY) {
             p @ 0..=99 => p as u8,
             p => bail!(
                 "pipeline.realtime_priority: 0 (normal scheduling) or a SCHED_FIFO priority from 1 to 99, got {p}"
             ),
         },
-    })
+    };
+    // The estimate's own noise must leave the innovation's bound for real errors: the
+    // smoothed innovation's noise is a third of the pose noise, the estimate's 0.42 of it.
+    if spec.pose_noise > 0.5 * spec.max_pose_innovation {
+        bail!(
+            "pipeline.pose_noise_deg: at most half of pipeline.max_pose_innovation_deg ({} deg), or the measurements' own noise would hold the hand; got {:e}",
+            spec.max_pose_innovation.to_degrees(),
+            spec.pose_noise.to_degrees()
+        );
+    }
+    Ok(spec)
+}
+
+/// `value` (or `default`), checked to be within `[lo, hi]` (`unit` says in what).
+fn within(
+    key: &str,
+    value: Option<Real>,
+    default: Real,
+    [lo, hi]: [Real; 2],
+    unit: &str,
+) -> Result<Real> {
+    let x = value.unwrap_or(default);
+    if !(x.is_finite() && (lo..=hi).contains(&x)) {
+        bail!("{key}: must be from {lo} to {hi} ({unit}), got {x:e}");
+    }
+    Ok(x)
 }
 
 fn nodes_spec(raw: Option<Vec<String>>) -> Result<Vec<String>> {
