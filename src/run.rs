@@ -485,14 +485,16 @@ pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Resul
 
 /// Runs the verb; returns the exit code.
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
+    use crate::output::Kind;
+    crate::output::check(&[
+        ("--summary-json", summary_json.as_deref(), Kind::File),
+        ("--rrd", viewer.rrd.as_deref(), Kind::FileInNewDirs),
+    ])?;
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
     slip(&config, &surface(&setup)?)?;
-    setup
-        .scenario(&config)
-        .start()
-        .context("cannot start: the initial grasp")?;
+    setup.scenario(&config).start().context("cannot start")?;
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
     // The loop's nodes run their loops under SCHED_FIFO where the machine allows it (each
