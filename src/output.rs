@@ -1,7 +1,7 @@
 //! The output paths a verb was given, checked before it starts anything: a run that would
 //! plan or drive the hand for a minute and then fail to write its summary fails at once.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 
@@ -18,6 +18,15 @@ pub enum Kind {
 
 /// One output: the flag that named it, its path (if given) and what it names.
 pub type Output<'a> = (&'static str, Option<&'a Path>, Kind);
+
+/// The outputs of `run`: `--summary-json` (a file in an existing directory) and `--rrd` (the
+/// visualizer creates its directories).
+pub fn run<'a>(summary_json: &'a Option<PathBuf>, rrd: &'a Option<PathBuf>) -> [Output<'a>; 2] {
+    [
+        ("--summary-json", summary_json.as_deref(), Kind::File),
+        ("--rrd", rrd.as_deref(), Kind::FileInNewDirs),
+    ]
+}
 
 /// Checks every given output: a file's path is not a directory, and the directory it goes in
 /// exists (or, where missing directories are created, its nearest existing ancestor does),

@@ -102,6 +102,11 @@ pub fn validate(path: &Path) -> Result<()> {
 
 /// Runs the verb; returns the process exit code.
 pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Result<u8> {
+    let flag = if out.is_some() {
+        "--out"
+    } else {
+        "the output directory (no --out)"
+    };
     let dir = out.unwrap_or_else(|| {
         let stem = path
             .file_stem()
@@ -112,17 +117,13 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Re
     {
         use crate::output::Kind;
         crate::output::check(&[
-            ("--out", Some(&dir), Kind::Dir),
+            (flag, Some(&dir), Kind::Dir),
             (
-                "--out",
+                flag,
                 Some(&dir.join("trajectory.json")),
                 Kind::FileInNewDirs,
             ),
-            (
-                "--out",
-                Some(&dir.join("trajectory.csv")),
-                Kind::FileInNewDirs,
-            ),
+            (flag, Some(&dir.join("trajectory.csv")), Kind::FileInNewDirs),
             ("--rrd", viewer.rrd.as_deref(), Kind::FileInNewDirs),
         ])?;
     }

@@ -485,11 +485,7 @@ pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Resul
 
 /// Runs the verb; returns the exit code.
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
-    use crate::output::Kind;
-    crate::output::check(&[
-        ("--summary-json", summary_json.as_deref(), Kind::File),
-        ("--rrd", viewer.rrd.as_deref(), Kind::FileInNewDirs),
-    ])?;
+    crate::output::check(&crate::output::run(&summary_json, &viewer.rrd))?;
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;

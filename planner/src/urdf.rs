@@ -162,7 +162,8 @@ pub fn check_tree(robot: &urdf_rs::Robot) -> Result<(), HandError> {
         let mut at = l.name.as_str();
         let mut path = Vec::new();
         while at != root {
-            let j = parent[at];
+            // Every link but the root has a parent (there is one root).
+            let Some(&j) = parent.get(at) else { break };
             if path.contains(&j.name.as_str()) {
                 return bad(format!(
                     "the joints {path:?} form a cycle, cut off from the root link {root:?}"
@@ -274,4 +275,71 @@ fn finger(robot: &urdf_rs::Robot, root: Isometry3, spec: &UrdfFinger) -> Result<
         spec.cap_half_angle,
         spec.home.clone(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn robot(body: &str) -> urdf_rs::Robot {
+        urdf_rs::read_from_string(&format!("<robot name=\"r\">{body}</robot>")).unwrap()
+    }
+
+    fn joint(name: &str, parent: &str, child: &str) -> String {
+        format!(
+            "<joint name=\"{name}\" type=\"fixed\"><parent link=\"{parent}\"/><child link=\"{child}\"/></joint>"
+        )
+    }
+
+    fn links(names: &[&str]) -> String {
+        names
+            .iter()
+            .map(|n| format!("<link name=\"{n}\"/>"))
+            .collect()
+    }
+
+    fn fault(body: &str) -> String {
+        check_tree(&robot(body)).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_urdf_must_be_one_tree() {
+        let tree = links(&["palm", "a", "b"]) + &joint("ja", "palm", "a") + &joint("jb", "a", "b");
+        check_tree(&robot(&tree)).unwrap();
+        let e =
+            fault(&(links(&["palm", "a"]) + &joint("ja", "palm", "a") + &joint("jb", "a", "b")));
+        assert!(
+            e.contains("joint \"jb\": its child link \"b\" is not declared"),
+            "{e}"
+        );
+        let e = fault(&(links(&["palm", "a"]) + &joint("ja", "hand", "a")));
+        assert!(
+            e.contains("its parent link \"hand\" is not declared"),
+            "{e}"
+        );
+        let e = fault(&(links(&["palm", "a", "b"]) + &joint("ja", "palm", "a")));
+        assert!(
+            e.contains("not one connected tree") && e.contains("\"b\""),
+            "{e}"
+        );
+        let e = fault(
+            &(links(&["palm", "a", "b"])
+                + &joint("ja", "palm", "a")
+                + &joint("jb", "a", "b")
+                + &joint("jc", "palm", "b")),
+        );
+        assert!(e.contains("link \"b\" is the child of two joints"), "{e}");
+        let e = fault(&(links(&["a", "b"]) + &joint("ja", "a", "b") + &joint("jb", "b", "a")));
+        assert!(e.contains("cycle"), "{e}");
+        let e =
+            fault(&(links(&["palm", "a", "b"]) + &joint("ja", "a", "b") + &joint("jb", "b", "a")));
+        assert!(
+            e.contains("form a cycle, cut off from the root link \"palm\""),
+            "{e}"
+        );
+        let e = fault(&(links(&["palm", "a"]) + &joint("ja", "a", "a")));
+        assert!(e.contains("joins link \"a\" to itself"), "{e}");
+        let e = fault(&(links(&["palm", "palm"])));
+        assert!(e.contains("link \"palm\" is declared twice"), "{e}");
+    }
 }

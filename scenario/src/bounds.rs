@@ -205,7 +205,7 @@ pub const LONGITUDE: Count = Count::new(
 pub const LATITUDE: Count = Count::new(
     2,
     180,
-    "at least two bands; at most one per degree (360 x 180 = 64,800 facets at most)",
+    "at least two bands; at most one per degree (360 x 180 = 64,800 facets: `validate` takes 0.4 s)",
 );
 /// Cuboid quads along each face edge.
 pub const CUBOID_SEGMENTS: Count = Count::new(1, 64, "at most 6 x 64 x 64 = 24,576 quads");
@@ -227,9 +227,9 @@ pub const RHO: Range = Range::closed(1e-3, 1.0, "m", "the size of an object a ha
 /// Quality margin alpha.
 pub const ALPHA: Range = Range::closed(
     0.0,
-    1.0,
+    2.24,
     "",
-    "alpha* scales the object wrench space into the grasp's; with friction up to 2 no grasp of ours reaches 1",
+    "alpha* scales the object's wrenches into the grasp's, whose forces have unit normal components: at most sqrt(1 + mu^2) = 2.24 at mu = 2 (8 contacts around the paper's sphere reach 2.12)",
 );
 /// A contact's angle on the section.
 pub const CONTACT_ANGLE: Range = Range::closed(-360.0, 360.0, "deg", "one turn either way");
@@ -321,7 +321,7 @@ pub const ATTACH_RESOLUTION: Range = Range::closed(
     0.5,
     90.0,
     "deg",
-    "each grid angle of each candidate of each switch is tried with a rolling-room simulation: 0.5 deg is 340 tries on a hemisphere",
+    "each grid angle of each candidate of each switch is tried with a rolling-room simulation: at 0.5 deg the paper's plan takes twice as long as at 2 deg",
 );
 
 /// The plant's and the loop's rate.
