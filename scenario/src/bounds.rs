@@ -366,6 +366,13 @@ pub const POSE_LATENCY: Range = Range::closed(
     "ms",
     "the plant and the estimator keep 4000 ticks of history (2 s at 2000 Hz) to delay and compensate a measurement",
 );
+/// Most object-pose measurements in flight (`pose_latency_ms x pose_rate_hz`): the estimator
+/// corrects its estimate at a measurement's capture by a fraction 0.3 of the error
+/// (`icrflow_nodes::estimator::GAIN`), so `N` measurements in flight make the error follow
+/// `e' = e - 0.3 e(N before)`, stable for `0.3 < 2 sin(pi / (2 (2 N + 1)))`, i.e. `N <= 4`;
+/// 3 keeps a margin. Measured on the paper's run: 3 and 4 (100 and 133 ms at 30 Hz, 300 ms at
+/// 10 Hz) reach the goal, 6 (200 ms at 30 Hz) sends the estimate to -554 deg.
+pub const POSES_IN_FLIGHT: Real = 3.0;
 /// Oldest input the hand command node acts on.
 pub const INPUT_AGE: Range = Range::above(
     0.0,

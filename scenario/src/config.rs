@@ -991,6 +991,25 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         bail!("pipeline.rig: use 1 to 48 letters, digits, '_' or '-', got {rig:?}");
     }
     let rate_hz = bounds::RATE.or("pipeline.rate_hz", raw.rate_hz, 1000.0)?;
+    let pose_rate_hz = bounds::POSE_RATE
+        .up_to(
+            rate_hz.min(bounds::POSE_RATE.hi),
+            "at least one correction a second; at most one per tick of pipeline.rate_hz",
+        )
+        .or("pipeline.pose_rate_hz", raw.pose_rate_hz, 30.0)?;
+    let pose_latency_ms =
+        bounds::POSE_LATENCY.or("pipeline.pose_latency_ms", raw.pose_latency_ms, 30.0)?;
+    let in_flight = pose_latency_ms * 1e-3 * pose_rate_hz;
+    if in_flight > bounds::POSES_IN_FLIGHT {
+        bail!(
+            "pipeline.pose_latency_ms: {} ms at pipeline.pose_rate_hz = {} Hz puts {} pose measurements in flight, more than {}: allowed [0, {}] ms at this rate (or a lower rate): the estimator corrects, with gain 0.3, its estimate at a measurement's capture, and with more corrections pending it overshoots and diverges (200 ms at 30 Hz sent the estimate to -554 deg)",
+            num(pose_latency_ms),
+            num(pose_rate_hz),
+            num((in_flight * 10.0).round() / 10.0),
+            bounds::POSES_IN_FLIGHT,
+            num((1e3 * bounds::POSES_IN_FLIGHT / pose_rate_hz * 10.0).floor() / 10.0)
+        );
+    }
     Ok(PipelineSpec {
         rig,
         rate_hz,
@@ -1000,20 +1019,11 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
         joint_noise: bounds::JOINT_NOISE
             .or("pipeline.joint_noise_deg", raw.joint_noise_deg, 0.02)?
             .to_radians(),
-        pose_rate_hz: bounds::POSE_RATE
-            .up_to(
-                rate_hz.min(bounds::POSE_RATE.hi),
-                "at least one correction a second; at most one per tick of pipeline.rate_hz",
-            )
-            .or("pipeline.pose_rate_hz", raw.pose_rate_hz, 30.0)?,
+        pose_rate_hz,
         pose_noise: bounds::POSE_NOISE
             .or("pipeline.pose_noise_deg", raw.pose_noise_deg, 0.2)?
             .to_radians(),
-        pose_latency: bounds::POSE_LATENCY.or(
-            "pipeline.pose_latency_ms",
-            raw.pose_latency_ms,
-            30.0,
-        )? * 1e-3,
+        pose_latency: pose_latency_ms * 1e-3,
         max_input_age: bounds::INPUT_AGE.or(
             "pipeline.max_input_age_ms",
             raw.max_input_age_ms,
@@ -1216,9 +1226,15 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
             let e = err(&text);
             assert!(e.contains(says), "{says}: {e}");
         }
+        // Pose measurements in flight: latency x rate at most 3.
+        let e = err(&with("[pipeline]\npose_latency_ms = 200.0"));
+        assert!(
+            e.contains("pipeline.pose_latency_ms: 200 ms at pipeline.pose_rate_hz = 30 Hz puts 6 pose measurements in flight, more than 3: allowed [0, 100] ms"),
+            "{e}"
+        );
         // The ends of a range are inside it.
         let c = Config::parse(
-            &with("[pipeline]\nrate_hz = 2000.0\npose_rate_hz = 2000.0\nmax_input_age_ms = 1e-3"),
+            &with("[pipeline]\nrate_hz = 2000.0\npose_rate_hz = 2000.0\npose_latency_ms = 1.5\nmax_input_age_ms = 1e-3"),
             Path::new("x.toml"),
         )
         .unwrap();
