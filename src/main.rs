@@ -3,6 +3,7 @@
 mod analyze;
 mod cli;
 mod monitor;
+mod output;
 mod plan;
 mod run;
 mod watch;

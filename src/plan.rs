@@ -102,6 +102,31 @@ pub fn validate(path: &Path) -> Result<()> {
 
 /// Runs the verb; returns the process exit code.
 pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Result<u8> {
+    let flag = if out.is_some() {
+        "--out"
+    } else {
+        "the output directory (no --out)"
+    };
+    let dir = out.unwrap_or_else(|| {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "plan".into());
+        PathBuf::from("out").join(stem)
+    });
+    {
+        use crate::output::Kind;
+        crate::output::check(&[
+            (flag, Some(&dir), Kind::Dir),
+            (
+                flag,
+                Some(&dir.join("trajectory.json")),
+                Kind::FileInNewDirs,
+            ),
+            (flag, Some(&dir.join("trajectory.csv")), Kind::FileInNewDirs),
+            ("--rrd", viewer.rrd.as_deref(), Kind::FileInNewDirs),
+        ])?;
+    }
     let config = Config::load(path)?;
     // The recording's target and program are checked before planning.
     let recording = viewer
@@ -137,13 +162,6 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Re
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let dir = out.unwrap_or_else(|| {
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "plan".into());
-        PathBuf::from("out").join(stem)
-    });
     let trajectory = Trajectory {
         config: path.display().to_string(),
         object: config.object.describe(),

@@ -494,14 +494,12 @@ pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Resul
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
     // From the start: a hang-up while the config loads stops the run as one later would.
     let hangup = Hangup::install()?;
+    crate::output::check(&crate::output::run(&summary_json, &viewer.rrd))?;
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
     slip(&config, &surface(&setup)?)?;
-    setup
-        .scenario(&config)
-        .start()
-        .context("cannot start: the initial grasp")?;
+    setup.scenario(&config).start().context("cannot start")?;
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
     // The loop's nodes run their loops under SCHED_FIFO where the machine allows it (each
