@@ -789,9 +789,6 @@ pub mod topics {
         format!("icrflow/{rig}/link/{topic}")
     }
 
-    /// The node processes of the control loop, in start order.
-    pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
-
     /// Each node's loop topics: what it publishes, and what it subscribes to (every node also
     /// publishes [`NODE_HEALTH`]).
     const GRAPH: [(&str, &[&str], &[&str]); 5] = [
@@ -816,7 +813,8 @@ pub mod topics {
         pub import: Vec<&'static str>,
     }
 
-    /// The links of a host running `local` (names from [`NODES`]; others are ignored).
+    /// The links of a host running `local` (node names as in `icrflow_scenario::NODES`, the
+    /// config's list; others are ignored).
     pub fn links(local: &[impl AsRef<str>]) -> Links {
         let here = |node: &str| local.iter().any(|n| n.as_ref() == node);
         let mut links = Links::default();
@@ -929,11 +927,17 @@ mod tests {
         assert_eq!(workstation.export, [WRENCH_SPACE, PLAN_STEP]);
         assert_eq!(workstation.import, [GRASP_STATE]);
         // One host: nothing crosses.
-        assert_eq!(links(&NODES), Links::default());
+        assert_eq!(links(&icrflow_scenario::NODES), Links::default());
         // The plant alone: commands in, measurements out.
         let plant = links(&["plant"]);
         assert_eq!(plant.export, [JOINT_STATE, OBJECT_POSE]);
         assert_eq!(plant.import, [HAND_COMMAND]);
+    }
+
+    #[test]
+    fn the_configs_bounds_are_the_messages_capacities() {
+        assert_eq!(icrflow_scenario::bounds::MESSAGE_FINGERS, MAX_FINGERS);
+        assert_eq!(icrflow_scenario::bounds::MESSAGE_JOINTS, MAX_JOINTS);
     }
 
     #[test]

@@ -267,16 +267,21 @@ pub const HAND_POSITION: Range = Range::closed(
 );
 /// Angles of the hand's description: yaw, roll-pitch-yaw, joint limits, home pose.
 pub const HAND_ANGLE: Range = Range::closed(-360.0, 360.0, "deg", "one turn either way");
+/// Fingers a pipeline message carries (`icrflow_interfaces::MAX_FINGERS`, which its tests
+/// assert equal: this crate does not depend on the messages, and so not on iceoryx2).
+pub const MESSAGE_FINGERS: usize = 8;
+/// Joints per finger a pipeline message carries (`icrflow_interfaces::MAX_JOINTS`, likewise).
+pub const MESSAGE_JOINTS: usize = 8;
 /// Fingers of a hand.
 pub const FINGERS: Count = Count::new(
     1,
-    icrflow_interfaces::MAX_FINGERS as u64,
+    MESSAGE_FINGERS as u64,
     "the pipeline's messages carry at most icrflow_interfaces::MAX_FINGERS fingers",
 );
 /// Joints of a finger.
 pub const JOINTS: Count = Count::new(
     1,
-    icrflow_interfaces::MAX_JOINTS as u64,
+    MESSAGE_JOINTS as u64,
     "the pipeline's messages carry at most icrflow_interfaces::MAX_JOINTS joints per finger",
 );
 /// A link's length.

@@ -24,6 +24,11 @@ pub const DEFAULT_CONE_EDGES: usize = 8;
 /// Default sphere/ellipsoid discretisation (the paper's 72 x 72).
 pub const DEFAULT_SEGMENTS: [usize; 2] = [72, 72];
 
+/// The node processes of the control loop, in start order: the names `pipeline.nodes` takes.
+/// The one definition: the pipeline's topic graph (`icrflow_interfaces::topics`) and `run`
+/// name the same nodes.
+pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
+
 /// A validated object description.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ObjectSpec {
@@ -220,7 +225,7 @@ impl HandSpec {
                 let fingers =
                     icrflow_plan::urdf::fingers_from_file(path, *root, specs).context("hand")?;
                 for (i, (spec, f)) in specs.iter().zip(&fingers).enumerate() {
-                    let max = icrflow_interfaces::MAX_JOINTS;
+                    let max = bounds::MESSAGE_JOINTS;
                     if f.dof() > max {
                         bail!(
                             "hand.fingers[{i}]: finger {} (tip link {:?}) has {} joints from the URDF's root, more than the {max} a pipeline message carries per finger (icrflow_interfaces::MAX_JOINTS)",
@@ -504,7 +509,7 @@ pub struct PipelineSpec {
     pub slip_at: Real,
     /// Seed of the simulated noise.
     pub seed: u64,
-    /// The nodes this host runs ([`icrflow_interfaces::topics::NODES`] by default); the
+    /// The nodes this host runs ([`NODES`] by default); the
     /// others run on other hosts, joined over Zenoh.
     pub nodes: Vec<String>,
     /// SCHED_FIFO priority of the nodes on the measurement-to-command path (1 to 99), or 0:
@@ -531,7 +536,7 @@ pub const DEFAULT_HUNG_RESTART_S: Real = 10.0;
 impl PipelineSpec {
     /// Whether some of the loop's nodes run on another host.
     pub fn split(&self) -> bool {
-        self.nodes.len() < icrflow_interfaces::topics::NODES.len()
+        self.nodes.len() < NODES.len()
     }
 }
 
@@ -553,6 +558,18 @@ impl Config {
     /// Parses and validates config text; `path` locates relative file names.
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
+        Self::from_raw(raw, path)
+    }
+
+    /// Validates a config given as a TOML table, shaped like the file (built in code, e.g.
+    /// by the Python package from a dict); `path` locates relative file names as for
+    /// [`Config::parse`] (a name in the directory they are relative to).
+    pub fn from_table(table: toml::Table, path: &Path) -> Result<Self> {
+        let raw: RawConfig = table.try_into().map_err(|e| anyhow::anyhow!("{e}"))?;
+        Self::from_raw(raw, path)
+    }
+
+    fn from_raw(raw: RawConfig, path: &Path) -> Result<Self> {
         let base = path.parent().unwrap_or(Path::new("."));
         let grasp = grasp_spec(raw.grasp)?;
         let hand = match raw.hand {
@@ -1083,7 +1100,6 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
 }
 
 fn nodes_spec(raw: Option<Vec<String>>) -> Result<Vec<String>> {
-    use icrflow_interfaces::topics::NODES;
     let Some(nodes) = raw else {
         return Ok(NODES.iter().map(|n| n.to_string()).collect());
     };
@@ -1185,6 +1201,20 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
         );
         assert_eq!(c.grasp.model.edges(), 8);
         assert_eq!(c.grasp.contacts.len(), 2);
+    }
+
+    #[test]
+    fn a_table_reads_as_its_text() {
+        let table: toml::Table = toml::from_str(GOOD).unwrap();
+        let path = Path::new("x.toml");
+        assert_eq!(
+            Config::from_table(table.clone(), path).unwrap(),
+            Config::parse(GOOD, path).unwrap()
+        );
+        let mut bad = table;
+        bad.insert("bogus".into(), toml::Value::Integer(1));
+        let e = format!("{:#}", Config::from_table(bad, path).unwrap_err());
+        assert!(e.contains("bogus"), "{e}");
     }
 
     #[test]
