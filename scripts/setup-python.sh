@@ -3,7 +3,7 @@
 # test (tests/zenoh_client.py: eclipse-zenoh, pinned to the Rust crate's version) and the Rerun
 # recording checks (rerun-sdk, with its `rerun` viewer/CLI in the venv's bin) and the Python
 # package's tests (pytest, trimesh; maturin to build the package), and print its interpreter
-# path. The package itself is installed by scripts/setup-python-package.sh.
+# path. The package itself is installed by scripts/setup.sh.
 #
 #   PY=$(scripts/setup-python.sh | tail -1)
 #   "$PY" bench/reference_qhull.py check cases.json out.json
