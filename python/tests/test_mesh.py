@@ -11,7 +11,10 @@ import icrflow
 
 
 # Generic points (no two facets nearly as near), so float32 (STL) and float64 meshes snap alike.
-GRASP = np.array([[0.041, 0.003, 0.002], [-0.019, 0.036, -0.004], [-0.021, -0.034, 0.011]])
+_DIRECTIONS = np.array([[0.041, 0.003, 0.002], [-0.019, 0.036, -0.004], [-0.021, -0.034, 0.011]])
+# On the icosphere's surface (its facets lie within 0.3 mm inside the 40 mm sphere): a contact
+# point more than 1 mm off the surface is refused.
+GRASP = 0.0399 * _DIRECTIONS / np.linalg.norm(_DIRECTIONS, axis=1, keepdims=True)
 
 
 @pytest.fixture(scope="module")
