@@ -432,17 +432,7 @@ mod tests {
 
     fn initial_joints(config: &Config, setup: &Setup) -> Vec<Vec<f64>> {
         let (contacts, _) = setup.scenario(config).start().unwrap();
-        setup
-            .hand
-            .fingers
-            .iter()
-            .map(|f| {
-                contacts
-                    .iter()
-                    .find(|c| c.finger == f.id)
-                    .map_or_else(|| f.home.clone(), |c| c.q.clone())
-            })
-            .collect()
+        crate::plant::initial_joints(&setup.hand, &contacts)
     }
 
     #[test]

@@ -44,6 +44,22 @@ const TOUCH: f64 = 5e-4;
 /// The truth ([`PlantTruth`]) is published every this many ticks.
 const TRUTH_EVERY: u64 = 10;
 
+/// Every finger's joints in the initial grasp `contacts` (a free finger at its home pose).
+pub fn initial_joints(
+    hand: &icrflow_plan::hand::Hand,
+    contacts: &[icrflow_plan::planner::Contact],
+) -> Vec<Vec<f64>> {
+    hand.fingers
+        .iter()
+        .map(|f| {
+            contacts
+                .iter()
+                .find(|c| c.finger == f.id)
+                .map_or_else(|| f.home.clone(), |c| c.q.clone())
+        })
+        .collect()
+}
+
 /// Runs the plant.
 pub fn run(ctx: &Context) -> Result<()> {
     let p = &ctx.config.pipeline;
@@ -59,16 +75,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .scenario(&ctx.config)
         .start()
         .context("the initial grasp")?;
-    let mut q: Vec<Vec<f64>> = hand
-        .fingers
-        .iter()
-        .map(|f| {
-            contacts
-                .iter()
-                .find(|c| c.finger == f.id)
-                .map_or_else(|| f.home.clone(), |c| c.q.clone())
-        })
-        .collect();
+    let mut q = initial_joints(hand, &contacts);
     // In contact: pressed on the object (a force is commanded) since it touched it. A finger
     // in contact rolls the object; it leaves contact when no force is commanded.
     let mut contact: Vec<bool> = hand
