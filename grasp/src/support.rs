@@ -662,6 +662,46 @@ mod tests {
             .fold(Real::NEG_INFINITY, Real::max)
     }
 
+    /// The stack solve gives what nalgebra's dynamic solve and norm gave before it, to the
+    /// bit, so the trees (and every bound, hence every search) are unchanged.
+    #[test]
+    fn mahalanobis_on_the_stack_equals_nalgebra_to_the_bit() {
+        for (dim, seed) in [(3, 1), (6, 2), (6, 3)] {
+            let pts = points(200, dim, seed);
+            let mut centre = [0.0; MAX_DIM];
+            for p in pts.chunks_exact(dim) {
+                for k in 0..dim {
+                    centre[k] += p[k] / 200.0;
+                }
+            }
+            let mut cov = nalgebra::DMatrix::<Real>::zeros(dim, dim);
+            for p in pts.chunks_exact(dim) {
+                let d = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
+                cov += &d * d.transpose() / 200.0;
+            }
+            let l = cov.cholesky().unwrap().l();
+            let mut lower = [[0.0; MAX_DIM]; MAX_DIM];
+            for i in 0..dim {
+                for j in 0..=i {
+                    lower[i][j] = l[(i, j)];
+                }
+            }
+            for p in pts.chunks_exact(dim) {
+                let dev = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
+                let expected = l.solve_lower_triangular(&dev).unwrap().norm_squared();
+                let got = mahalanobis_squared(&lower, p, &centre, dim);
+                assert_eq!(got.to_bits(), expected.to_bits(), "dim {dim}: {got} vs {expected}");
+            }
+            // A zero on the diagonal: the plain squared distance, as before.
+            let mut singular = lower;
+            singular[1][1] = 0.0;
+            let p = &pts[..dim];
+            let plain: Real = (0..dim).map(|k| (p[k] - centre[k]).powi(2)).sum();
+            let got = mahalanobis_squared(&singular, p, &centre, dim);
+            assert!((got - plain).abs() <= 1e-15 * plain, "{got} vs {plain}");
+        }
+    }
+
     #[test]
     fn support_equals_brute_force() {
         for dim in [3, 6] {

@@ -544,6 +544,30 @@ pub(super) mod tests {
         }
     }
 
+    /// The edges matched by sorting give each face exactly the faces that share an edge with
+    /// it (brute force over all pairs), on a mesh of triangles and quads.
+    #[test]
+    fn face_neighbours_are_the_faces_sharing_an_edge() {
+        let o = Object::sphere(1.0, 12, 7).unwrap();
+        let faces: Vec<Vec<u32>> = o.faces.iter().map(|f| f.to_vec()).collect();
+        let origin: Vec<usize> = (0..faces.len()).collect();
+        let neighbours = check_edges(&o.vertices, &faces, &origin).unwrap();
+        let undirected = |f: &[u32]| -> Vec<(u32, u32)> {
+            edges(f).map(|(a, b)| (a.min(b), a.max(b))).collect()
+        };
+        for (f, face) in faces.iter().enumerate() {
+            let mine = undirected(face);
+            let mut expected: Vec<u32> = (0..faces.len())
+                .filter(|&g| g != f && undirected(&faces[g]).iter().any(|e| mine.contains(e)))
+                .map(|g| g as u32)
+                .collect();
+            let mut got = neighbours[f].clone();
+            got.sort_unstable();
+            expected.sort_unstable();
+            assert_eq!(got, expected, "face {f}");
+        }
+    }
+
     #[test]
     fn empty_inputs_are_errors() {
         let (v, f) = cube();
