@@ -132,10 +132,7 @@ impl Progress for Shown {
             self.last_line = now;
         } else if now.duration_since(self.last_line) >= LINE_EVERY {
             let of = if total > 0 {
-                format!(
-                    " of {total} ({:.0} %)",
-                    100.0 * done as f64 / total as f64
-                )
+                format!(" of {total} ({:.0} %)", 100.0 * done as f64 / total as f64)
             } else {
                 String::new()
             };

@@ -73,7 +73,9 @@ fn a_mesh_above_the_size_guidance_is_warned_of_and_its_loading_shown() {
     let mut at = 0;
     for stage in STAGES {
         let line = format!("progress   {stage}: ");
-        let found = err[at..].find(&line).unwrap_or_else(|| panic!("{line:?} in {err}"));
+        let found = err[at..]
+            .find(&line)
+            .unwrap_or_else(|| panic!("{line:?} in {err}"));
         at += found + line.len();
     }
     assert!(
@@ -81,7 +83,9 @@ fn a_mesh_above_the_size_guidance_is_warned_of_and_its_loading_shown() {
         "{err}"
     );
     assert!(
-        err.contains("progress   support tree over the object wrenches: 500736 object wrenches in "),
+        err.contains(
+            "progress   support tree over the object wrenches: 500736 object wrenches in "
+        ),
         "{err}"
     );
 
@@ -97,7 +101,11 @@ fn a_mesh_above_the_size_guidance_is_warned_of_and_its_loading_shown() {
 #[test]
 fn a_small_mesh_gets_no_warning_and_every_verb_shows_its_loading_when_asked() {
     let config = "config/ellipsoid_spatial.toml";
-    for verb in [&["validate", config][..], &["analyze", config], &["plan", config, "--json"]] {
+    for verb in [
+        &["validate", config][..],
+        &["analyze", config],
+        &["plan", config, "--json"],
+    ] {
         let dir = scratch("small-mesh-plan");
         let out = dir.join("out");
         let mut args = verb.to_vec();
@@ -116,7 +124,10 @@ fn a_small_mesh_gets_no_warning_and_every_verb_shows_its_loading_when_asked() {
             "{verb:?}: {err}"
         );
         for stage in STAGES {
-            assert!(err.contains(&format!("progress   {stage}: ")), "{verb:?}: {stage}: {err}");
+            assert!(
+                err.contains(&format!("progress   {stage}: ")),
+                "{verb:?}: {stage}: {err}"
+            );
         }
         // Not asked (a delay nothing here reaches): nothing on stderr.
         args.extend(["--progress-after", "3600"]);

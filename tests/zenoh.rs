@@ -199,7 +199,9 @@ fn assert_every_key_expression_reads(keys: &serde_json::Value, read_only: bool) 
             TOPICS.to_vec()
         };
         for t in &expected {
-            let n = got["topics"][format!("icrflow/ztest/{t}")].as_u64().unwrap_or(0);
+            let n = got["topics"][format!("icrflow/ztest/{t}")]
+                .as_u64()
+                .unwrap_or(0);
             assert!(n >= 5, "{expr}: {n} messages of {t}: {keys:#}");
         }
         if read_only {

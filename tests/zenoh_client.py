@@ -18,7 +18,8 @@ opens one session per KEYEXPR (separate sessions: a session delivers its own mat
 samples to all its subscribers, which would hide a declaration the pipeline refused), each
 subscribing to its KEYEXPR, until each has received every monitoring topic it matches 5
 times or SECONDS passed; then another session puts a marked hand command on icrflow/RIG/hand_command
-and on icrflow/RIG/marker, and after a second it prints per KEYEXPR the samples and topics
+and on icrflow/RIG/marker/put (beyond the monitoring keys' icrflow/RIG/*, where the main
+form's decoding would count it as an error in the same run), and after a second it prints per KEYEXPR the samples and topics
 received and how many of them were the marked puts (a pipeline that passed them on to its
 other clients would let a remote peer write to them). The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
 each message's publication on the local bus (its time_ns) to its arrival here, and prints them
@@ -179,7 +180,7 @@ def keys(endpoint: str, rig: str, seconds: float, exprs: list[str]) -> int:
             "time_ns": time.time_ns(), "origin_ns": 0, "mode": "track", "reason": MARK,
             "quality": 1.0, "latency_us": 0.0, "fingers": [],
         })
-        put_keys = [command, f"icrflow/{rig}/marker"]
+        put_keys = [command, f"icrflow/{rig}/marker/put"]
         with zenoh.open(client_config(endpoint)) as writer:
             for _ in range(5):
                 for key in put_keys:

@@ -567,7 +567,7 @@ fn mahalanobis_squared(
         let coeff = y[i] / diag;
         y[i] = coeff;
         for j in i + 1..dim {
-            y[j] = -coeff * lower[j][i] + y[j];
+            y[j] += -coeff * lower[j][i]; // = (-coeff L_ji) + y_j: addition commutes, bit for bit
         }
     }
     let y = if solved { &y } else { &dev };
@@ -690,7 +690,11 @@ mod tests {
                 let dev = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
                 let expected = l.solve_lower_triangular(&dev).unwrap().norm_squared();
                 let got = mahalanobis_squared(&lower, p, &centre, dim);
-                assert_eq!(got.to_bits(), expected.to_bits(), "dim {dim}: {got} vs {expected}");
+                assert_eq!(
+                    got.to_bits(),
+                    expected.to_bits(),
+                    "dim {dim}: {got} vs {expected}"
+                );
             }
             // A zero on the diagonal: the plain squared distance, as before.
             let mut singular = lower;

@@ -70,7 +70,10 @@ impl ObjectSpec {
     }
 
     /// [`ObjectSpec::build`], reporting a mesh file's loading to `progress`.
-    pub fn build_with(&self, progress: &mut dyn icrflow_grasp::progress::Progress) -> Result<Object> {
+    pub fn build_with(
+        &self,
+        progress: &mut dyn icrflow_grasp::progress::Progress,
+    ) -> Result<Object> {
         let object = match self {
             ObjectSpec::Sphere { radius, segments } => {
                 Object::sphere(*radius, segments[0], segments[1])

@@ -28,25 +28,21 @@ impl Object {
 
     /// [`Object::from_file`], reporting its stages to `progress` ([`Stage::Read`],
     /// [`Stage::Weld`], then those of [`Object::from_polygons_with`]).
-    pub fn from_file_with(
-        path: &Path,
-        progress: &mut dyn Progress,
-    ) -> Result<Object, ObjectError> {
+    pub fn from_file_with(path: &Path, progress: &mut dyn Progress) -> Result<Object, ObjectError> {
         let extension = path
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let parse: fn(&[u8], &mut dyn Progress) -> Result<RawMesh, String> = match extension
-            .as_deref()
-        {
-            Some("stl") => parse_stl,
-            Some("obj") => parse_obj,
-            _ => {
-                return Err(ObjectError::UnsupportedExtension {
-                    path: path.to_owned(),
-                });
-            }
-        };
+        let parse: fn(&[u8], &mut dyn Progress) -> Result<RawMesh, String> =
+            match extension.as_deref() {
+                Some("stl") => parse_stl,
+                Some("obj") => parse_obj,
+                _ => {
+                    return Err(ObjectError::UnsupportedExtension {
+                        path: path.to_owned(),
+                    });
+                }
+            };
         let format = if extension.as_deref() == Some("stl") {
             "STL"
         } else {
@@ -71,9 +67,11 @@ impl Object {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        Object::from_polygons_with(&name, vertices, faces, progress).map_err(|e| ObjectError::InvalidMesh {
-            path: path.to_owned(),
-            source: Box::new(e),
+        Object::from_polygons_with(&name, vertices, faces, progress).map_err(|e| {
+            ObjectError::InvalidMesh {
+                path: path.to_owned(),
+                source: Box::new(e),
+            }
         })
     }
 
