@@ -5,7 +5,10 @@
 #   headless (the screenshot of a recording in the tests).
 # - A Python venv with numpy + scipy for the Qhull cross-check (bench/reference_qhull.py) and
 #   eclipse-zenoh for the external Zenoh client of the tests (tests/zenoh_client.py), and
-#   rerun-sdk (with the `rerun` viewer) to read back and render the visualizer's recordings.
+#   rerun-sdk (with the `rerun` viewer) to read back and render the visualizer's recordings,
+#   and pytest, trimesh and maturin for the Python package's tests.
+# - The Python package `icrflow` (python/) built and installed into that venv, skipped when
+#   its sources are unchanged since the last install (see python/README.md).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 need_apt=()
@@ -24,3 +27,22 @@ fi
 # machine talk to no address beyond loopback.
 py="$("$root/scripts/setup-python.sh" | tail -n 1)"
 "$(dirname "$py")/rerun" analytics disable >/dev/null 2>&1 || true
+
+# The Python package: `pip install ./python` with the venv's maturin (no build isolation, so
+# nothing is downloaded), into CARGO_TARGET_DIR like every other build. Skipped when the stamp
+# holds the hash of every file the module is built from and the module imports.
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-${ICRFLOW_CACHE:-$HOME/.cache/icrflow}/target}"
+stamp="$(dirname "$(dirname "$py")")/.icrflow-package.sha256"
+want="$(cd "$root" && find python grasp planner scenario -type f \( -name '*.rs' -o -name '*.toml' -o -name '*.pyi' -o -name '*.md' \) \
+    -not -path 'python/tests/*' | LC_ALL=C sort | xargs sha256sum | cat - Cargo.toml Cargo.lock | sha256sum | cut -d' ' -f1)"
+if [[ -f "$stamp" && "$(cat "$stamp")" == "$want" ]] && "$py" -c 'import icrflow' >/dev/null 2>&1; then
+    echo "setup: the icrflow Python package is up to date" >&2
+else
+    echo "setup: building and installing the icrflow Python package (maturin, release)" >&2
+    rm -f "$stamp"
+    # The build backend runs the `maturin` binary of the venv from PATH.
+    PATH="$(dirname "$py"):$PATH" "$py" -m pip install --disable-pip-version-check --quiet --no-build-isolation --no-deps \
+        --force-reinstall "$root/python" >&2
+    "$py" -c 'import icrflow' >&2
+    printf '%s\n' "$want" > "$stamp"
+fi

@@ -6,13 +6,12 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 use icrflow_grasp::icr::IcrError;
 use icrflow_grasp::math::Real;
-use icrflow_grasp::object::Object;
 use icrflow_grasp::progress::Progress;
 use icrflow_grasp::quality::{Closure, GraspProblem};
 use icrflow_grasp::wrench::{Space, WrenchFrame};
 use serde::Serialize;
 
-use icrflow_scenario::{Config, ContactSpec};
+use icrflow_scenario::{Config, Snap, snap_contact};
 
 /// The JSON report (and the data behind the text one).
 #[derive(Debug, Serialize)]
@@ -49,8 +48,11 @@ pub struct ContactReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<Real>,
     /// Distance from the configured contact to the candidate it was snapped to (m, or
-    /// degrees for angles).
+    /// degrees for angles on the section of a planar problem).
     pub snap: Real,
+    /// Whether `snap` is in degrees.
+    #[serde(skip)]
+    pub snap_in_degrees: bool,
     pub icr: Option<IcrReport>,
 }
 
@@ -103,8 +105,7 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
     let mut indices = Vec::with_capacity(g.contacts.len());
     let mut snaps = Vec::with_capacity(g.contacts.len());
     for (i, c) in g.contacts.iter().enumerate() {
-        let (index, snap) = resolve(&object, &problem, c.at)
-            .with_context(|| format!("grasp.contacts[{i}] (finger {})", c.finger))?;
+        let (index, snap) = snap_contact(&object, &problem, g.space == Space::Planar, i, c)?;
         indices.push(index);
         snaps.push(snap);
     }
@@ -128,7 +129,11 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
                 point: to3(&cands.points[q]),
                 normal: to3(&cands.normals[q]),
                 angle_deg: angles.as_ref().map(|a| a[q].to_degrees()),
-                snap: snaps[i],
+                snap: match snaps[i] {
+                    Snap::Angle(a) => a.to_degrees(),
+                    Snap::Distance(d) => d,
+                },
+                snap_in_degrees: matches!(snaps[i], Snap::Angle(_)),
                 icr: regions.as_ref().ok().map(|r| {
                     let members = &r[i].members;
                     IcrReport {
@@ -167,30 +172,6 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
         contacts,
         warnings: object.warnings.iter().map(|w| w.to_string()).collect(),
     })
-}
-
-/// Snaps a configured contact to the nearest candidate: (index, distance).
-fn resolve(object: &Object, problem: &GraspProblem, at: ContactSpec) -> Result<(usize, Real)> {
-    match at {
-        ContactSpec::Angle(a) => {
-            let (i, d) = object
-                .section
-                .nearest_angle(a)
-                .context("the object's section has no samples")?;
-            if problem.space() == Space::Planar {
-                return Ok((i, d.to_degrees()));
-            }
-            // Spatial: the facet nearest to that point of the section.
-            problem
-                .candidates()
-                .nearest(&object.section.samples.points[i])
-                .context("the object has no candidate points")
-        }
-        ContactSpec::Point(p) => problem
-            .candidates()
-            .nearest(&p)
-            .context("the object has no candidate points"),
-    }
 }
 
 /// Groups region members (section samples) into angle intervals, in degrees. Samples are
@@ -245,15 +226,17 @@ fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
         writeln!(out, "warning   {w}")?;
     }
     for c in &r.contacts {
-        let (at, snap) = match c.angle_deg {
-            Some(a) => (format!("{a:7.2} deg"), format!("{:.2} deg", c.snap)),
-            None => (
-                format!(
-                    "[{:.4}, {:.4}, {:.4}] m",
-                    c.point[0], c.point[1], c.point[2]
-                ),
-                format!("{:.2} mm", 1e3 * c.snap),
+        let at = match c.angle_deg {
+            Some(a) => format!("{a:7.2} deg"),
+            None => format!(
+                "[{:.4}, {:.4}, {:.4}] m",
+                c.point[0], c.point[1], c.point[2]
             ),
+        };
+        let snap = if c.snap_in_degrees {
+            format!("{:.2} deg", c.snap)
+        } else {
+            format!("{:.2} mm", 1e3 * c.snap)
         };
         writeln!(
             out,

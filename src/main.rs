@@ -3,9 +3,11 @@
 mod analyze;
 mod cli;
 mod monitor;
+mod output;
 mod plan;
 mod progress;
 mod run;
+mod watch;
 
 use std::process::ExitCode;
 

@@ -110,6 +110,31 @@ pub fn run(
     viewer: &Viewer,
     progress_after: std::time::Duration,
 ) -> Result<u8> {
+    let flag = if out.is_some() {
+        "--out"
+    } else {
+        "the output directory (no --out)"
+    };
+    let dir = out.unwrap_or_else(|| {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "plan".into());
+        PathBuf::from("out").join(stem)
+    });
+    {
+        use crate::output::Kind;
+        crate::output::check(&[
+            (flag, Some(&dir), Kind::Dir),
+            (
+                flag,
+                Some(&dir.join("trajectory.json")),
+                Kind::FileInNewDirs,
+            ),
+            (flag, Some(&dir.join("trajectory.csv")), Kind::FileInNewDirs),
+            ("--rrd", viewer.rrd.as_deref(), Kind::FileInNewDirs),
+        ])?;
+    }
     let config = Config::load(path)?;
     // The recording's target and program are checked before planning.
     let recording = viewer
@@ -147,13 +172,6 @@ pub fn run(
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let dir = out.unwrap_or_else(|| {
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "plan".into());
-        PathBuf::from("out").join(stem)
-    });
     let trajectory = Trajectory {
         config: path.display().to_string(),
         object: config.object.describe(),

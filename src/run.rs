@@ -10,12 +10,14 @@ use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, JointState, NodeHealth, PlanPhase, PlanStepHeader,
-    read_text, topics,
+    PlantTruth, read_text, topics,
 };
 use icrflow_nodes::bus::{Bus, BusConfig, Sub};
 use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 use icrflow_scenario::{Config, Recording, Setup};
 use serde::Serialize;
+
+use crate::watch::{EstimateError, Hangup, Heartbeats, ReplanProgress, Silence, TruthTrack};
 
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
@@ -147,7 +149,7 @@ pub struct Percentiles {
 /// that a long `--live` run keeps constant memory. Percentiles are bucket upper bounds (within
 /// 1 % above the true value, never above the largest sample); the largest sample is exact.
 #[derive(Debug, Clone)]
-struct Histogram {
+pub(crate) struct Histogram {
     counts: Vec<u64>,
     samples: u64,
     max: f64,
@@ -157,7 +159,7 @@ impl Histogram {
     const GROWTH: f64 = 1.01;
     const BUCKETS: usize = 1852; // 1.01^1851 > 1e8
 
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self {
             counts: vec![0; Self::BUCKETS],
             samples: 0,
@@ -165,7 +167,7 @@ impl Histogram {
         }
     }
 
-    fn add(&mut self, us: f64) {
+    pub(crate) fn add(&mut self, us: f64) {
         let bucket = if us <= 1.0 {
             0
         } else {
@@ -188,7 +190,7 @@ impl Histogram {
         self.max
     }
 
-    fn percentiles(&self) -> Percentiles {
+    pub(crate) fn percentiles(&self) -> Percentiles {
         if self.samples == 0 {
             return Percentiles::default();
         }
@@ -262,6 +264,11 @@ pub struct RunSummary {
     pub allocations: std::collections::BTreeMap<String, Allocations>,
     /// The Rerun recording (absent without the visualizer).
     pub recording: Option<RecordingSummary>,
+    /// The estimate against the simulated plant's truth (`None` where no truth comes: the
+    /// plant on another host).
+    pub estimate: Option<EstimateError>,
+    /// Hold commands because the estimate was off (its residuals over their bounds).
+    pub estimate_holds: u64,
 }
 
 /// Latency percentiles of the tracking commands: from the plant's joint measurement to the
@@ -485,14 +492,14 @@ pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Resul
 
 /// Runs the verb; returns the exit code.
 pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
+    // From the start: a hang-up while the config loads stops the run as one later would.
+    let hangup = Hangup::install()?;
+    crate::output::check(&crate::output::run(&summary_json, &viewer.rrd))?;
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
     slip(&config, &surface(&setup)?)?;
-    setup
-        .scenario(&config)
-        .start()
-        .context("cannot start: the initial grasp")?;
+    setup.scenario(&config).start().context("cannot start")?;
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
     // The loop's nodes run their loops under SCHED_FIFO where the machine allows it (each
@@ -639,6 +646,19 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let mut tracks = std::collections::BTreeMap::<String, AllocationTrack>::new();
         // The visualizer's frames recorded and dropped, per process (a restart counts anew).
         let mut frames = std::collections::BTreeMap::<u32, (u64, u64)>::new();
+        // Every node's heartbeat (its health reports): a silent one is said, a hung one
+        // restarted after pipeline.hung_restart_s.
+        let mut beats = Heartbeats::default();
+        let hung_restart = Duration::from_secs_f64(config.pipeline.hung_restart);
+        // The simulated plant's truth, against which the estimate is measured.
+        let truths = bus.subscriber::<PlantTruth>(topics::PLANT_TRUTH)?;
+        let mut truth = TruthTrack::default();
+        let estimate_bound = config.pipeline.max_pose_innovation;
+        let mut estimate_holds = 0u64;
+        // Whether the last command was a hold for the estimate.
+        let mut doubting = false;
+        let mut replan_progress = ReplanProgress::default();
+        let mut gave_up: Option<String> = None;
         // The visualizer listens before the loop begins, or its recording would miss the
         // first plan steps (it starts at a lower priority, and sets up as long as a node).
         let mut waited = VisualizerStart::Listening;
@@ -646,8 +666,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             for e in supervisor.start_first(VISUALIZER)? {
                 report(&e);
             }
-            waited = visualizer_listening(&bus, &mut supervisor, &healths, |h| {
-                take_health(h, Instant::now(), &mut frames, &mut tracks)
+            waited = visualizer_listening(&bus, &mut supervisor, &healths, &hangup, |h| {
+                take_health(h, Instant::now(), &mut frames, &mut tracks, &mut beats)
             })?;
             match waited {
                 VisualizerStart::Late => eprintln!(
@@ -713,8 +733,12 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                         if p.phase == PlanPhase::Attach as u32 {
                             attaches.insert(p.step);
                         }
-                        if p.phase == PlanPhase::Start as u32 && p.step > 0 {
-                            replans.insert(p.step);
+                        if p.phase == PlanPhase::Start as u32
+                            && p.step > 0
+                            && replans.insert(p.step)
+                            && let Some(why) = replan_progress.replanned(p.rotation)
+                        {
+                            gave_up.get_or_insert(why);
                         }
                     }
                 })?;
@@ -731,6 +755,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                                 );
                             }
                             min_quality = min_quality.min(c.quality);
+                            truth.tracked(1, estimate_bound);
+                            doubting = false;
                             timing.add(c.header.trace.as_slice());
                             if c.header.origin_time_ns > 0 {
                                 let made = c.header.source_time_ns;
@@ -741,6 +767,17 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                         } else {
                             holds += 1;
                             hold_reason = c.reason;
+                            if c.reason.starts_with(ESTIMATE_OFF.as_bytes()) {
+                                estimate_holds += 1;
+                                // Said at once, once a spell: the loop noticed its estimate
+                                // is wrong.
+                                if !doubting {
+                                    eprintln!("run: the hand holds: {}", read_text(&c.reason));
+                                }
+                                doubting = true;
+                            } else {
+                                doubting = false;
+                            }
                             // A hold longer than HOLD_REPORT is reported (with its reason),
                             // then every HOLD_REPORT again; short ones only count.
                             let now = Instant::now();
@@ -771,11 +808,24 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                     }
                     if let Some(g) = grasps.latest()? {
                         rotation = g.rotation;
+                        truth.estimate(&g);
                     }
                     let now = Instant::now();
-                    healths.drain(|h| take_health(h, now, &mut frames, &mut tracks))?;
+                    healths.drain(|h| take_health(h, now, &mut frames, &mut tracks, &mut beats))?;
+                    truths.drain(|t| truth.truth(t))?;
                     for e in supervisor.poll(Instant::now())? {
                         report(&e);
+                    }
+                    for s in beats.check(Instant::now(), hung_restart, |n| supervisor.pid(n)) {
+                        silence(&s, &mut supervisor, config.pipeline.hung_restart);
+                    }
+                    if hangup.came() {
+                        reason = "stopped by SIGHUP (the terminal closed)".into();
+                        return Ok(false);
+                    }
+                    if let Some(why) = gave_up.take() {
+                        reason = why;
+                        return Ok(false);
                     }
                     if Instant::now() >= next_sample {
                         next_sample += Duration::from_secs(1);
@@ -856,11 +906,19 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                 }
             }
         };
-        let outcome = ws.wait_and_process(&mut on_event);
+        // A signal other than SIGTERM, SIGINT or SIGHUP (SIGCONT, SIGWINCH, ...) only
+        // interrupts the wait: on.
+        let outcome = loop {
+            match ws.wait_and_process(&mut on_event) {
+                Ok(WaitSetRunResult::Interrupt) if !hangup.came() => continue,
+                other => break other,
+            }
+        };
         if reason.is_empty() {
             reason = match outcome {
-                Ok(WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt) => {
-                    "stopped by a signal (Ctrl-C)".into()
+                Ok(WaitSetRunResult::Interrupt) => "stopped by SIGHUP (the terminal closed)".into(),
+                Ok(WaitSetRunResult::TerminationRequest) => {
+                    "stopped by a signal (Ctrl-C or SIGTERM)".into()
                 }
                 other => format!("{other:?}"),
             };
@@ -902,6 +960,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             memory,
             scheduling: policies,
             allocations: tracks.iter().map(|(n, t)| (n.clone(), t.total())).collect(),
+            estimate: truth.summary(),
+            estimate_holds,
             frames: frames
                 .values()
                 .fold((0, 0), |(a, b), (p, r)| (a + p, b + r)),
@@ -937,6 +997,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         memory_kib: stats.memory,
         scheduling: stats.scheduling,
         allocations: stats.allocations,
+        estimate: stats.estimate,
+        estimate_holds: stats.estimate_holds,
         recording: recording.as_ref().map(|r| RecordingSummary {
             target: target_name(r),
             id: recording_id.clone(),
@@ -969,6 +1031,18 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             "quality    minimum alpha* while tracking = {:.6} (alpha = {alpha})",
             summary.min_quality
         )?;
+        if let Some(e) = &summary.estimate {
+            writeln!(
+                o,
+                "estimate   off the plant's truth p50 {:.2} / p99 {:.2} / max {:.2} deg; {} tracking commands beyond the bound ({} deg), {} holds for the estimate",
+                e.rotation_deg.p50,
+                e.rotation_deg.p99,
+                e.rotation_deg.max,
+                e.tracked_off_truth,
+                config.pipeline.max_pose_innovation.to_degrees(),
+                summary.estimate_holds
+            )?;
+        }
         writeln!(
             o,
             "commands   {} sent ({:.0} Hz; {:.0} Hz of joint measurements), {} holds; {} node restarts; {:.1} s",
@@ -1070,7 +1144,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         std::fs::write(&p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
     }
     // A live run ends by Ctrl-C: that is success if nothing failed.
-    let interrupted = live && summary.reason.starts_with("stopped by a signal");
+    let interrupted = live && summary.reason.starts_with("stopped by");
     Ok(if summary.completed || interrupted {
         0
     } else {
@@ -1130,6 +1204,8 @@ struct Stats {
     memory: std::collections::BTreeMap<String, Memory>,
     scheduling: std::collections::BTreeMap<String, String>,
     allocations: std::collections::BTreeMap<String, Allocations>,
+    estimate: Option<EstimateError>,
+    estimate_holds: u64,
 }
 
 /// Where runs keep their iceoryx2 files: `run-PID` each.
@@ -1196,8 +1272,10 @@ fn take_health(
     now: Instant,
     frames: &mut std::collections::BTreeMap<u32, (u64, u64)>,
     tracks: &mut std::collections::BTreeMap<String, AllocationTrack>,
+    beats: &mut Heartbeats,
 ) {
     let node = read_text(&h.node);
+    beats.beat(&node, h.pid, now);
     if node == VISUALIZER {
         frames.insert(h.pid, (h.processed, h.refused));
     }
@@ -1230,6 +1308,7 @@ fn visualizer_listening(
     bus: &Bus,
     supervisor: &mut Supervisor,
     healths: &Sub<NodeHealth>,
+    hangup: &Hangup,
     mut seen: impl FnMut(&NodeHealth),
 ) -> Result<VisualizerStart> {
     let deadline = Instant::now() + VISUALIZER_READY;
@@ -1251,12 +1330,38 @@ fn visualizer_listening(
         if events.iter().any(|e| matches!(e, Event::Exited { .. })) {
             return Ok(VisualizerStart::Exited);
         }
-        // Sleeps; an error is a termination request (iceoryx2's signal handler).
-        if bus.node().wait(Duration::from_millis(5)).is_err() {
+        // Sleeps (a signal cuts it short); SIGTERM, SIGINT or SIGHUP stop the run.
+        let _ = bus.node().wait(Duration::from_millis(5));
+        if icrflow_nodes::runtime::termination_requested(bus.node()) || hangup.came() {
             return Ok(VisualizerStart::Interrupted);
         }
     }
     Ok(VisualizerStart::Late)
+}
+
+/// The text a hold because of the estimate starts with (the command node's
+/// `Hold::Estimate`).
+const ESTIMATE_OFF: &str = "the estimate is off";
+
+/// Says what a node's silence is, and kills a hung node (the supervisor restarts it).
+fn silence(s: &Silence, supervisor: &mut Supervisor, restart_s: f64) {
+    match s {
+        Silence::Silent { name, pid, since } => eprintln!(
+            "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: hung or stopped? (restarted after {restart_s} s: pipeline.hung_restart_s)",
+            since.as_secs_f64()
+        ),
+        Silence::Hung { name, pid, since } => {
+            supervisor.kill(name);
+            eprintln!(
+                "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: killed, to be restarted",
+                since.as_secs_f64()
+            );
+        }
+        Silence::Back { name, after } => eprintln!(
+            "run: node {name} sends heartbeats again after {:.1} s",
+            after.as_secs_f64()
+        ),
+    }
 }
 
 fn report(e: &Event) {

@@ -195,3 +195,46 @@ fn bad_configs_fail_with_the_key_named_and_a_nonzero_exit() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A contact given as a point is snapped to the nearest candidate and the snap printed as a
+/// distance (it was printed in degrees for planar problems); a point off the surface is
+/// refused with its distance, by `analyze` as by every verb.
+#[test]
+fn a_point_contact_snaps_by_a_distance_and_a_far_one_is_refused() {
+    let dir = scratch("point");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    // 30 deg on the 4.75 cm sphere, 0.4 mm out.
+    let (x, y) = (
+        0.0479 * 30f64.to_radians().cos(),
+        0.0479 * 30f64.to_radians().sin(),
+    );
+    let near = good.replacen("angle_deg = 30.0", &format!("point = [{x}, {y}, 0.0]"), 1);
+    let path = dir.join("near.toml");
+    std::fs::write(&path, &near).unwrap();
+    let out = icrflow(&["analyze", path.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("(candidate 6, snapped by 0.40 mm)"), "{text}");
+    let v = json(&["analyze", path.to_str().unwrap(), "--json"]);
+    assert!(
+        (v["contacts"][0]["snap"].as_f64().unwrap() - 0.4e-3).abs() < 1e-9,
+        "{v}"
+    );
+    let far = good.replacen("angle_deg = 30.0", "point = [1.4, 0.0, 0.0]", 1);
+    let path = dir.join("far.toml");
+    std::fs::write(&path, far).unwrap();
+    for verb in ["analyze", "validate", "plan"] {
+        let out = icrflow(&[verb, path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{verb}: {err}");
+        assert!(
+            err.contains("grasp.contacts[0].point (finger 1): [1.4, 0, 0] is 1.352 m from the object's surface"),
+            "{verb}: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -255,3 +255,91 @@ fn validate_accepts_the_shipped_scenarios_and_names_the_first_problem() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A whole turn in one rolling step used to be planned as "360 of 360 deg, 1 rolling step, 0
+/// switches" (exit 0) with the hand not moving: it is refused before planning, and nothing is
+/// written. A step at the bound (30 deg) is planned honestly: no contact point turns in the
+/// world by more than 10 deg in a step (a contact short of its stay-still point, out of its
+/// ICR, blocks its finger instead of dragging the fingertip around the object), and where no
+/// switch helps the plan stops early saying why.
+#[test]
+fn a_step_the_planner_cannot_represent_is_refused_not_completed() {
+    let dir = scratch("plan-step");
+    let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    for step in ["360.0", "1e300"] {
+        let config = dir.join("whole_turn.toml");
+        std::fs::write(
+            &config,
+            good.replace("step_deg = 5.0", &format!("step_deg = {step}")),
+        )
+        .unwrap();
+        let out = dir.join("out-whole-turn");
+        let o = icrflow(&[
+            "plan",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{step}: {err}");
+        let value = if step == "360.0" { "360" } else { step };
+        assert!(
+            err.contains(&format!(
+                "plan.step_deg: {value} is not in the allowed range (0, 30] deg"
+            )),
+            "{err}"
+        );
+        assert!(!out.join("trajectory.json").exists());
+    }
+    let config = dir.join("thirty.toml");
+    std::fs::write(&config, good.replace("step_deg = 5.0", "step_deg = 30.0")).unwrap();
+    let out = dir.join("out-thirty");
+    let o = icrflow(&[
+        "plan",
+        config.to_str().unwrap(),
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("trajectory.json")).unwrap())
+            .unwrap();
+    if s["completed"] == true {
+        assert_eq!(o.status.code(), Some(0));
+    } else {
+        assert_eq!(o.status.code(), Some(2), "{s}");
+        assert!(!s["stop_reason"].as_str().unwrap().is_empty(), "{s}");
+    }
+    let steps = t["steps"].as_array().unwrap();
+    let mut rolled = 0;
+    for w in steps.windows(2) {
+        if w[1]["phase"] != "rolling" {
+            continue;
+        }
+        rolled += 1;
+        let turned =
+            w[1]["rotation_deg"].as_f64().unwrap() - w[0]["rotation_deg"].as_f64().unwrap();
+        assert!((turned - 30.0).abs() < 1e-9, "a step of {turned} deg");
+        for (a, b) in w[0]["fingers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(w[1]["fingers"].as_array().unwrap())
+        {
+            let (Some(x), Some(y)) = (a["angle_deg"].as_f64(), b["angle_deg"].as_f64()) else {
+                continue;
+            };
+            // The contact point's turn in the world: its turn on the object plus the object's.
+            let world = ((y - x + turned + 540.0).rem_euclid(360.0) - 180.0).abs();
+            assert!(
+                world <= 10.0 + 1e-9,
+                "step {}: finger {}'s contact turned {world} deg in the world",
+                w[1]["step"],
+                a["finger"]
+            );
+        }
+    }
+    assert_eq!(rolled, s["rolling_steps"].as_u64().unwrap() as usize);
+    let _ = std::fs::remove_dir_all(&dir);
+}

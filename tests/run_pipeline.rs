@@ -214,6 +214,18 @@ fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
     assert!(err.contains("slips by +12.0 deg"), "{err}");
     completed_cleanly(&s, &err);
     turned_to_the_goal_above_the_margin(&s);
+    // Until the delayed pose measurements have pulled the estimate after the object, its
+    // innovation is over its bound and the hand holds, saying why, rather than track on a
+    // grasp that is not where the estimate has it. It tracked on the slipped object only until
+    // the second measurement after the slip (30 ms latency, 33 ms apart: ~0.1 s, ~100
+    // commands; 500 is half a second).
+    assert!(s["estimate_holds"].as_u64().unwrap() > 0, "{s}");
+    assert!(
+        err.contains("the estimate is off: pose innovation"),
+        "{err}"
+    );
+    let off = s["estimate"]["tracked_off_truth"].as_u64().unwrap();
+    assert!(off < 500, "{s}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -652,6 +664,223 @@ fn a_killed_run_stops_its_nodes_and_the_next_run_removes_what_it_left() {
         "the killed run's shared memory"
     );
     let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(shm_left(&s), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The paper's run for 90 degrees, without Zenoh or visualizer, with the `[pipeline]`
+/// settings `pipeline`: its output and summary.
+fn quarter_turn(
+    dir: &std::path::Path,
+    name: &str,
+    pipeline: &str,
+) -> (std::process::Output, serde_json::Value) {
+    let config = paper_with(
+        dir,
+        &format!("{name}.toml"),
+        &format!("[pipeline]\n{pipeline}\n\n[zenoh]\nenabled = false\n"),
+    );
+    let text = std::fs::read_to_string(&config)
+        .unwrap()
+        .replace("rotation_deg = 360.0", "rotation_deg = 90.0");
+    std::fs::write(&config, text).unwrap();
+    let summary = dir.join(format!("{name}.json"));
+    let o = icrflow(&[
+        "run",
+        config.to_str().unwrap(),
+        "--no-visualizer",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    let s = json(&std::fs::read(&summary).unwrap());
+    (o, s)
+}
+
+/// Issue #18: at any pose latency the estimator allows (vision at 30 Hz, 0 to 500 ms late),
+/// and with the pose noise at its bound, the estimate follows the object: the run reaches the
+/// goal, never tracking while the estimate is more than its bound
+/// (`pipeline.max_pose_innovation_deg`) off the plant's truth. Before, from 250 ms on, the
+/// estimate ran away (thousands of degrees) while the hand tracked on.
+#[test]
+fn the_estimate_follows_the_object_at_every_pose_latency_and_noise() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("latency");
+    let mut cases: Vec<(String, String)> = [0, 30, 100, 200, 300, 500]
+        .iter()
+        .map(|ms| (format!("latency{ms}"), format!("pose_latency_ms = {ms}")))
+        .collect();
+    // The noise at its bound (1 degree), 200 ms late.
+    cases.push((
+        "noise".into(),
+        "pose_noise_deg = 1.0\npose_latency_ms = 200".into(),
+    ));
+    for (name, pipeline) in &cases {
+        let (o, s) = quarter_turn(&dir, name, pipeline);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {err}\n{s}");
+        completed_cleanly(&s, &err);
+        let rotation = s["rotation_deg"].as_f64().unwrap();
+        assert!((rotation - 90.0).abs() < 1.0, "{name}: {s}");
+        let e = &s["estimate"];
+        assert_eq!(e["tracked_off_truth"], 0, "{name}: {s}");
+        assert!(
+            e["rotation_deg"]["samples"].as_u64().unwrap() > 100,
+            "{name}: {s}"
+        );
+        assert!(
+            e["rotation_deg"]["max"].as_f64().unwrap() < 3.0,
+            "{name}: {s}"
+        );
+        assert!(
+            s["min_quality"].as_f64().unwrap() >= s["alpha"].as_f64().unwrap() * (1.0 - 1e-9),
+            "{name}: {s}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `kill -s SIG PID`.
+fn signal(sig: &str, pid: u32) {
+    let sent = std::process::Command::new("kill")
+        .args(["-s", sig, &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success(), "kill -s {sig} {pid}");
+}
+
+/// Signals that ask nothing to stop (SIGCONT, SIGWINCH, SIGUSR2 is not among them: its
+/// default kills) only interrupt the nodes' waits: every node, the visualizer and `run`
+/// itself go on, and the run completes without a restart. Before, SIGCONT restarted the plant
+/// (its interrupted sleep taken as a termination request).
+#[test]
+fn signals_that_ask_nothing_to_stop_change_nothing() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("signals");
+    let summary = dir.join("signals.json");
+    let rrd = dir.join("signals.rrd");
+    let config = paper_with(&dir, "signals.toml", "[zenoh]\nenabled = false\n");
+    let run = spawn_run(&[
+        config.to_str().unwrap(),
+        "--summary-json",
+        summary.to_str().unwrap(),
+        "--rrd",
+        rrd.to_str().unwrap(),
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    for node in [
+        "plant",
+        "estimator",
+        "wrench",
+        "planner",
+        "command",
+        "visualizer",
+    ] {
+        let program = format!("icrflow-{node}");
+        let pid = find_child(&program, Some(run.id()))
+            .unwrap_or_else(|| panic!("{program} is not running"));
+        for _ in 0..3 {
+            signal("CONT", pid);
+            signal("WINCH", pid);
+        }
+    }
+    for _ in 0..3 {
+        signal("CONT", run.id());
+        signal("WINCH", run.id());
+    }
+    let out = run.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    completed_cleanly(&s, &err);
+    assert!(!err.contains("exited"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// SIGHUP (the terminal closed) stops `run` as SIGTERM does: the summary written, every node
+/// stopped, nothing left of the bus. Before, it killed `run` outright.
+#[test]
+fn a_hang_up_stops_the_run_cleanly_with_its_summary() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("hangup");
+    let summary = dir.join("hangup.json");
+    let run = spawn_run(&[
+        "--live",
+        "--no-visualizer",
+        "config/paper_sphere.toml",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(4));
+    let pids: Vec<u32> = [
+        "plant",
+        "estimator",
+        "wrench",
+        "planner",
+        "command",
+        "bridge",
+    ]
+    .iter()
+    .map(|n| find_child(&format!("icrflow-{n}"), Some(run.id())).unwrap())
+    .collect();
+    let run_pid = run.id();
+    signal("HUP", run_pid);
+    let out = run.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    // A live run ends by a signal: as by Ctrl-C, success.
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert!(s["reason"].as_str().unwrap().contains("SIGHUP"), "{s}");
+    assert!(s["commands"].as_u64().unwrap() > 0, "{s}");
+    assert_eq!(s["restarts"], 0, "{s}");
+    assert!(pids.iter().all(|p| !running(*p)), "{err}");
+    assert_eq!(shm_left(&s), Vec::<String>::new());
+    assert!(
+        !std::path::Path::new(s["bus_root"].as_str().unwrap()).exists(),
+        "{s}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A node that stops sending heartbeats (here the hand command node, SIGSTOPped: alive, but
+/// doing nothing) is reported within a second, then killed and restarted after
+/// `pipeline.hung_restart_s`; the run completes.
+#[test]
+fn a_hung_node_is_reported_then_restarted() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("hung");
+    let summary = dir.join("hung.json");
+    let config = paper_with(
+        &dir,
+        "hung.toml",
+        "[pipeline]\nhung_restart_s = 2.0\n\n[zenoh]\nenabled = false\n",
+    );
+    let run = spawn_run(&[
+        config.to_str().unwrap(),
+        "--no-visualizer",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(4));
+    let pid = find_child("icrflow-command", Some(run.id())).unwrap();
+    signal("STOP", pid);
+    let out = run.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let silent = format!("run: node command (pid {pid}) has sent no heartbeat for");
+    let reported = err.find(&silent).unwrap_or_else(|| panic!("{err}"));
+    let killed = err
+        .find(&format!("(pid {pid}) has sent no heartbeat for"))
+        .and_then(|_| err.find("killed, to be restarted"))
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(reported < killed, "{err}");
+    assert!(
+        err.contains("node command exited (killed by SIGKILL)"),
+        "{err}"
+    );
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["restarts"], 1, "{s}");
+    assert_eq!(s["stale_tracked"], 0, "{s}");
     assert_eq!(shm_left(&s), Vec::<String>::new());
     let _ = std::fs::remove_dir_all(&dir);
 }

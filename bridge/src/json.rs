@@ -78,6 +78,9 @@ pub struct GraspStateJson {
     pub position: [f64; 3],
     /// Root-mean-square fit residual of the fingertips on the object.
     pub residual: f64,
+    /// The estimate's smoothed pose innovation (rad): how far it was off the object-pose
+    /// measurements.
+    pub pose_innovation: f64,
     /// Each finger's contact state.
     pub contacts: Vec<ContactJson>,
 }
@@ -231,6 +234,7 @@ pub fn grasp_state(rig: &str, g: &GraspState) -> GraspStateJson {
         orientation: g.orientation,
         position: g.position,
         residual: g.residual,
+        pose_innovation: g.pose_innovation,
         contacts: g.fingers[..fingers(g.finger_count)]
             .iter()
             .map(contact)

@@ -26,7 +26,7 @@ pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 4;
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -44,7 +44,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v4`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v5`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -69,6 +69,8 @@ pub enum Kind {
     HandCommand = 6,
     /// [`NodeHealth`].
     NodeHealth = 7,
+    /// [`PlantTruth`].
+    PlantTruth = 8,
 }
 
 /// The header every message starts with.
@@ -85,7 +87,7 @@ pub enum Kind {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Header.v4")]
+#[type_name("icrflow.Header.v5")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -129,7 +131,7 @@ pub const TRACE_STAMPS: usize = 7;
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Trace.v4")]
+#[type_name("icrflow.Trace.v5")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -307,7 +309,8 @@ messages!(
     WrenchSpaceHeader => WrenchSpace,
     PlanStepHeader => PlanStep,
     HandCommand => HandCommand,
-    NodeHealth => NodeHealth
+    NodeHealth => NodeHealth,
+    PlantTruth => PlantTruth
 );
 
 /// Joint encoder readings of the hand.
@@ -323,7 +326,7 @@ messages!(
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.JointState.v4")]
+#[type_name("icrflow.JointState.v5")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -353,7 +356,7 @@ pub struct JointState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.ObjectPose.v4")]
+#[type_name("icrflow.ObjectPose.v5")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -365,6 +368,41 @@ pub struct ObjectPose {
     pub position: [f64; 3],
     /// Object orientation, unit quaternion `[w, x, y, z]`.
     pub orientation: [f64; 4],
+}
+
+/// What a simulated plant knows to be true, for the run's summary, the tests and the
+/// visualizer: never read by the estimator, which sees only the measurements.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    ZeroCopySend,
+    FromBytes,
+    IntoBytes,
+    Immutable,
+    KnownLayout,
+)]
+#[type_name("icrflow.PlantTruth.v5")]
+#[repr(C)]
+pub struct PlantTruth {
+    /// Header ([`Kind::PlantTruth`]); `source_time_ns` is the time of the state it gives.
+    pub header: Header,
+    /// Object centre of mass in the hand frame (m).
+    pub position: [f64; 3],
+    /// Object orientation, unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+    /// Object rotation about the vertical axis since the start (rad, unwrapped).
+    pub rotation: f64,
+    /// Fingers in use.
+    pub finger_count: u32,
+    /// Padding (zero).
+    pub reserved: u32,
+    /// Finger number of each slot.
+    pub finger_ids: [u32; MAX_FINGERS],
+    /// 1 where the finger of the slot is in contact with the object, 0 not.
+    pub in_contact: [u32; MAX_FINGERS],
 }
 
 /// One finger's contact in a [`GraspState`].
@@ -380,7 +418,7 @@ pub struct ObjectPose {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerContact.v4")]
+#[type_name("icrflow.FingerContact.v5")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -412,7 +450,7 @@ pub struct FingerContact {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.GraspState.v4")]
+#[type_name("icrflow.GraspState.v5")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -423,8 +461,18 @@ pub struct GraspState {
     pub orientation: [f64; 4],
     /// Object rotation about the vertical axis since the start (rad, unwrapped).
     pub rotation: f64,
-    /// Root-mean-square fit residual of the fingertips on the object (m).
+    /// Root-mean-square fit residual of the fingertips on the object (m): the contact
+    /// consistency between the fingertips' forward kinematics and the object model at the
+    /// estimated pose.
     pub residual: f64,
+    /// The pose innovation (rad): how far the estimate was off the object-pose measurements,
+    /// each compared with the estimate as it was when the measured scene was captured,
+    /// smoothed over the last few measurements (an exponential average, so that the
+    /// measurements' noise averages out and a bias stays). 0 before the first measurement.
+    pub pose_innovation: f64,
+    /// When the newest object-pose measurement the estimate has fused was captured
+    /// ([`now_ns`]; 0: none yet).
+    pub pose_captured_ns: u64,
     /// Fingers in use.
     pub finger_count: u32,
     /// Padding (zero).
@@ -449,7 +497,7 @@ pub struct GraspState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.WrenchSpaceHeader.v4")]
+#[type_name("icrflow.WrenchSpaceHeader.v5")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -479,7 +527,7 @@ pub struct WrenchSpaceHeader {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Facet.v4")]
+#[type_name("icrflow.Facet.v5")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -517,7 +565,7 @@ pub enum PlanPhase {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerTarget.v4")]
+#[type_name("icrflow.FingerTarget.v5")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -551,7 +599,7 @@ pub struct FingerTarget {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlanStepHeader.v4")]
+#[type_name("icrflow.PlanStepHeader.v5")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -592,7 +640,7 @@ pub enum CommandMode {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.HandCommand.v4")]
+#[type_name("icrflow.HandCommand.v5")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -647,7 +695,7 @@ pub enum NodeState {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.NodeHealth.v4")]
+#[type_name("icrflow.NodeHealth.v5")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -716,6 +764,9 @@ pub mod topics {
     pub const HAND_COMMAND: &str = "hand_command";
     /// Node health ([`crate::NodeHealth`]).
     pub const NODE_HEALTH: &str = "node_health";
+    /// The simulated plant's true state ([`crate::PlantTruth`]): for the run's summary, the
+    /// tests and the visualizer; no node of the loop reads it, and it does not cross hosts.
+    pub const PLANT_TRUTH: &str = "plant_truth";
     /// Every topic.
     pub const ALL: [&str; 7] = [
         JOINT_STATE,
@@ -737,9 +788,6 @@ pub mod topics {
     pub fn link(rig: &str, topic: &str) -> String {
         format!("icrflow/{rig}/link/{topic}")
     }
-
-    /// The node processes of the control loop, in start order.
-    pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
 
     /// Each node's loop topics: what it publishes, and what it subscribes to (every node also
     /// publishes [`NODE_HEALTH`]).
@@ -765,7 +813,8 @@ pub mod topics {
         pub import: Vec<&'static str>,
     }
 
-    /// The links of a host running `local` (names from [`NODES`]; others are ignored).
+    /// The links of a host running `local` (node names as in `icrflow_scenario::NODES`, the
+    /// config's list; others are ignored).
     pub fn links(local: &[impl AsRef<str>]) -> Links {
         let here = |node: &str| local.iter().any(|n| n.as_ref() == node);
         let mut links = Links::default();
@@ -860,11 +909,12 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v4");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v4");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v4");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v4");
-        assert_eq!(SCHEMA_VERSION, 4);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v5");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v5");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v5");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v5");
+        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v5");
+        assert_eq!(SCHEMA_VERSION, 5);
     }
 
     #[test]
@@ -877,11 +927,17 @@ mod tests {
         assert_eq!(workstation.export, [WRENCH_SPACE, PLAN_STEP]);
         assert_eq!(workstation.import, [GRASP_STATE]);
         // One host: nothing crosses.
-        assert_eq!(links(&NODES), Links::default());
+        assert_eq!(links(&icrflow_scenario::NODES), Links::default());
         // The plant alone: commands in, measurements out.
         let plant = links(&["plant"]);
         assert_eq!(plant.export, [JOINT_STATE, OBJECT_POSE]);
         assert_eq!(plant.import, [HAND_COMMAND]);
+    }
+
+    #[test]
+    fn the_configs_bounds_are_the_messages_capacities() {
+        assert_eq!(icrflow_scenario::bounds::MESSAGE_FINGERS, MAX_FINGERS);
+        assert_eq!(icrflow_scenario::bounds::MESSAGE_JOINTS, MAX_JOINTS);
     }
 
     #[test]
@@ -891,7 +947,8 @@ mod tests {
         assert_eq!(std::mem::size_of::<Header>(), 104);
         assert_eq!(std::mem::size_of::<Facet>(), 56);
         assert_eq!(std::mem::size_of::<FingerContact>(), 72);
-        assert_eq!(std::mem::size_of::<GraspState>(), 104 + 80 + 8 * 72 + 512);
+        assert_eq!(std::mem::size_of::<GraspState>(), 104 + 96 + 8 * 72 + 512);
+        assert_eq!(std::mem::size_of::<PlantTruth>(), 104 + 64 + 8 + 64);
         assert_eq!(std::mem::size_of::<FingerTarget>(), 112);
         assert_eq!(
             std::mem::size_of::<PlanStepHeader>(),

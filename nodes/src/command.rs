@@ -11,6 +11,10 @@
 //! (`pipeline.rate_hz`). When no wrench space has come for [`WATCHDOG_PERIODS`] periods, the
 //! node's own timer sends holds at that rate.
 //!
+//! It also holds when the estimate doubts itself: the grasp state's smoothed pose innovation
+//! over `pipeline.max_pose_innovation_deg`, or its contact residual over
+//! `pipeline.max_contact_residual_mm` ([`EstimateBounds`]).
+//!
 //! A tracking command's joint targets are the plan step's, clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
@@ -32,7 +36,7 @@ use icrflow_interfaces::{
 use icrflow_plan::forces::{ForceContact, ForceSolver, Load};
 
 use crate::runtime::{Context, Health, Sequence, now, serve};
-use crate::safety::{Gate, Hold};
+use crate::safety::{EstimateBounds, Gate, Hold};
 
 /// Periods without a wrench space after which the node holds on its own timer.
 pub const WATCHDOG_PERIODS: f64 = 3.0;
@@ -52,7 +56,15 @@ pub fn run(ctx: &Context) -> Result<()> {
     let out = ctx.bus.publisher::<HandCommand>(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
-    let mut gate = Gate::new((p.max_input_age * 1e9) as u64, ctx.config.grasp.alpha);
+    let bounds = EstimateBounds {
+        pose_innovation: p.max_pose_innovation,
+        contact_residual: p.max_contact_residual,
+    };
+    let mut gate = Gate::new(
+        (p.max_input_age * 1e9) as u64,
+        ctx.config.grasp.alpha,
+        bounds,
+    );
     let mut regions = Vec::with_capacity(4096);
     let mut facets = Vec::with_capacity(4096);
     let mut recent: VecDeque<GraspState> = VecDeque::with_capacity(RECENT);

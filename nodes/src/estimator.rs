@@ -2,30 +2,55 @@
 //! kinematics and the rolling kinematics ([`crate::rolling`]), with the delayed object-pose
 //! measurements into the object's rotation and the fingers' contact state.
 //!
-//! Between measurements the rotation follows the fingertips' rolling; a measurement captured
-//! at time `t` is compared with the estimate the filter had at `t` (kept in a short history),
-//! and a fraction [`GAIN`] of the difference corrects the current estimate: the kinematics
-//! since `t` are kept, so the delay is compensated (a complementary filter with replay).
-//! A finger touches when its fingertip centre (from the encoders) is within [`TOUCH`] of the
-//! object's surface offset by the fingertip radius; its contact point is the section's point
-//! nearest to the fingertip centre (along the normal), snapped to the nearest candidate.
-//! The grasp state also carries the joint angles it was estimated from (the hand's state, for
-//! the planner's way points and a restarted command node).
+//! [`Estimator`] is the pure step (measurements and their times in, the grasp state out);
+//! [`run`] is the node around it (the bus, health, the checkpoint).
+//!
+//! **Rotation.** Between measurements the rotation follows the fingertips' rolling. A pose
+//! measurement of the scene captured at time `t` (it arrives `pipeline.pose_latency_ms`
+//! later) is compared with the estimate *as it was at `t`, corrected by everything the filter
+//! has learnt since*: the innovation `nu = measured - (theta(t) + C - C(t))`, `C` the sum of
+//! the corrections applied so far. A fraction [`GAIN`] of it corrects the estimate now (and
+//! `C`); the kinematics since `t` are kept, so the delay is compensated (a complementary filter
+//! with replay: the rolling increments do not depend on the rotation on a circular section,
+//! so replaying them from the corrected state at `t` moves the estimate by the same
+//! correction). Each measurement's innovation is thus measured against the corrections of the
+//! measurements before it, however many of them were still in flight when it was captured:
+//! the error decays by `1 - GAIN` per measurement at any latency. (Comparing with the
+//! uncorrected `theta(t)` instead counted each error once per measurement in flight, an
+//! effective gain of `GAIN (1 + latency x rate)`: unstable above ~100 ms at 30 Hz.)
+//!
+//! **Doubt.** The grasp state carries the estimate's residuals, for the hand command node's
+//! gate: the pose innovation smoothed over the last measurements (weight
+//! [`INNOVATION_WEIGHT`]: the measurements' noise averages out, a bias stays) and the contact
+//! consistency (the root-mean-square distance of the fingertips in contact from the object's
+//! surface at the estimated pose).
+//!
+//! **Contacts.** A finger touches when its fingertip centre (from the encoders) is within
+//! [`TOUCH`] of the object's surface offset by the fingertip radius, for [`SETTLE`] samples;
+//! it leaves beyond [`RELEASE`]. Its contact point is the section's point nearest to the
+//! fingertip centre (along the normal), snapped to the nearest candidate. The grasp state also
+//! carries the joint angles it was estimated from (the hand's state, for the planner's way
+//! points and a restarted command node).
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 use anyhow::Result;
+use icrflow_grasp::object::Section;
 use icrflow_interfaces::{
     FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, ObjectPose, topics,
 };
-use icrflow_plan::hand::wrap;
+use icrflow_plan::hand::{Hand, wrap};
 
 use crate::rolling::{Surface, Tip, tip};
 use crate::runtime::{Checkpoint, Context, Health, Sequence, serve};
 
 /// Weight of a pose measurement's correction.
 pub const GAIN: f64 = 0.3;
+/// Weight of the newest innovation in the smoothed one the grasp state carries
+/// ([`GraspState::pose_innovation`]): its noise is `sqrt(w / (2 - w))` = 0.33 of the
+/// measurements' for 0.2.
+pub const INNOVATION_WEIGHT: f64 = 0.2;
 /// A fingertip comes into contact when its centre is within this of the contact distance
 /// (m, encoder noise included) ...
 pub const TOUCH: f64 = 0.6e-3;
@@ -36,61 +61,254 @@ pub const RELEASE: f64 = 2e-3;
 /// A fingertip in contact counts for the rolling only if its distance from the object's surface
 /// changed less than this between two samples (m): one arriving or leaving does not roll it.
 pub const RADIAL: f64 = 0.2e-3;
+/// Estimates kept to compare delayed measurements with (one per joint measurement): 4 s at
+/// 1 kHz, 2 s at the highest `pipeline.rate_hz`, more than the longest pose latency allowed.
+pub const HISTORY: usize = 4000;
 
-/// Runs the estimator.
+/// Why a measurement was not used.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Refusal {
+    /// A pose measurement whose rotation is not finite.
+    #[error("object pose not finite")]
+    PoseNotFinite,
+    /// A joint angle that is not finite.
+    #[error("finger {finger}: joint angle not finite")]
+    JointNotFinite {
+        /// The finger.
+        finger: u32,
+    },
+}
+
+/// A finger's contact changed: `(finger, in contact now, fingertip gap to the surface (m))`.
+pub type Transition = (u32, bool, f64);
+
+/// The estimator's state and step: no I/O, no clock.
+#[derive(Debug)]
+pub struct Estimator<'a> {
+    hand: &'a Hand,
+    surface: &'a Surface,
+    section: &'a Section,
+    /// The estimated rotation (rad).
+    theta: f64,
+    /// The corrections applied so far (rad): [`Estimator::history`] holds `theta - correction`.
+    correction: f64,
+    /// The smoothed pose innovation (rad).
+    innovation: f64,
+    /// Capture time of the newest pose measurement fused (0: none).
+    pose_captured: u64,
+    /// Per joint measurement: its time and the estimate then, less the corrections by then.
+    history: VecDeque<(u64, f64)>,
+    contact: Vec<bool>,
+    streak: Vec<u32>,
+    previous: Vec<Option<(Tip, f64)>>,
+    tips: Vec<Option<(Tip, bool)>>,
+    transitions: Vec<Transition>,
+    q: Vec<f64>,
+}
+
+impl<'a> Estimator<'a> {
+    /// An estimator of `hand` holding an object of section `section` (its `surface`), starting
+    /// at rotation `theta` (rad), every finger out of contact.
+    pub fn new(hand: &'a Hand, surface: &'a Surface, section: &'a Section, theta: f64) -> Self {
+        let n = hand.fingers.len();
+        Self {
+            hand,
+            surface,
+            section,
+            theta,
+            correction: 0.0,
+            innovation: 0.0,
+            pose_captured: 0,
+            history: VecDeque::with_capacity(HISTORY),
+            contact: vec![false; n],
+            streak: vec![0; n],
+            previous: vec![None; n],
+            tips: Vec::with_capacity(n),
+            transitions: Vec::with_capacity(n),
+            q: Vec::with_capacity(8),
+        }
+    }
+
+    /// The estimated rotation (rad).
+    pub fn rotation(&self) -> f64 {
+        self.theta
+    }
+
+    /// The smoothed pose innovation (rad).
+    pub fn innovation(&self) -> f64 {
+        self.innovation
+    }
+
+    /// The contacts that changed in the last [`Estimator::on_joints`].
+    pub fn transitions(&self) -> &[Transition] {
+        &self.transitions
+    }
+
+    /// Fuses an object-pose measurement of rotation `measured` (rad) of the scene captured at
+    /// `captured_ns`; returns its innovation (rad).
+    pub fn on_pose(&mut self, measured: f64, captured_ns: u64) -> Result<f64, Refusal> {
+        if !measured.is_finite() {
+            return Err(Refusal::PoseNotFinite);
+        }
+        // The estimate at the capture time (the newest one not after it; before the oldest
+        // kept, the oldest), corrected by what was learnt since.
+        let at = self.history.partition_point(|(t, _)| *t <= captured_ns);
+        let then = match at
+            .checked_sub(1)
+            .or((!self.history.is_empty()).then_some(0))
+        {
+            Some(i) => self.history[i].1 + self.correction,
+            None => self.theta,
+        };
+        let nu = wrap(measured - then);
+        self.theta += GAIN * nu;
+        self.correction += GAIN * nu;
+        self.innovation += INNOVATION_WEIGHT * (nu - self.innovation);
+        self.pose_captured = self.pose_captured.max(captured_ns);
+        Ok(nu)
+    }
+
+    /// The grasp state of joint measurement `m`, with `header`: the fingers' contacts, the
+    /// rotation rolled on by the fingers in contact, and the residuals.
+    pub fn on_joints(&mut self, m: &JointState, header: Header) -> Result<GraspState, Refusal> {
+        let hand = self.hand;
+        let surface = self.surface;
+        let mut g = GraspState {
+            header,
+            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+            ..Default::default()
+        };
+        self.transitions.clear();
+        self.tips.clear();
+        let mut turn = 0.0;
+        let mut rolling = 0;
+        // Checked first: a refused measurement changes nothing.
+        for f in hand.fingers.iter().take(MAX_FINGERS) {
+            if let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id)
+                && m.positions[k][..f.dof()].iter().any(|x| !x.is_finite())
+            {
+                return Err(Refusal::JointNotFinite { finger: f.id });
+            }
+        }
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id) else {
+                self.tips.push(None);
+                continue;
+            };
+            self.q.clear();
+            self.q.extend_from_slice(&m.positions[k][..f.dof()]);
+            g.joints[slot][..self.q.len()].copy_from_slice(&self.q);
+            let t = tip(f, &self.q);
+            let was = self.contact[slot];
+            let gap = surface.contact_of(&t, f, self.theta).gap;
+            self.streak[slot] = if gap.abs() <= TOUCH {
+                self.streak[slot].saturating_add(1)
+            } else {
+                0
+            };
+            let on = if was {
+                gap.abs() <= RELEASE
+            } else {
+                self.streak[slot] >= SETTLE
+            };
+            if on != was {
+                self.transitions.push((f.id, on, gap));
+            }
+            self.contact[slot] = on;
+            if let Some((before, before_gap)) = self.previous[slot]
+                && was
+                && on
+                && (gap - before_gap).abs() < RADIAL
+            {
+                turn += surface.rotation(&before, &t, f, self.theta);
+                rolling += 1;
+            }
+            self.tips.push(Some((t, on)));
+            self.previous[slot] = Some((t, gap));
+        }
+        if rolling > 0 {
+            self.theta += turn / rolling as f64;
+        }
+        let (mut residual, mut touching) = (0.0, 0);
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            let c = &mut g.fingers[slot];
+            c.finger = f.id;
+            let Some((t, true)) = self.tips[slot] else {
+                continue;
+            };
+            let touch = surface.contact_of(&t, f, self.theta);
+            let index = touch.sample;
+            let p = self.section.samples.points[index];
+            let n = self.section.samples.normals[index];
+            *c = FingerContact {
+                finger: f.id,
+                in_contact: 1,
+                candidate: index as u32,
+                reserved: 0,
+                point: [p.x, p.y, p.z],
+                normal: [n.x, n.y, n.z],
+                residual: touch.gap,
+            };
+            residual += touch.gap * touch.gap;
+            touching += 1;
+        }
+        g.rotation = self.theta;
+        let half = 0.5 * self.theta;
+        g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
+        g.residual = if touching > 0 {
+            (residual / touching as f64).sqrt()
+        } else {
+            0.0
+        };
+        g.pose_innovation = self.innovation;
+        g.pose_captured_ns = self.pose_captured;
+        if self.history.len() == HISTORY {
+            self.history.pop_front();
+        }
+        self.history
+            .push_back((m.header.source_time_ns, self.theta - self.correction));
+        Ok(g)
+    }
+}
+
+/// Runs the estimator node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let hand = &ctx.setup.hand;
     let object = &ctx.setup.object;
     let surface = Surface::new(
         &object.section,
         [object.centre_of_mass.x, object.centre_of_mass.y],
     )?;
-    let section = &object.section;
     let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
     let poses = ctx.bus.subscriber::<ObjectPose>(topics::OBJECT_POSE)?;
     let out = ctx.bus.publisher::<GraspState>(topics::GRASP_STATE)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let checkpoint = ctx.bus.config().root.join("estimator.state");
-    let mut theta: f64 = std::fs::read_to_string(&checkpoint)
+    let theta: f64 = std::fs::read_to_string(&checkpoint)
         .ok()
         .and_then(|t| t.trim().parse().ok())
         .filter(|x: &f64| x.is_finite())
         .unwrap_or(0.0);
-    let mut last_joint_seq = 0;
-    let mut last_pose_seq = 0;
-    let mut previous: Vec<Option<(Tip, f64)>> = vec![None; hand.fingers.len()];
-    let mut contact = vec![false; hand.fingers.len()];
-    let mut streak = vec![0u32; hand.fingers.len()];
-    let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
-    let mut q = vec![0.0; 8];
+    let mut estimator = Estimator::new(&ctx.setup.hand, &surface, &object.section, theta);
+    let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
-    let mut tips: Vec<Option<(Tip, bool)>> = Vec::with_capacity(hand.fingers.len());
     let saved = Checkpoint::new(checkpoint)?;
 
     serve(ctx, &[joints.listener(), poses.listener()], None, |_| {
         health.tick()?;
-        if let Some(m) = poses.latest()? {
-            let [w, _, _, z] = m.orientation;
-            let measured = 2.0 * z.atan2(w);
-            if !health.accept(
+        if let Some(m) = poses.latest()?
+            && health.accept(
                 "object pose",
                 &m.header,
                 Kind::ObjectPose,
                 &mut last_pose_seq,
-            ) {
-                // Refused and counted.
-            } else if !measured.is_finite() {
-                health.refuse("object pose not finite");
-            } else {
-                let then = history
-                    .iter()
-                    .rev()
-                    .find(|(t, _)| *t <= m.captured_time_ns)
-                    .or(history.front())
-                    .map_or(theta, |(_, th)| *th);
-                theta += GAIN * wrap(measured - then);
-                health.processed += 1;
+            )
+        {
+            let [w, _, _, z] = m.orientation;
+            match estimator.on_pose(2.0 * z.atan2(w), m.captured_time_ns) {
+                Ok(_) => health.processed += 1,
+                Err(why) => health.refuse(why),
             }
         }
         let Some(m) = joints.latest()? else {
@@ -106,106 +324,210 @@ pub fn run(ctx: &Context) -> Result<()> {
             return Ok(());
         }
         health.processed += 1;
-        let mut g = GraspState {
-            header: Header::after(Kind::GraspState, seq.advance(), &m.header, received),
-            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
-            ..Default::default()
-        };
-        let mut turn = 0.0;
-        let mut rolling = 0;
-        let mut residual = 0.0;
-        let mut touching = 0;
-        tips.clear();
-        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-            let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id) else {
-                tips.push(None);
-                continue;
-            };
-            q.clear();
-            q.extend_from_slice(&m.positions[k][..f.dof()]);
-            if q.iter().any(|x| !x.is_finite()) {
-                health.refuse(format_args!("finger {}: joint angle not finite", f.id));
+        let header = Header::after(Kind::GraspState, seq.advance(), &m.header, received);
+        let g = match estimator.on_joints(&m, header) {
+            Ok(g) => g,
+            Err(why) => {
+                health.refuse(why);
                 return Ok(());
             }
-            g.joints[slot][..q.len()].copy_from_slice(&q);
-            let t = tip(f, &q);
-            let was = contact[slot];
-            let gap = surface.contact_of(&t, f, theta).gap;
-            streak[slot] = if gap.abs() <= TOUCH {
-                streak[slot].saturating_add(1)
-            } else {
-                0
-            };
-            let on = if was {
-                gap.abs() <= RELEASE
-            } else {
-                streak[slot] >= SETTLE
-            };
-            if on != was && log_contacts {
-                // Transitions only: a line per touch or release.
+        };
+        if log_contacts {
+            // Transitions only: a line per touch or release.
+            for (finger, on, gap) in estimator.transitions() {
                 eprintln!(
-                    "icrflow-estimator: finger {} {} (fingertip {:+.2} mm from the surface)",
-                    f.id,
-                    if on { "touches" } else { "released" },
+                    "icrflow-estimator: finger {finger} {} (fingertip {:+.2} mm from the surface)",
+                    if *on { "touches" } else { "released" },
                     gap * 1e3
                 );
             }
-            contact[slot] = on;
-            if let Some((before, before_gap)) = previous[slot]
-                && was
-                && on
-                && (gap - before_gap).abs() < RADIAL
-            {
-                turn += surface.rotation(&before, &t, f, theta);
-                rolling += 1;
-            }
-            tips.push(Some((t, on)));
-            previous[slot] = Some((t, gap));
-        }
-        if rolling > 0 {
-            theta += turn / rolling as f64;
-        }
-        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-            let c = &mut g.fingers[slot];
-            c.finger = f.id;
-            let Some((t, on)) = tips[slot] else { continue };
-            if !on {
-                continue;
-            }
-            let touch = surface.contact_of(&t, f, theta);
-            let index = touch.sample;
-            let p = section.samples.points[index];
-            let n = section.samples.normals[index];
-            *c = FingerContact {
-                finger: f.id,
-                in_contact: 1,
-                candidate: index as u32,
-                reserved: 0,
-                point: [p.x, p.y, p.z],
-                normal: [n.x, n.y, n.z],
-                residual: touch.gap,
-            };
-            residual += c.residual * c.residual;
-            touching += 1;
-        }
-        g.rotation = theta;
-        let half = 0.5 * theta;
-        g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
-        g.residual = if touching > 0 {
-            (residual / touching as f64).sqrt()
-        } else {
-            0.0
-        };
-        history.push_back((m.header.source_time_ns, theta));
-        while history.len() > 4000 {
-            history.pop_front();
         }
         out.publish(g)?;
         if last_joint_seq.is_multiple_of(10) {
+            let theta = estimator.rotation();
             saved.store(|text| {
                 let _ = write!(text, "{theta:e}");
             });
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::Noise;
+    use icrflow_scenario::{Config, Setup};
+
+    fn paper() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
+
+    /// The hand of the paper's initial grasp, as its encoders read it (with noise).
+    fn measurement(setup: &Setup, q: &[Vec<f64>], t: u64, noise: &mut Noise) -> JointState {
+        let mut m = JointState {
+            header: Header::new(Kind::JointState, t / 1000 + 1, 0, 0),
+            finger_count: setup.hand.fingers.len() as u32,
+            ..Default::default()
+        };
+        m.header.source_time_ns = t;
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            m.finger_ids[slot] = f.id;
+            m.joint_counts[slot] = f.dof() as u32;
+            for (j, a) in q[slot].iter().enumerate() {
+                m.positions[slot][j] = a + noise.gauss(0.02_f64.to_radians());
+            }
+        }
+        m
+    }
+
+    /// What [`track`] saw.
+    struct Tracked {
+        /// The largest estimate error over the last second (rad).
+        worst: f64,
+        /// The largest smoothed innovation (rad).
+        peak: f64,
+        /// The last grasp state.
+        last: GraspState,
+    }
+
+    /// Feeds the estimator, from `from_ms` to `to_ms`, 1 kHz joint measurements of a still
+    /// hand and 30 Hz pose measurements of rotation `truth(t)` captured `latency_ms` before
+    /// they arrive, with noise `sigma`.
+    #[allow(clippy::too_many_arguments)]
+    fn track(
+        estimator: &mut Estimator<'_>,
+        setup: &Setup,
+        q: &[Vec<f64>],
+        latency_ms: u64,
+        sigma: f64,
+        (from_ms, to_ms): (u64, u64),
+        truth: impl Fn(u64) -> f64,
+    ) -> Tracked {
+        let mut noise = Noise::new(7 + from_ms);
+        let (mut worst, mut peak) = (0.0_f64, 0.0_f64);
+        let mut last = GraspState::default();
+        for ms in from_ms + 1..=to_ms {
+            let t = ms * 1_000_000;
+            if ms % 33 == 0 && ms > latency_ms {
+                let captured = t - latency_ms * 1_000_000;
+                estimator
+                    .on_pose(truth(captured) + noise.gauss(sigma), captured)
+                    .unwrap();
+                peak = peak.max(estimator.innovation().abs());
+            }
+            let m = measurement(setup, q, t, &mut noise);
+            last = estimator
+                .on_joints(&m, Header::new(Kind::GraspState, ms, 0, 0))
+                .unwrap();
+            if ms + 1000 > to_ms {
+                worst = worst.max((last.rotation - truth(t)).abs());
+            }
+        }
+        Tracked { worst, peak, last }
+    }
+
+    fn initial_joints(config: &Config, setup: &Setup) -> Vec<Vec<f64>> {
+        let (contacts, _) = setup.scenario(config).start().unwrap();
+        setup
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                contacts
+                    .iter()
+                    .find(|c| c.finger == f.id)
+                    .map_or_else(|| f.home.clone(), |c| c.q.clone())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_estimate_converges_from_a_wrong_start_at_any_pose_latency() {
+        let (config, setup) = paper();
+        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let q = initial_joints(&config, &setup);
+        let sigma = 0.2_f64.to_radians();
+        for latency in [0, 30, 100, 200, 300, 500] {
+            // 10 degrees off at the start; the object still at 0.
+            let mut e = Estimator::new(
+                &setup.hand,
+                &surface,
+                &setup.object.section,
+                10f64.to_radians(),
+            );
+            let Tracked { worst, last: g, .. } =
+                track(&mut e, &setup, &q, latency, sigma, (0, 4000), |_| 0.0);
+            assert!(
+                worst < 3.0 * sigma,
+                "latency {latency} ms: the estimate stays {:.3} deg off",
+                worst.to_degrees()
+            );
+            // Converged: the smoothed innovation is of the order of the noise, and the
+            // fingers of the initial grasp are in contact.
+            assert!(
+                g.pose_innovation.abs() < 3.0 * sigma,
+                "latency {latency} ms: innovation {:.3} deg",
+                g.pose_innovation.to_degrees()
+            );
+            let touching = g.fingers.iter().filter(|f| f.in_contact == 1).count();
+            assert_eq!(touching, 3, "latency {latency} ms");
+            assert!(g.residual < 0.2e-3, "residual {} m", g.residual);
+            assert!(g.pose_captured_ns > 0);
+        }
+    }
+
+    #[test]
+    fn a_jump_of_the_object_raises_the_innovation_until_the_estimate_has_followed() {
+        let (config, setup) = paper();
+        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let q = initial_joints(&config, &setup);
+        let mut e = Estimator::new(&setup.hand, &surface, &setup.object.section, 0.0);
+        let slip = 12f64.to_radians();
+        // The object turns by 12 degrees at 2 s (a slip), seen 200 ms later.
+        let truth = |t: u64| if t >= 2_000_000_000 { slip } else { 0.0 };
+        let before = track(&mut e, &setup, &q, 200, 0.0, (0, 2000), truth);
+        // (Only the encoders' noise rolls the estimate a little.)
+        assert!(
+            before.peak < 0.1f64.to_radians(),
+            "{}",
+            before.peak.to_degrees()
+        );
+        // The measurements after the slip: the innovation goes past 3 degrees, the estimate
+        // follows the object (to what the encoders' noise leaves), and the innovation falls
+        // back.
+        let after = track(&mut e, &setup, &q, 200, 0.0, (2000, 6000), truth);
+        assert!(
+            after.peak > 3f64.to_radians(),
+            "{}",
+            after.peak.to_degrees()
+        );
+        assert!(
+            after.worst < 0.3f64.to_radians(),
+            "{}",
+            after.worst.to_degrees()
+        );
+        assert!(after.last.pose_innovation.abs() < 0.3f64.to_radians());
+    }
+
+    #[test]
+    fn a_non_finite_measurement_is_refused_and_changes_nothing() {
+        let (config, setup) = paper();
+        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let q = initial_joints(&config, &setup);
+        let mut e = Estimator::new(&setup.hand, &surface, &setup.object.section, 0.5);
+        assert_eq!(e.on_pose(f64::NAN, 1), Err(Refusal::PoseNotFinite));
+        let mut m = measurement(&setup, &q, 1_000_000, &mut Noise::new(1));
+        m.positions[1][2] = f64::INFINITY;
+        let finger = setup.hand.fingers[1].id;
+        assert_eq!(
+            e.on_joints(&m, Header::default()),
+            Err(Refusal::JointNotFinite { finger })
+        );
+        assert_eq!(e.rotation(), 0.5);
+        assert_eq!(e.innovation(), 0.0);
+    }
 }

@@ -452,6 +452,7 @@ fn replan(
     g: &GraspState,
     surface: &Surface,
     first: usize,
+    beat: &mut dyn FnMut(),
 ) -> Result<(Vec<Target>, icrflow_plan::planner::Plan, f64)> {
     let hand = &setup.hand;
     let normals = &setup.problem.candidates().normals;
@@ -558,7 +559,8 @@ fn replan(
             .collect(),
     };
     scenario.settings.goal += delta;
-    let mut plan = scenario.plan(&mut |_| {}).with_context(|| {
+    // The planner's progress is the node's heartbeat meanwhile (a long plan is not a hang).
+    let mut plan = scenario.plan(&mut |_| beat()).with_context(|| {
         let angle = |c: usize| normals[c].y.atan2(normals[c].x).to_degrees();
         let list: Vec<String> = contacts
             .iter()
@@ -803,7 +805,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                     // pauses meanwhile (the command node holds the grasp).
                     let target = steps[k].step.rotation_deg;
                     let first = steps[k].step.step + 1;
-                    match replan(&ctx.setup, &ctx.config, &g, &surface, first) {
+                    let mut beat = || {
+                        let _ = health.tick();
+                    };
+                    match replan(&ctx.setup, &ctx.config, &g, &surface, first, &mut beat) {
                         Ok((next, plan, delta)) => {
                             replans += 1;
                             eprintln!(
@@ -1173,7 +1178,7 @@ mod tests {
             .unwrap();
         let slip = 12.0;
         let mut g = at_joints_of(step, step.rotation_deg + slip);
-        let (list, again, delta) = replan(&setup, &config, &g, &surface, 40).unwrap();
+        let (list, again, delta) = replan(&setup, &config, &g, &surface, 40, &mut || {}).unwrap();
         assert!(again.summary.completed, "{:?}", again.summary.stop_reason);
         // The contacts were 12 deg off the grid: 2 deg short of a candidate.
         assert!(
@@ -1202,7 +1207,7 @@ mod tests {
         for f in &mut g.fingers {
             f.in_contact = 0;
         }
-        let e = replan(&setup, &config, &g, &surface, 40).unwrap_err();
+        let e = replan(&setup, &config, &g, &surface, 40, &mut || {}).unwrap_err();
         assert!(e.to_string().contains("no finger in contact"), "{e}");
     }
 }

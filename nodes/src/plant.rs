@@ -18,6 +18,10 @@
 //! the object; `run` allows it on circular sections only, where the fingertips stay on the
 //! surface). The estimator sees it in the pose measurements; the planner node plans again.
 //!
+//! It also publishes what it knows to be true (the object's rotation, which fingers touch it)
+//! on [`topics::PLANT_TRUTH`], every tenth tick, for the run's summary and the tests; no node
+//! of the loop reads it.
+//!
 //! The plant stands for the physical hand and object, whose state outlives any process: it
 //! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
 //! from it instead of from the initial grasp.
@@ -28,7 +32,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{
-    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose, topics,
+    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose,
+    PlantTruth, topics,
 };
 
 use crate::rolling::{Surface, tip};
@@ -36,6 +41,8 @@ use crate::runtime::{Checkpoint, Context, Health, Noise, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
+/// The truth ([`PlantTruth`]) is published every this many ticks.
+const TRUTH_EVERY: u64 = 10;
 
 /// Runs the plant.
 pub fn run(ctx: &Context) -> Result<()> {
@@ -102,6 +109,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut target: Option<HandCommand> = None;
     let joints = ctx.bus.publisher::<JointState>(topics::JOINT_STATE)?;
     let poses = ctx.bus.publisher::<ObjectPose>(topics::OBJECT_POSE)?;
+    let truths = ctx.bus.publisher::<PlantTruth>(topics::PLANT_TRUTH)?;
+    let mut truth_seq = Sequence::default();
     let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
@@ -116,7 +125,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     crate::runtime::promote(ctx.name);
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
-    // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it.
+    // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it (another
+    // signal only cuts the sleep short, and it sleeps on).
     let period = Duration::from_secs_f64(dt);
     let slip_at = Instant::now() + Duration::from_secs_f64(p.slip_at);
     let mut next = Instant::now();
@@ -126,7 +136,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         next += period;
         let early = next.saturating_duration_since(Instant::now());
         if early > Duration::ZERO {
-            if ctx.bus.node().wait(early).is_err() {
+            if crate::runtime::sleep_until(ctx.bus.node(), next) {
                 return Ok(());
             }
         } else if Instant::now().duration_since(next) > period {
@@ -278,6 +288,22 @@ pub fn run(ctx: &Context) -> Result<()> {
             }
         }
         joints.publish(m)?;
+        // The truth, every TRUTH_EVERY ticks (the run samples it at 100 Hz).
+        if ticks.is_multiple_of(TRUTH_EVERY) {
+            let half = 0.5 * theta;
+            let mut truth = PlantTruth {
+                header: Header::new(Kind::PlantTruth, truth_seq.advance(), 0, 0),
+                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                rotation: theta,
+                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+                ..Default::default()
+            };
+            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+                truth.finger_ids[slot] = f.id;
+                truth.in_contact[slot] = u32::from(contact[slot]);
+            }
+            truths.publish(truth)?;
+        }
         // Pose measurement of the scene `latency` ago.
         if ticks.is_multiple_of(pose_every) {
             let captured = t.saturating_sub(latency_ns);

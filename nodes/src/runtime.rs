@@ -173,7 +173,7 @@ pub fn serve(
 
     let node = ctx.bus.node();
     // Checks for a termination request; the first call installs iceoryx2's signal handler.
-    let terminated = || node.wait(Duration::ZERO).is_err();
+    let terminated = || termination_requested(node);
     if terminated() {
         return Ok(());
     }
@@ -209,6 +209,34 @@ pub fn serve(
             _ => false,
         };
         handle(ticked)?;
+    }
+}
+
+/// Whether a termination signal (SIGTERM or SIGINT, as iceoryx2's handler records them) has
+/// come. Another signal (SIGCONT, SIGWINCH, ...) is not one: it only interrupts a wait.
+pub fn termination_requested(node: &iceoryx2::node::Node<ipc::Service>) -> bool {
+    matches!(
+        node.wait(Duration::ZERO),
+        Err(iceoryx2::node::NodeWaitFailure::TerminationRequest)
+    )
+}
+
+/// Sleeps until `deadline`, or until a termination signal comes: then `true`. Another signal
+/// cuts a sleep short; it sleeps on to the deadline.
+pub fn sleep_until(
+    node: &iceoryx2::node::Node<ipc::Service>,
+    deadline: std::time::Instant,
+) -> bool {
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        if left.is_zero() {
+            return termination_requested(node);
+        }
+        match node.wait(left) {
+            Ok(()) => return false,
+            Err(iceoryx2::node::NodeWaitFailure::TerminationRequest) => return true,
+            Err(iceoryx2::node::NodeWaitFailure::Interrupt) => {}
+        }
     }
 }
 

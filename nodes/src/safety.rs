@@ -56,6 +56,24 @@ pub enum Hold {
         /// Since the last command (ms).
         ms: f64,
     },
+    /// The estimate doubts itself: a residual of the grasp state the command would be
+    /// computed from is over its bound (DESIGN.md section 5: the quality gate on the
+    /// estimated grasp is necessary, not sufficient).
+    #[error(
+        "the estimate is off: {what} {value:.2} {unit} over the bound {bound:.2} {unit} (pipeline.{key})"
+    )]
+    Estimate {
+        /// The residual.
+        what: &'static str,
+        /// Its value (in `unit`).
+        value: f64,
+        /// The bound (in `unit`).
+        bound: f64,
+        /// The unit of both.
+        unit: &'static str,
+        /// The config key of the bound.
+        key: &'static str,
+    },
     /// The grasp is not force closure.
     #[error("the grasp is not force closure")]
     NotForceClosure,
@@ -69,11 +87,53 @@ pub enum Hold {
     },
 }
 
+/// The bounds of the estimate's residuals ([`GraspState::pose_innovation`],
+/// [`GraspState::residual`]) over which the hand holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimateBounds {
+    /// Largest smoothed pose innovation (rad).
+    pub pose_innovation: f64,
+    /// Largest root-mean-square distance of the fingertips in contact from the object (m).
+    pub contact_residual: f64,
+}
+
+impl EstimateBounds {
+    /// No bound (every estimate is believed).
+    pub const NONE: Self = Self {
+        pose_innovation: f64::INFINITY,
+        contact_residual: f64::INFINITY,
+    };
+
+    /// Why grasp state `g` is not to be believed, if it is not.
+    pub fn check(&self, g: &GraspState) -> Result<(), Hold> {
+        if g.pose_innovation.abs() > self.pose_innovation {
+            return Err(Hold::Estimate {
+                what: "pose innovation",
+                value: g.pose_innovation.abs().to_degrees(),
+                bound: self.pose_innovation.to_degrees(),
+                unit: "deg",
+                key: "max_pose_innovation_deg",
+            });
+        }
+        if g.residual > self.contact_residual {
+            return Err(Hold::Estimate {
+                what: "contact residual",
+                value: g.residual * 1e3,
+                bound: self.contact_residual * 1e3,
+                unit: "mm",
+                key: "max_contact_residual_mm",
+            });
+        }
+        Ok(())
+    }
+}
+
 /// Accepted inputs and their order.
 #[derive(Debug, Clone)]
 pub struct Gate {
     max_age_ns: u64,
     alpha: f64,
+    estimate: EstimateBounds,
     plan: Option<PlanStepHeader>,
     grasp: Option<GraspState>,
     wrench: Option<WrenchSpaceHeader>,
@@ -88,11 +148,13 @@ fn finite(values: &[f64]) -> bool {
 }
 
 impl Gate {
-    /// A gate accepting inputs up to `max_age_ns` old, with margin `alpha`.
-    pub fn new(max_age_ns: u64, alpha: f64) -> Self {
+    /// A gate accepting inputs up to `max_age_ns` old, with margin `alpha`, and estimates
+    /// within `estimate`.
+    pub fn new(max_age_ns: u64, alpha: f64, estimate: EstimateBounds) -> Self {
         Self {
             max_age_ns,
             alpha,
+            estimate,
             plan: None,
             grasp: None,
             wrench: None,
@@ -168,7 +230,10 @@ impl Gate {
         if m.finger_count as usize > MAX_FINGERS {
             return Err(invalid(format!("finger count {}", m.finger_count)));
         }
-        if !finite(&m.position) || !finite(&m.orientation) || !finite(&[m.rotation, m.residual]) {
+        if !finite(&m.position)
+            || !finite(&m.orientation)
+            || !finite(&[m.rotation, m.residual, m.pose_innovation])
+        {
             return Err(invalid("object pose (not finite)".into()));
         }
         for f in &m.fingers[..m.finger_count as usize] {
@@ -260,6 +325,8 @@ impl Gate {
                 grasp: grasp.header.sequence,
             });
         }
+        // The grasp judged below is the estimate's: it must be believable.
+        self.estimate.check(grasp)?;
         if wrench.force_closure != 1 {
             return Err(Hold::NotForceClosure);
         }
@@ -306,7 +373,7 @@ mod tests {
 
     #[test]
     fn good_inputs_are_followed() {
-        let mut g = Gate::new(AGE, 0.1);
+        let mut g = Gate::new(AGE, 0.1, EstimateBounds::NONE);
         let (p, s, w) = inputs(1);
         assert_eq!(g.decide(now_ns()), Err(Hold::Missing("plan step")));
         g.offer_plan(&p, now_ns()).unwrap();
@@ -318,7 +385,7 @@ mod tests {
     #[test]
     fn an_input_refused_before_any_was_accepted_holds_with_its_refusal() {
         let now = now_ns();
-        let mut g = Gate::new(AGE, 0.1);
+        let mut g = Gate::new(AGE, 0.1, EstimateBounds::NONE);
         let (mut p, s, w) = inputs(1);
         p.header.source_time_ns = now - 2 * AGE;
         let refusal = g.offer_plan(&p, now).unwrap_err();
@@ -338,7 +405,7 @@ mod tests {
     #[test]
     fn every_kind_of_bad_input_holds_with_its_reason() {
         let now = now_ns();
-        let mut g = Gate::new(AGE, 0.1);
+        let mut g = Gate::new(AGE, 0.1, EstimateBounds::NONE);
         let (p, s, w) = inputs(5);
         g.offer_plan(&p, now).unwrap();
         g.offer_grasp(&s, now).unwrap();
@@ -414,5 +481,65 @@ mod tests {
         g.offer_wrench(&w, now).unwrap();
         assert!(g.decide(now).is_ok());
         assert!(matches!(g.decide(now + 2 * AGE), Err(Hold::Stale { .. })));
+    }
+
+    #[test]
+    fn an_estimate_whose_residuals_are_over_their_bounds_holds_naming_which() {
+        let now = now_ns();
+        let bounds = EstimateBounds {
+            pose_innovation: 3f64.to_radians(),
+            contact_residual: 1.5e-3,
+        };
+        let mut g = Gate::new(AGE, 0.1, bounds);
+        let (p, mut s, mut w) = inputs(1);
+        g.offer_plan(&p, now).unwrap();
+        // Within the bounds (either sign of the innovation): followed.
+        s.pose_innovation = -2.9f64.to_radians();
+        s.residual = 1.4e-3;
+        g.offer_grasp(&s, now).unwrap();
+        g.offer_wrench(&w, now).unwrap();
+        assert!(g.decide(now).is_ok());
+        // The innovation over its bound: held, and said so with the key.
+        let (_, mut off, _) = inputs(2);
+        off.pose_innovation = -3.1f64.to_radians();
+        g.offer_grasp(&off, now).unwrap();
+        w.header.input_sequence = 2;
+        w.header.sequence = 2;
+        g.offer_wrench(&w, now).unwrap();
+        let hold = g.decide(now).unwrap_err();
+        assert!(matches!(
+            hold,
+            Hold::Estimate {
+                what: "pose innovation",
+                ..
+            }
+        ));
+        let text = hold.to_string();
+        assert!(
+            text.contains("pose innovation 3.10 deg over the bound 3.00 deg (pipeline.max_pose_innovation_deg)"),
+            "{text}"
+        );
+        // The contact residual over its bound.
+        s = off;
+        s.header.sequence = 3;
+        s.pose_innovation = 0.0;
+        s.residual = 1.6e-3;
+        g.offer_grasp(&s, now).unwrap();
+        w.header.input_sequence = 3;
+        w.header.sequence = 3;
+        g.offer_wrench(&w, now).unwrap();
+        assert!(
+            g.decide(now)
+                .unwrap_err()
+                .to_string()
+                .contains("contact residual 1.60 mm")
+        );
+        // A non-finite innovation is refused on arrival.
+        let (_, mut nan, _) = inputs(4);
+        nan.pose_innovation = f64::NAN;
+        assert!(matches!(
+            g.offer_grasp(&nan, now),
+            Err(Hold::Invalid { .. })
+        ));
     }
 }

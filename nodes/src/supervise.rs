@@ -4,6 +4,7 @@
 //! iceoryx2 nodes cleaned up before a restart; shutdown sends SIGTERM, then SIGKILL to what
 //! is still running after the grace period.
 
+use std::os::unix::process::CommandExt as _;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
@@ -193,7 +194,10 @@ impl Supervisor {
                 std::process::id().to_string(),
             )
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
-            .stdin(Stdio::null());
+            .stdin(Stdio::null())
+            // A process group of its own: the terminal's signals (Ctrl-C, a hang-up) reach the
+            // supervisor only, which stops its nodes in order (SIGTERM, then SIGKILL).
+            .process_group(0);
         if self.quiet {
             cmd.stdout(Stdio::null()).stderr(Stdio::null());
         } else {
@@ -291,6 +295,15 @@ impl Supervisor {
             }
         }
         Ok(events)
+    }
+
+    /// Kills node `name` (SIGKILL), e.g. one that hangs: [`Supervisor::poll`] then sees it
+    /// exit and restarts it by its policy. Returns its pid if it was running.
+    pub fn kill(&mut self, name: &str) -> Option<u32> {
+        let m = self.nodes.iter_mut().find(|m| m.spec.name == name)?;
+        let c = m.child.as_mut()?;
+        let _ = c.kill();
+        Some(c.id())
     }
 
     /// Total restarts of every node.

@@ -27,6 +27,17 @@
 //! fingertip cap (`|gamma| > cap half-angle - margin`), or fall below the mobility threshold;
 //! and (a bug guard) when the recomputed quality is below alpha.
 //!
+//! One rolling step is one candidate step: two poses, between which the pipeline moves the
+//! joints along a straight line. They stand for the rolling between them only while each
+//! contact's travel is short and stays where the margin holds. So a contact's next contact
+//! must be reached along the section through members of its ICR only, and where its
+//! stay-still point is out of the ICR (it rolls to the region's member nearest that point,
+//! and its fingertip moves around the object by the difference), that difference is at most
+//! [`MAX_DRAG`]; otherwise the finger is blocked (a switch may help). A step of more than
+//! [`MAX_STEP`] is refused outright: the stay-still point of a half turn is on the far side of
+//! the section, and that of a whole turn is the contact itself, so a 360-degree step once
+//! "completed" with the hand not moving at all.
+//!
 //! # Finger switching
 //! When a finger `k` cannot roll on, a free finger takes over. Its rendezvous region is the
 //! set of candidates `q` whose grasp with the remaining contacts keeps the margin: computed
@@ -349,10 +360,27 @@ pub struct Contact {
 /// Why a finger cannot take a step.
 #[derive(Debug, Clone, PartialEq)]
 enum Blocked {
-    Cap { gamma: Real },
+    Cap {
+        gamma: Real,
+    },
     Ik(IkError),
-    Mobility { value: Real },
-    Jump { joint: usize, degrees: Real },
+    Mobility {
+        value: Real,
+    },
+    Jump {
+        joint: usize,
+        degrees: Real,
+    },
+    OutOfRegion {
+        from: String,
+        past: String,
+    },
+    Drag {
+        step: Real,
+        still: String,
+        to: String,
+        drag: Real,
+    },
 }
 
 /// ICR members tried, nearest the target first, for a finger's next contact. One: trying
@@ -363,6 +391,24 @@ const NEXT_CONTACT_TRIES: usize = 1;
 /// Largest joint motion accepted in one rolling step (rad): more means the inverse
 /// kinematics jumped to the other elbow branch, which the finger cannot do in contact.
 const MAX_JOINT_STEP: Real = 0.5;
+
+/// Largest turn of a contact point in the world, about the object's centre, in one rolling
+/// step (rad, 10 deg): a contact that rolls short of its stay-still point (that point is out
+/// of its ICR) moves its fingertip around the object by the difference, along the straight
+/// joint-space move of the step instead of an arc; at 10 deg the fingertip's path stays within
+/// about 0.3 mm of the arc on the paper's sphere. Steps of 5 deg (the paper's) never come near.
+pub const MAX_DRAG: Real = 10.0 * PI / 180.0;
+
+/// Largest object rotation of one rolling step (rad, 30 deg): one step is one straight
+/// joint-space move, and a joint may move at most [`MAX_JOINT_STEP`] (28.6 deg) in one; far
+/// below the half turn at which a contact's stay-still point no longer says which way it
+/// rolled. `plan.step_deg` is bounded by the same.
+pub const MAX_STEP: Real = 30.0 * PI / 180.0;
+
+/// An angle in degrees for messages, rounded to a millionth (30, not 29.999999999999996).
+fn degrees(x: Real) -> String {
+    format!("{}", (x.to_degrees() * 1e6).round() / 1e6)
+}
 
 impl std::fmt::Display for Blocked {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -380,6 +426,22 @@ impl std::fmt::Display for Blocked {
                 f,
                 "joint {} would have to jump by {degrees:.1} deg (the other elbow branch)",
                 joint + 1
+            ),
+            Blocked::OutOfRegion { from, past } => write!(
+                f,
+                "its contact would roll out of its ICR on the way from {from} (past {past})"
+            ),
+            Blocked::Drag {
+                step,
+                still,
+                to,
+                drag,
+            } => write!(
+                f,
+                "its contact would roll out of its ICR: turning the object by {:.1} deg takes it to {still}, outside the region, and rolling to {to} instead would drag the fingertip {:.1} deg around the object in one step (at most {} deg)",
+                step.to_degrees(),
+                drag.abs().to_degrees(),
+                degrees(MAX_DRAG)
             ),
         }
     }
@@ -478,6 +540,19 @@ impl Scenario<'_> {
     /// `from` to ever nearer neighbours (a local search: it touches only the points on the
     /// way).
     fn walk(&self, from: usize, target: &Vec3) -> usize {
+        match self.walk_within(from, target, None) {
+            Ok(at) | Err(at) => at,
+        }
+    }
+
+    /// [`Self::walk`], every point on the way (but `from`) checked to be in `region` (sorted
+    /// candidate indices, if given): the end, or `Err` with the first point outside.
+    fn walk_within(
+        &self,
+        from: usize,
+        target: &Vec3,
+        region: Option<&[u32]>,
+    ) -> Result<usize, usize> {
         let cands = self.problem.candidates();
         let dist = |i: usize| (cands.points[i] - target).norm_squared();
         let mut at = from;
@@ -489,8 +564,13 @@ impl Scenario<'_> {
                 .map(|&m| m as usize)
                 .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
             match next {
-                Some(n) if dist(n) < dist(at) => at = n,
-                _ => return at,
+                Some(n) if dist(n) < dist(at) => {
+                    if region.is_some_and(|r| r.binary_search(&(n as u32)).is_err()) {
+                        return Err(n);
+                    }
+                    at = n;
+                }
+                _ => return Ok(at),
             }
         }
     }
@@ -589,6 +669,13 @@ impl Scenario<'_> {
             )));
         }
         positive("step_deg", s.step)?;
+        if s.step > MAX_STEP {
+            return Err(PlanError::Settings(format!(
+                "plan.step_deg: a rolling step of {} deg is more than one step can represent (at most {} deg: one straight joint-space move)",
+                degrees(s.step),
+                degrees(MAX_STEP)
+            )));
+        }
         positive("attach_resolution_deg", s.attach_resolution)?;
         if !(s.cap_margin.is_finite() && s.cap_margin >= 0.0) {
             return Err(PlanError::Settings(format!(
@@ -895,9 +982,55 @@ impl Scenario<'_> {
         Ok(Plan { summary, steps })
     }
 
+    /// Why contact `c` cannot travel to `n` in one rolling step of `step` from `theta`, if it
+    /// cannot: every candidate on the way along the section must be in its `region`, and
+    /// where `n` falls short of the stay-still point `target` (the point itself is outside the
+    /// region), the fingertip is dragged around the object by the difference within the step,
+    /// at most [`MAX_DRAG`].
+    fn travel(
+        &self,
+        c: usize,
+        n: usize,
+        target: &Vec3,
+        theta: Real,
+        step: Real,
+        region: &icrflow_grasp::icr::Region,
+    ) -> Option<Blocked> {
+        let pts = &self.problem.candidates().points;
+        if let Err(out) = self.walk_within(c, &pts[n], Some(&region.members)) {
+            return Some(Blocked::OutOfRegion {
+                from: self.describe(c),
+                past: self.describe(out),
+            });
+        }
+        // How far the contact point turns in the world about the object's centre.
+        let world = |k: usize, at: Real| {
+            let (p, _) = self.world(k, at);
+            p.y.atan2(p.x)
+        };
+        let drag = wrap(world(n, theta + step) - world(c, theta));
+        if drag.abs() > MAX_DRAG {
+            let still = self.walk(c, target);
+            return Some(Blocked::Drag {
+                step,
+                still: self.describe(still),
+                to: self.describe(n),
+                drag,
+            });
+        }
+        None
+    }
+
     /// One rolling step of every contact, the object turning from `theta` by `step`: the new
     /// contacts and their quality, or the first finger that cannot move and why.
     pub fn roll(&self, contacts: &[Contact], theta: Real, step: Real) -> Result<Roll, PlanError> {
+        if !(step > 0.0 && step <= MAX_STEP) {
+            return Err(PlanError::Settings(format!(
+                "a rolling step of {} deg: one step turns the object by more than 0 and at most {} deg (one straight joint-space move)",
+                degrees(step),
+                degrees(MAX_STEP)
+            )));
+        }
         let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
         let eval = self.problem.evaluate(&idx)?;
         let regions = match self.problem.icrs(&idx, &eval, self.settings.alpha) {
@@ -924,6 +1057,10 @@ impl Scenario<'_> {
             let mut first_block = None;
             let mut placed = None;
             for &n in order.iter().take(NEXT_CONTACT_TRIES) {
+                if let Some(why) = self.travel(c.candidate, n, &target, theta, step, region) {
+                    first_block.get_or_insert(why);
+                    continue;
+                }
                 let gamma = c.gamma - self.arc(c.candidate, n) / f.tip_radius;
                 match self.place(f, n, theta + step, gamma, &c.q, true) {
                     Ok(q) => {

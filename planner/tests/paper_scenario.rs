@@ -9,7 +9,8 @@ use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::{Hand, wrap};
 use icrflow_plan::paper;
 use icrflow_plan::planner::{
-    Phase, Plan, PlanError, Scenario, Settings, Start, Step, link_clearance,
+    MAX_DRAG, MAX_STEP, Phase, Plan, PlanError, Roll, Scenario, Settings, Start, Step,
+    link_clearance,
 };
 
 const ALPHA: Real = 0.1;
@@ -391,4 +392,93 @@ fn a_plan_started_mid_way_continues_like_the_whole_plan() {
     again.start.rotation = f64::NAN;
     let e = again.plan(&mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("start rotation"), "{e}");
+}
+
+/// A rolling step of a whole turn brings every contact's stay-still point back to the
+/// contact itself: it was planned as one step with the hand not moving ("360 of 360 deg, 1
+/// rolling step, 0 switches"). It is refused, by the settings check and by the step itself.
+#[test]
+fn a_whole_turn_in_one_step_is_refused_not_completed() {
+    let (o, p) = sphere_problem(0.3);
+    let hand = paper::hand();
+    let mut s = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
+    s.settings.step = 2.0 * PI;
+    let e = s.plan(&mut |_| {}).unwrap_err();
+    assert!(matches!(e, PlanError::Settings(_)), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("plan.step_deg") && text.contains("360 deg") && text.contains("at most 30"),
+        "{e}"
+    );
+    // One step of a whole turn, asked of `roll` directly (past the settings check).
+    s.settings.step = 5f64.to_radians();
+    let (contacts, _) = s.start().unwrap();
+    for step in [2.0 * PI, PI, MAX_STEP * 1.01, 0.0, -0.1, f64::NAN] {
+        let e = s.roll(&contacts, 0.0, step).unwrap_err();
+        assert!(e.to_string().contains("rolling step"), "{step}: {e}");
+    }
+    assert!(matches!(
+        s.roll(&contacts, 0.0, 5f64.to_radians()).unwrap(),
+        Roll::Moved(..)
+    ));
+}
+
+/// A step within the bound whose travel leaves a contact's ICR: the contact rolls to the
+/// region's member nearest its stay-still point, and its fingertip moves around the object by
+/// the rest, which is refused beyond `MAX_DRAG` (a switch may help) instead of dragging the
+/// fingertip around the object in one straight joint move: finger 4's region is 135 to 175
+/// deg, and 30 deg behind its contact at 140 deg is 110 deg.
+#[test]
+fn a_step_that_rolls_a_contact_out_of_its_icr_is_blocked() {
+    let (o, p) = sphere_problem(0.3);
+    let hand = paper::hand();
+    let mut s = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
+    s.settings.step = MAX_STEP;
+    let (contacts, _) = s.start().unwrap();
+    // Finger 4 first (the regions do not depend on the order; finger 1 would be blocked
+    // first, by an elbow-branch jump).
+    let contacts = [2, 0, 1].map(|k| contacts[k].clone());
+    match s.roll(&contacts, 0.0, MAX_STEP).unwrap() {
+        Roll::Blocked(k, why) => {
+            assert_eq!(contacts[k].finger, 4, "{why}");
+            for says in [
+                "out of its ICR",
+                "takes it to 110.0 deg",
+                "rolling to 135.0 deg instead would drag the fingertip 25.0 deg",
+            ] {
+                assert!(why.contains(says), "{says:?} not in {why}");
+            }
+        }
+        other => panic!("{other:?}"),
+    }
+    // Whatever such a plan ends with, and in the paper's 5-degree plan, no contact point
+    // turns in the world by more than MAX_DRAG in a rolling step.
+    let paper = paper_plan().3;
+    for plan in [s.plan(&mut |_| {}).unwrap(), paper] {
+        let mut worst: Real = 0.0;
+        for w in plan.steps.windows(2) {
+            if w[1].phase != Phase::Rolling {
+                continue;
+            }
+            let turned = w[1].rotation_deg - w[0].rotation_deg;
+            for (a, b) in w[0].fingers.iter().zip(&w[1].fingers) {
+                let (Some(ca), Some(cb)) = (a.contact, b.contact) else {
+                    continue;
+                };
+                let moved = wrap(o.section.angles[cb] - o.section.angles[ca]).to_degrees();
+                worst = worst.max((moved + turned).abs());
+            }
+        }
+        assert!(
+            worst <= MAX_DRAG.to_degrees() + 1e-9,
+            "a contact turned by {worst} deg in the world in one step"
+        );
+        println!(
+            "{:.1} deg, {} rolling steps, {} switches, largest drag {worst:.1} deg, {:?}",
+            plan.summary.rotation_deg,
+            plan.summary.rolling_steps,
+            plan.summary.switches,
+            plan.summary.stop_reason
+        );
+    }
 }

@@ -14,6 +14,7 @@ use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::planner::Settings;
 use icrflow_plan::urdf::UrdfFinger;
 
+use crate::bounds::{self, Count, Range, num};
 use crate::raw::{
     self, RawConfig, RawContact, RawHand, RawObject, RawPipeline, RawPlan, RawVisualizer, RawZenoh,
 };
@@ -22,6 +23,11 @@ use crate::raw::{
 pub const DEFAULT_CONE_EDGES: usize = 8;
 /// Default sphere/ellipsoid discretisation (the paper's 72 x 72).
 pub const DEFAULT_SEGMENTS: [usize; 2] = [72, 72];
+
+/// The node processes of the control loop, in start order: the names `pipeline.nodes` takes.
+/// The one definition: the pipeline's topic graph (`icrflow_interfaces::topics`) and `run`
+/// name the same nodes.
+pub const NODES: [&str; 5] = ["plant", "estimator", "wrench", "planner", "command"];
 
 /// A validated object description.
 #[derive(Debug, Clone, PartialEq)]
@@ -222,8 +228,35 @@ impl HandSpec {
             HandSpec::Urdf {
                 path,
                 root,
-                fingers,
-            } => icrflow_plan::urdf::fingers_from_file(path, *root, fingers).context("hand")?,
+                fingers: specs,
+            } => {
+                let fingers =
+                    icrflow_plan::urdf::fingers_from_file(path, *root, specs).context("hand")?;
+                for (i, (spec, f)) in specs.iter().zip(&fingers).enumerate() {
+                    let max = bounds::MESSAGE_JOINTS;
+                    if f.dof() > max {
+                        bail!(
+                            "hand.fingers[{i}]: finger {} (tip link {:?}) has {} joints from the URDF's root, more than the {max} a pipeline message carries per finger (icrflow_interfaces::MAX_JOINTS)",
+                            f.id,
+                            spec.tip_link,
+                            f.dof()
+                        );
+                    }
+                    if spec.tip_radius.is_none() {
+                        bounds::FINGERTIP_RADIUS
+                            .check(
+                                &format!(
+                                    "hand.fingers[{i}]: finger {}'s fingertip radius (the sphere of link {:?} in {})",
+                                    f.id,
+                                    spec.tip_link,
+                                    path.display()
+                                ),
+                                f.tip_radius,
+                            )?;
+                    }
+                }
+                fingers
+            }
         };
         Hand::new(fingers).context("hand")
     }
@@ -369,14 +402,8 @@ fn visualizer_spec(raw: RawVisualizer, path: &Path) -> Result<VisualizerSpec> {
         "connect" => Recording::Connect(url.clone()),
         other => bail!("visualizer.mode: one of \"rrd\", \"spawn\", \"connect\", got {other:?}"),
     };
-    let rate_hz = positive("visualizer.rate_hz", raw.rate_hz.unwrap_or(30.0))?;
-    if rate_hz > 1000.0 {
-        bail!("visualizer.rate_hz: at most 1000 (the loop's rate), got {rate_hz}");
-    }
-    let queue = raw.queue.unwrap_or(256);
-    if queue == 0 {
-        bail!("visualizer.queue: must be >= 1, got 0");
-    }
+    let rate_hz = bounds::VISUALIZER_RATE.or("visualizer.rate_hz", raw.rate_hz, 30.0)?;
+    let queue = bounds::VISUALIZER_QUEUE.check("visualizer.queue", raw.queue.unwrap_or(256))?;
     Ok(VisualizerSpec {
         enabled: raw.enabled.unwrap_or(true),
         recording,
@@ -490,18 +517,34 @@ pub struct PipelineSpec {
     pub slip_at: Real,
     /// Seed of the simulated noise.
     pub seed: u64,
-    /// The nodes this host runs ([`icrflow_interfaces::topics::NODES`] by default); the
+    /// The nodes this host runs ([`NODES`] by default); the
     /// others run on other hosts, joined over Zenoh.
     pub nodes: Vec<String>,
     /// SCHED_FIFO priority of the nodes on the measurement-to-command path (1 to 99), or 0:
     /// normal scheduling.
     pub realtime_priority: u8,
+    /// Largest smoothed pose innovation of the estimate the hand command node tracks on
+    /// (rad); beyond, it holds (the estimate is off the pose measurements).
+    pub max_pose_innovation: Real,
+    /// Largest root-mean-square distance of the fingertips in contact from the object at
+    /// the estimated pose the hand command node tracks on (m).
+    pub max_contact_residual: Real,
+    /// A node that has sent no heartbeat (health report) for this long is killed and
+    /// restarted by `run` (s); one silent for a second is reported at once.
+    pub hung_restart: Real,
 }
+
+/// `pipeline.max_pose_innovation_deg` by default.
+pub const DEFAULT_MAX_POSE_INNOVATION_DEG: Real = 3.0;
+/// `pipeline.max_contact_residual_mm` by default.
+pub const DEFAULT_MAX_CONTACT_RESIDUAL_MM: Real = 1.5;
+/// `pipeline.hung_restart_s` by default.
+pub const DEFAULT_HUNG_RESTART_S: Real = 10.0;
 
 impl PipelineSpec {
     /// Whether some of the loop's nodes run on another host.
     pub fn split(&self) -> bool {
-        self.nodes.len() < icrflow_interfaces::topics::NODES.len()
+        self.nodes.len() < NODES.len()
     }
 }
 
@@ -509,6 +552,12 @@ impl Config {
     /// Reads, parses and validates a config file. Relative paths in it are resolved against
     /// the file's directory.
     pub fn load(path: &Path) -> Result<Self> {
+        if path.is_dir() {
+            bail!(
+                "cannot read config {}: it is a directory, not a file",
+                path.display()
+            );
+        }
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read config {}", path.display()))?;
         Self::parse(&text, path).with_context(|| format!("invalid config {}", path.display()))
@@ -517,6 +566,18 @@ impl Config {
     /// Parses and validates config text; `path` locates relative file names.
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
+        Self::from_raw(raw, path)
+    }
+
+    /// Validates a config given as a TOML table, shaped like the file (built in code, e.g.
+    /// by the Python package from a dict); `path` locates relative file names as for
+    /// [`Config::parse`] (a name in the directory they are relative to).
+    pub fn from_table(table: toml::Table, path: &Path) -> Result<Self> {
+        let raw: RawConfig = table.try_into().map_err(|e| anyhow::anyhow!("{e}"))?;
+        Self::from_raw(raw, path)
+    }
+
+    fn from_raw(raw: RawConfig, path: &Path) -> Result<Self> {
         let base = path.parent().unwrap_or(Path::new("."));
         let grasp = grasp_spec(raw.grasp)?;
         let hand = match raw.hand {
@@ -552,23 +613,29 @@ impl Config {
     }
 }
 
-fn positive(key: &str, x: Real) -> Result<Real> {
-    if !x.is_finite() || x <= 0.0 {
-        bail!("{key}: must be a finite number > 0, got {x}");
-    }
-    Ok(x)
+fn segments(s: [usize; 2], around: Count, along: Count) -> Result<[usize; 2]> {
+    around.check("object.segments[0]", s[0])?;
+    along.check("object.segments[1]", s[1])?;
+    Ok(s)
 }
 
-fn segments(key: &str, s: [usize; 2], min: [usize; 2]) -> Result<[usize; 2]> {
-    if s[0] < min[0] || s[1] < min[1] {
-        bail!(
-            "{key}: needs at least [{}, {}], got {:?}",
-            min[0],
-            min[1],
-            s
-        );
+/// Each of `values` in `range`, keys `key[0]`, `key[1]`, ...
+fn each<const N: usize>(key: &str, values: [Real; N], range: Range) -> Result<[Real; N]> {
+    for (i, x) in values.iter().enumerate() {
+        range.check(&format!("{key}[{i}]"), *x)?;
     }
-    Ok(s)
+    Ok(values)
+}
+
+/// A named file the config refers to: it must exist and be a file.
+fn existing_file(key: &str, what: &str, full: PathBuf) -> Result<PathBuf> {
+    if full.is_dir() {
+        bail!("{key}: {} is a directory, not {what}", full.display());
+    }
+    if !full.is_file() {
+        bail!("{key}: {what} {} does not exist", full.display());
+    }
+    Ok(full)
 }
 
 fn object_spec(raw: RawObject, base: &Path) -> Result<ObjectSpec> {
@@ -577,53 +644,47 @@ fn object_spec(raw: RawObject, base: &Path) -> Result<ObjectSpec> {
             radius,
             segments: s,
         } => ObjectSpec::Sphere {
-            radius: positive("object.radius", radius)?,
-            segments: segments("object.segments", s.unwrap_or(DEFAULT_SEGMENTS), [3, 2])?,
+            radius: bounds::SIZE.check("object.radius", radius)?,
+            segments: segments(
+                s.unwrap_or(DEFAULT_SEGMENTS),
+                bounds::LONGITUDE,
+                bounds::LATITUDE,
+            )?,
         },
         RawObject::Ellipsoid {
             semi_axes,
             segments: s,
-        } => {
-            for (i, a) in semi_axes.iter().enumerate() {
-                positive(&format!("object.semi_axes[{i}]"), *a)?;
-            }
-            ObjectSpec::Ellipsoid {
-                semi_axes,
-                segments: segments("object.segments", s.unwrap_or(DEFAULT_SEGMENTS), [3, 2])?,
-            }
-        }
+        } => ObjectSpec::Ellipsoid {
+            semi_axes: each("object.semi_axes", semi_axes, bounds::SIZE)?,
+            segments: segments(
+                s.unwrap_or(DEFAULT_SEGMENTS),
+                bounds::LONGITUDE,
+                bounds::LATITUDE,
+            )?,
+        },
         RawObject::Cuboid {
             half_extents,
             segments: s,
-        } => {
-            for (i, a) in half_extents.iter().enumerate() {
-                positive(&format!("object.half_extents[{i}]"), *a)?;
-            }
-            let s = s.unwrap_or(8);
-            if s == 0 {
-                bail!("object.segments: must be >= 1, got 0");
-            }
-            ObjectSpec::Cuboid {
-                half_extents,
-                segments: s,
-            }
-        }
+        } => ObjectSpec::Cuboid {
+            half_extents: each("object.half_extents", half_extents, bounds::SIZE)?,
+            segments: bounds::CUBOID_SEGMENTS.check("object.segments", s.unwrap_or(8))?,
+        },
         RawObject::Cylinder {
             radius,
             height,
             segments: s,
         } => ObjectSpec::Cylinder {
-            radius: positive("object.radius", radius)?,
-            height: positive("object.height", height)?,
-            segments: segments("object.segments", s.unwrap_or([72, 8]), [3, 1])?,
+            radius: bounds::SIZE.check("object.radius", radius)?,
+            height: bounds::SIZE.check("object.height", height)?,
+            segments: segments(
+                s.unwrap_or([72, 8]),
+                bounds::CYLINDER_AROUND,
+                bounds::CYLINDER_ALONG,
+            )?,
         },
-        RawObject::Mesh { path } => {
-            let full = base.join(&path);
-            if !full.is_file() {
-                bail!("object.path: mesh file {} does not exist", full.display());
-            }
-            ObjectSpec::Mesh { path: full }
-        }
+        RawObject::Mesh { path } => ObjectSpec::Mesh {
+            path: existing_file("object.path", "a mesh file", base.join(&path))?,
+        },
     })
 }
 
@@ -634,6 +695,7 @@ fn grasp_spec(raw: raw::RawGrasp) -> Result<GraspSpec> {
         other => bail!("grasp.space: must be \"planar\" or \"spatial\", got {other:?}"),
     };
     let edges = raw.cone_edges.unwrap_or(DEFAULT_CONE_EDGES);
+    bounds::FRICTION.check("grasp.friction", raw.friction)?;
     let model = ContactModel::new(raw.friction, edges).map_err(|e| {
         let key = match e {
             icrflow_grasp::wrench::WrenchError::ConeEdges { .. } => "grasp.cone_edges",
@@ -641,13 +703,11 @@ fn grasp_spec(raw: raw::RawGrasp) -> Result<GraspSpec> {
         };
         anyhow::anyhow!("{key}: {e}")
     })?;
-    if !raw.alpha.is_finite() || raw.alpha < 0.0 {
-        bail!(
-            "grasp.alpha: must be a finite number >= 0, got {}",
-            raw.alpha
-        );
-    }
-    let rho = raw.rho.map(|r| positive("grasp.rho", r)).transpose()?;
+    let alpha = bounds::ALPHA.check("grasp.alpha", raw.alpha)?;
+    let rho = raw
+        .rho
+        .map(|r| bounds::RHO.check("grasp.rho", r))
+        .transpose()?;
     if raw.contacts.is_empty() {
         bail!("grasp.contacts: at least one contact is needed");
     }
@@ -665,7 +725,7 @@ fn grasp_spec(raw: raw::RawGrasp) -> Result<GraspSpec> {
     Ok(GraspSpec {
         space,
         model,
-        alpha: raw.alpha,
+        alpha,
         rho,
         contacts,
     })
@@ -675,24 +735,25 @@ fn contact_spec(i: usize, c: RawContact) -> Result<FingerContact> {
     let at = match (c.angle_deg, c.point) {
         (Some(_), Some(_)) => bail!("grasp.contacts[{i}]: give `angle_deg` or `point`, not both"),
         (None, None) => bail!("grasp.contacts[{i}]: give `angle_deg` or `point`"),
-        (Some(a), None) => {
-            if !a.is_finite() {
-                bail!("grasp.contacts[{i}].angle_deg: must be finite, got {a}");
-            }
-            ContactSpec::Angle(a.to_radians())
-        }
-        (None, Some(p)) => {
-            if p.iter().any(|x| !x.is_finite()) {
-                bail!("grasp.contacts[{i}].point: coordinates must be finite, got {p:?}");
-            }
-            ContactSpec::Point(Vec3::from(p))
-        }
+        (Some(a), None) => ContactSpec::Angle(
+            bounds::CONTACT_ANGLE
+                .check(&format!("grasp.contacts[{i}].angle_deg"), a)?
+                .to_radians(),
+        ),
+        (None, Some(p)) => ContactSpec::Point(Vec3::from(each(
+            &format!("grasp.contacts[{i}].point"),
+            p,
+            bounds::CONTACT_POINT,
+        )?)),
     };
-    let cap_angle = match c.cap_angle_deg {
-        None => None,
-        Some(a) if a.is_finite() && a.abs() < 180.0 => Some(a.to_radians()),
-        Some(a) => bail!("grasp.contacts[{i}].cap_angle_deg: must be in (-180, 180), got {a}"),
-    };
+    let cap_angle = c
+        .cap_angle_deg
+        .map(|a| {
+            bounds::CAP_ANGLE
+                .check(&format!("grasp.contacts[{i}].cap_angle_deg"), a)
+                .map(Real::to_radians)
+        })
+        .transpose()?;
     Ok(FingerContact {
         finger: c.finger,
         at,
@@ -700,31 +761,35 @@ fn contact_spec(i: usize, c: RawContact) -> Result<FingerContact> {
     })
 }
 
+/// An angle of the hand's description (degrees in the file), in radians.
 fn degrees(key: &str, x: Real) -> Result<Real> {
-    if !x.is_finite() {
-        bail!("{key}: must be finite, got {x}");
-    }
-    Ok(x.to_radians())
+    Ok(bounds::HAND_ANGLE.check(key, x)?.to_radians())
 }
 
 fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
-    let cap_half_angle = match raw.cap_half_angle_deg {
-        None => DEFAULT_CAP_HALF_ANGLE_DEG.to_radians(),
-        Some(a) if a.is_finite() && a > 0.0 && a < 180.0 => a.to_radians(),
-        Some(a) => bail!("hand.cap_half_angle_deg: must be in (0, 180), got {a}"),
-    };
+    let cap_half_angle = bounds::CAP_HALF_ANGLE
+        .or(
+            "hand.cap_half_angle_deg",
+            raw.cap_half_angle_deg,
+            DEFAULT_CAP_HALF_ANGLE_DEG,
+        )?
+        .to_radians();
     let radius = raw
         .fingertip_radius
-        .map(|r| positive("hand.fingertip_radius", r))
+        .map(|r| bounds::FINGERTIP_RADIUS.check("hand.fingertip_radius", r))
         .transpose()?;
     if raw.fingers.is_empty() {
         bail!("hand.fingers: at least one finger is needed");
     }
+    bounds::FINGERS.check("hand.fingers (their number)", raw.fingers.len())?;
     let home = |i: usize, h: &Option<Vec<Real>>| -> Result<Option<Vec<Real>>> {
         h.as_ref()
             .map(|v| {
+                bounds::JOINTS
+                    .check(&format!("hand.fingers[{i}].home_deg (its length)"), v.len())?;
                 v.iter()
-                    .map(|a| degrees(&format!("hand.fingers[{i}].home_deg"), *a))
+                    .enumerate()
+                    .map(|(j, a)| degrees(&format!("hand.fingers[{i}].home_deg[{j}]"), *a))
                     .collect()
             })
             .transpose()
@@ -741,20 +806,18 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
     }
     match raw.urdf {
         Some(file) => {
-            let full = base.join(&file);
-            if !full.is_file() {
-                bail!("hand.urdf: file {} does not exist", full.display());
-            }
-            let o = raw.urdf_origin.unwrap_or([0.0; 3]);
-            if o.iter().any(|x| !x.is_finite()) {
-                bail!("hand.urdf_origin: must be finite, got {o:?}");
-            }
-            let r = raw.urdf_rpy_deg.unwrap_or([0.0; 3]);
-            let r = [
-                degrees("hand.urdf_rpy_deg", r[0])?,
-                degrees("hand.urdf_rpy_deg", r[1])?,
-                degrees("hand.urdf_rpy_deg", r[2])?,
-            ];
+            let full = existing_file("hand.urdf", "a URDF file", base.join(&file))?;
+            let o = each(
+                "hand.urdf_origin",
+                raw.urdf_origin.unwrap_or([0.0; 3]),
+                bounds::HAND_POSITION,
+            )?;
+            let r = each(
+                "hand.urdf_rpy_deg",
+                raw.urdf_rpy_deg.unwrap_or([0.0; 3]),
+                bounds::HAND_ANGLE,
+            )?
+            .map(Real::to_radians);
             let root = Isometry3::from_parts(
                 nalgebra::Translation3::new(o[0], o[1], o[2]),
                 UnitQuaternion::from_euler_angles(r[0], r[1], r[2]),
@@ -773,7 +836,7 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
                 };
                 let tip_radius = f
                     .fingertip_radius
-                    .map(|r| positive(&key("fingertip_radius"), r))
+                    .map(|r| bounds::FINGERTIP_RADIUS.check(&key("fingertip_radius"), r))
                     .transpose()?
                     .or(radius);
                 fingers.push(UrdfFinger {
@@ -800,15 +863,14 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
                 let Some(b) = f.base else {
                     bail!("{}: required ([x, y] in metres)", key("base"));
                 };
-                if b.iter().any(|x| !x.is_finite()) {
-                    bail!("{}: must be finite, got {b:?}", key("base"));
-                }
+                let b = each(&key("base"), b, bounds::HAND_POSITION)?;
                 let yaw = degrees(&key("base_yaw_deg"), f.base_yaw_deg.unwrap_or(0.0))?;
                 let Some(links) = f.links else {
                     bail!("{}: required (link lengths in metres)", key("links"));
                 };
+                bounds::JOINTS.check(&format!("{} (their number)", key("links")), links.len())?;
                 for (j, l) in links.iter().enumerate() {
-                    positive(&format!("hand.fingers[{i}].links[{j}]"), *l)?;
+                    bounds::LINK.check(&format!("hand.fingers[{i}].links[{j}]"), *l)?;
                 }
                 let Some(limits) = f.limits_deg else {
                     bail!("{}: required ([lower, upper] per joint)", key("limits_deg"));
@@ -822,22 +884,22 @@ fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
                     );
                 }
                 let mut lim = Vec::with_capacity(limits.len());
-                for (j, [lo, hi]) in limits.iter().enumerate() {
+                for (j, &[lo, hi]) in limits.iter().enumerate() {
                     let k = format!("hand.fingers[{i}].limits_deg[{j}]");
-                    let (lo, hi) = (degrees(&k, *lo)?, degrees(&k, *hi)?);
+                    let (lo_rad, hi_rad) = (degrees(&k, lo)?, degrees(&k, hi)?);
                     if lo > hi {
                         bail!(
                             "{k}: lower limit {} deg is above the upper limit {} deg (finger {})",
-                            lo.to_degrees(),
-                            hi.to_degrees(),
+                            num(lo),
+                            num(hi),
                             f.finger
                         );
                     }
-                    lim.push([lo, hi]);
+                    lim.push([lo_rad, hi_rad]);
                 }
                 let tip_radius = match f
                     .fingertip_radius
-                    .map(|r| positive(&key("fingertip_radius"), r))
+                    .map(|r| bounds::FINGERTIP_RADIUS.check(&key("fingertip_radius"), r))
                     .transpose()?
                     .or(radius)
                 {
@@ -869,7 +931,7 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
     let users_file = match raw.users_file {
         None => None,
         Some(file) => {
-            let full = base.join(&file);
+            let full = existing_file("zenoh.users_file", "a users file", base.join(&file))?;
             let text = std::fs::read_to_string(&full)
                 .with_context(|| format!("zenoh.users_file: cannot read {}", full.display()))?;
             let mut users = 0;
@@ -969,49 +1031,83 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
     {
         bail!("pipeline.rig: use 1 to 48 letters, digits, '_' or '-', got {rig:?}");
     }
-    let nonneg = |key: &str, v: Option<Real>, default: Real| -> Result<Real> {
-        let x = v.unwrap_or(default);
-        if !x.is_finite() || x < 0.0 {
-            bail!("{key}: must be a finite number >= 0, got {x}");
-        }
-        Ok(x)
-    };
-    Ok(PipelineSpec {
+    let rate_hz = bounds::RATE.or("pipeline.rate_hz", raw.rate_hz, 1000.0)?;
+    let pose_rate_hz = bounds::POSE_RATE
+        .up_to(
+            rate_hz.min(bounds::POSE_RATE.hi),
+            "at least one correction a second; at most one per tick of pipeline.rate_hz",
+        )
+        .or("pipeline.pose_rate_hz", raw.pose_rate_hz, 30.0)?;
+    let pose_latency_ms =
+        bounds::POSE_LATENCY.or("pipeline.pose_latency_ms", raw.pose_latency_ms, 30.0)?;
+    let spec = PipelineSpec {
         rig,
-        rate_hz: positive("pipeline.rate_hz", raw.rate_hz.unwrap_or(1000.0))?,
-        joint_speed: positive(
-            "pipeline.joint_speed_deg_s",
-            raw.joint_speed_deg_s.unwrap_or(360.0),
-        )?
-        .to_radians(),
-        joint_noise: nonneg("pipeline.joint_noise_deg", raw.joint_noise_deg, 0.02)?.to_radians(),
-        pose_rate_hz: positive("pipeline.pose_rate_hz", raw.pose_rate_hz.unwrap_or(30.0))?,
-        pose_noise: nonneg("pipeline.pose_noise_deg", raw.pose_noise_deg, 0.2)?.to_radians(),
-        pose_latency: nonneg("pipeline.pose_latency_ms", raw.pose_latency_ms, 30.0)? * 1e-3,
-        max_input_age: positive(
+        rate_hz,
+        joint_speed: bounds::JOINT_SPEED
+            .or("pipeline.joint_speed_deg_s", raw.joint_speed_deg_s, 360.0)?
+            .to_radians(),
+        joint_noise: bounds::JOINT_NOISE
+            .or("pipeline.joint_noise_deg", raw.joint_noise_deg, 0.02)?
+            .to_radians(),
+        pose_rate_hz,
+        pose_noise: bounds::POSE_NOISE
+            .or("pipeline.pose_noise_deg", raw.pose_noise_deg, 0.2)?
+            .to_radians(),
+        pose_latency: pose_latency_ms * 1e-3,
+        max_input_age: bounds::INPUT_AGE.or(
             "pipeline.max_input_age_ms",
-            raw.max_input_age_ms.unwrap_or(200.0),
+            raw.max_input_age_ms,
+            200.0,
         )? * 1e-3,
-        min_normal_force: nonneg("pipeline.min_normal_force", raw.min_normal_force, 1.0)?,
-        max_hold: positive("pipeline.max_hold_s", raw.max_hold_s.unwrap_or(30.0))?,
-        slip: match raw.slip_deg.unwrap_or(0.0) {
-            x if x.is_finite() && x.abs() <= 90.0 => x.to_radians(),
-            x => bail!("pipeline.slip_deg: must be a number from -90 to 90 (degrees), got {x}"),
-        },
-        slip_at: nonneg("pipeline.slip_at_s", raw.slip_at_s, 5.0)?,
+        min_normal_force: bounds::NORMAL_FORCE.or(
+            "pipeline.min_normal_force",
+            raw.min_normal_force,
+            1.0,
+        )?,
+        max_hold: bounds::MAX_HOLD.or("pipeline.max_hold_s", raw.max_hold_s, 30.0)?,
+        slip: bounds::SLIP
+            .or("pipeline.slip_deg", raw.slip_deg, 0.0)?
+            .to_radians(),
+        slip_at: bounds::SLIP_AT.or("pipeline.slip_at_s", raw.slip_at_s, 5.0)?,
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
+        max_pose_innovation: bounds::POSE_INNOVATION
+            .or(
+                "pipeline.max_pose_innovation_deg",
+                raw.max_pose_innovation_deg,
+                DEFAULT_MAX_POSE_INNOVATION_DEG,
+            )?
+            .to_radians(),
+        max_contact_residual: bounds::CONTACT_RESIDUAL.or(
+            "pipeline.max_contact_residual_mm",
+            raw.max_contact_residual_mm,
+            DEFAULT_MAX_CONTACT_RESIDUAL_MM,
+        )? * 1e-3,
+        hung_restart: bounds::HUNG_RESTART.or(
+            "pipeline.hung_restart_s",
+            raw.hung_restart_s,
+            DEFAULT_HUNG_RESTART_S,
+        )?,
         realtime_priority: match raw.realtime_priority.unwrap_or(DEFAULT_REALTIME_PRIORITY) {
             p @ 0..=99 => p as u8,
             p => bail!(
                 "pipeline.realtime_priority: 0 (normal scheduling) or a SCHED_FIFO priority from 1 to 99, got {p}"
             ),
         },
-    })
+    };
+    // The estimate's own noise must leave the innovation's bound for real errors: the
+    // smoothed innovation's noise is a third of the pose noise, the estimate's 0.42 of it.
+    if spec.pose_noise > 0.5 * spec.max_pose_innovation {
+        bail!(
+            "pipeline.pose_noise_deg: at most half of pipeline.max_pose_innovation_deg ({} deg), or the measurements' own noise would hold the hand; got {}",
+            num(spec.max_pose_innovation.to_degrees()),
+            num(spec.pose_noise.to_degrees())
+        );
+    }
+    Ok(spec)
 }
 
 fn nodes_spec(raw: Option<Vec<String>>) -> Result<Vec<String>> {
-    use icrflow_interfaces::topics::NODES;
     let Some(nodes) = raw else {
         return Ok(NODES.iter().map(|n| n.to_string()).collect());
     };
@@ -1048,29 +1144,33 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         max_steps: None,
         attach_resolution_deg: None,
     });
-    let angle = |key: &str, v: Option<Real>, default: Real| -> Result<Real> {
-        Ok(positive(key, v.unwrap_or(default))?.to_radians())
-    };
-    let cap_margin = raw.cap_margin_deg.unwrap_or(5.0);
-    if !(cap_margin.is_finite() && cap_margin >= 0.0) {
-        bail!("plan.cap_margin_deg: must be >= 0, got {cap_margin}");
-    }
-    let m = raw.min_manipulability.unwrap_or(1e-4);
-    if !(m.is_finite() && m >= 0.0) {
-        bail!("plan.min_manipulability: must be >= 0, got {m}");
-    }
-    let max_steps = raw.max_steps.unwrap_or(100_000);
-    if max_steps == 0 {
-        bail!("plan.max_steps: must be >= 1");
+    let rotation =
+        bounds::ROTATION.or("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?;
+    let step = bounds::STEP.or("plan.step_deg", raw.step_deg, DEFAULT_STEP_DEG)?;
+    let cap_margin = bounds::CAP_MARGIN.or("plan.cap_margin_deg", raw.cap_margin_deg, 5.0)?;
+    let m = bounds::MANIPULABILITY.or("plan.min_manipulability", raw.min_manipulability, 1e-4)?;
+    let max_steps = bounds::MAX_STEPS.check("plan.max_steps", raw.max_steps.unwrap_or(100_000))?;
+    // The rolling steps alone: a plan that cannot reach its goal within max_steps is refused
+    // before it starts (switches add two steps each on top).
+    let rolling = (rotation / step).ceil();
+    if rolling >= max_steps as Real {
+        bail!(
+            "plan.max_steps: {max_steps} steps cannot turn plan.rotation_deg = {} deg in steps of plan.step_deg = {} deg, which takes {} rolling steps (and the start, and two per finger switch)",
+            num(rotation),
+            num(step),
+            num(rolling)
+        );
     }
     Ok(Settings {
         alpha,
-        goal: angle("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?,
-        step: angle("plan.step_deg", raw.step_deg, DEFAULT_STEP_DEG)?,
+        goal: rotation.to_radians(),
+        step: step.to_radians(),
         cap_margin: cap_margin.to_radians(),
         min_manipulability: m,
         max_steps,
-        attach_resolution: angle("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?,
+        attach_resolution: bounds::ATTACH_RESOLUTION
+            .or("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?
+            .to_radians(),
     })
 }
 
@@ -1112,6 +1212,20 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
     }
 
     #[test]
+    fn a_table_reads_as_its_text() {
+        let table: toml::Table = toml::from_str(GOOD).unwrap();
+        let path = Path::new("x.toml");
+        assert_eq!(
+            Config::from_table(table.clone(), path).unwrap(),
+            Config::parse(GOOD, path).unwrap()
+        );
+        let mut bad = table;
+        bad.insert("bogus".into(), toml::Value::Integer(1));
+        let e = format!("{:#}", Config::from_table(bad, path).unwrap_err());
+        assert!(e.contains("bogus"), "{e}");
+    }
+
+    #[test]
     fn errors_name_the_key() {
         assert!(err(&GOOD.replace("alpha = 0.1", "alpha = 0.1\nbogus = 1")).contains("bogus"));
         assert!(err(&GOOD.replace("friction = 0.3", "friction = -0.3")).contains("grasp.friction"));
@@ -1134,6 +1248,68 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
             .contains("object.path")
         );
         assert!(err(&GOOD.replace("radius", "radios")).contains("radios"));
+    }
+
+    /// Out-of-range values of every section, including NaN and inf (TOML has them), are
+    /// refused naming the key, the value in short notation and the range.
+    #[test]
+    fn values_outside_their_bounds_are_refused_by_key_value_and_range() {
+        let with = |extra: &str| format!("{GOOD}\n{extra}\n");
+        for (text, says) in [
+            (
+                with("[pipeline]\nrate_hz = 1e11"),
+                "pipeline.rate_hz: 1e11 is not in the allowed range [10, 2000] Hz",
+            ),
+            (
+                with("[pipeline]\nrate_hz = 100.0\npose_rate_hz = 101.0"),
+                "pipeline.pose_rate_hz: 101 is not in the allowed range [1, 100] Hz",
+            ),
+            (
+                with("[pipeline]\npose_noise_deg = 1e300"),
+                "pipeline.pose_noise_deg: 1e300 is not in the allowed range [0, 1] deg",
+            ),
+            (
+                with("[plan]\nstep_deg = 360.0"),
+                "plan.step_deg: 360 is not in the allowed range (0, 30] deg",
+            ),
+            (
+                with("[plan]\nrotation_deg = inf"),
+                "plan.rotation_deg: inf is not in the allowed range (0, 36000] deg",
+            ),
+            (
+                with("[visualizer]\nqueue = 0"),
+                "visualizer.queue: 0 is not in the allowed range 1 to 4096",
+            ),
+            (
+                GOOD.replace("friction = 0.3", "friction = 1e300"),
+                "grasp.friction: 1e300 is not in the allowed range [0, 2]",
+            ),
+            (
+                GOOD.replace("radius = 0.0475", "radius = nan"),
+                "object.radius: NaN is not in the allowed range [0.001, 1] m",
+            ),
+            (
+                GOOD.replace("radius = 0.0475", "radius = 0.0475\nsegments = [361, 10]"),
+                "object.segments[0]: 361 is not in the allowed range 3 to 360",
+            ),
+        ] {
+            let e = err(&text);
+            assert!(e.contains(says), "{says}: {e}");
+        }
+        // Any latency within the range: the estimator is stable at any (nodes/src/estimator.rs).
+        let c = Config::parse(
+            &with("[pipeline]\npose_latency_ms = 1000.0"),
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        assert_eq!(c.pipeline.pose_latency, 1.0);
+        // The ends of a range are inside it.
+        let c = Config::parse(
+            &with("[pipeline]\nrate_hz = 2000.0\npose_rate_hz = 2000.0\npose_latency_ms = 1.5\nmax_input_age_ms = 1e-3"),
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        assert_eq!(c.pipeline.pose_rate_hz, 2000.0);
     }
 
     #[test]

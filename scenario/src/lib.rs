@@ -8,9 +8,10 @@
 
 #![warn(missing_docs)]
 
+pub mod bounds;
 mod config;
 mod raw;
 mod setup;
 
 pub use config::*;
-pub use setup::Setup;
+pub use setup::{Setup, Snap, snap_contact, surface_tolerance};

@@ -65,6 +65,9 @@ pub struct RawPipeline {
     pub seed: Option<u64>,
     pub nodes: Option<Vec<String>>,
     pub realtime_priority: Option<i64>,
+    pub max_pose_innovation_deg: Option<f64>,
+    pub max_contact_residual_mm: Option<f64>,
+    pub hung_restart_s: Option<f64>,
 }
 
 /// `[object]`: the shape is chosen by `shape`.

@@ -8,7 +8,7 @@ use icrflow_grasp::wrench::WrenchFrame;
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
 
-use crate::config::{Config, ContactSpec};
+use crate::config::{Config, ContactSpec, FingerContact};
 
 /// Everything the planner needs, built from a config.
 pub struct Setup {
@@ -61,11 +61,7 @@ impl Setup {
                     hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
                 );
             }
-            let index = match c.at {
-                ContactSpec::Angle(a) => object.section.nearest_angle(a).map(|x| x.0),
-                ContactSpec::Point(p) => problem.candidates().nearest(&p).map(|x| x.0),
-            }
-            .context("the object's section has no samples")?;
+            let (index, _) = snap_contact(&object, &problem, true, i, c)?;
             initial.push((c.finger, index, c.cap_angle));
         }
         if hand
@@ -97,5 +93,98 @@ impl Setup {
             start: Start::default(),
             settings: config.plan.clone(),
         }
+    }
+}
+
+/// How far a configured contact point may lie from the object's surface (m): 1 mm, or 1 % of
+/// the object's largest radius if that is more (a point written with a few digits, on a mesh
+/// that only approximates the surface).
+pub fn surface_tolerance(object: &Object) -> Real {
+    (0.01 * object.max_radius()).max(1e-3)
+}
+
+/// How far a configured contact moved to its candidate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Snap {
+    /// From the configured angle on the section to the candidate's (rad).
+    Angle(Real),
+    /// From the configured point (or, for an angle, its point of the section) to the
+    /// candidate (m).
+    Distance(Real),
+}
+
+/// Snaps contact `i` of the config to a candidate of `problem`, whose candidates are the
+/// object's section in the hand's plane when `section` (planar analysis, and the planner
+/// always), else its facets; returns the candidate and how far the contact moved. The one
+/// place every verb resolves a contact: a point must lie on the object's surface within
+/// [`surface_tolerance`], and for section candidates in the hand's plane too, else it is
+/// refused with the distance.
+pub fn snap_contact(
+    object: &Object,
+    problem: &GraspProblem,
+    section: bool,
+    i: usize,
+    c: &FingerContact,
+) -> Result<(usize, Snap)> {
+    let key = |k: &str| format!("grasp.contacts[{i}]{k} (finger {})", c.finger);
+    let cands = problem.candidates();
+    match c.at {
+        ContactSpec::Angle(a) => {
+            let (s, d) = object
+                .section
+                .nearest_angle(a)
+                .with_context(|| format!("{}: the object's section has no samples", key("")))?;
+            if section {
+                return Ok((s, Snap::Angle(d)));
+            }
+            // Facet candidates: the facet nearest to that point of the section.
+            let (f, d) = cands
+                .nearest(&object.section.samples.points[s])
+                .with_context(|| format!("{}: the object has no facets", key("")))?;
+            Ok((f, Snap::Distance(d)))
+        }
+        ContactSpec::Point(p) => {
+            let tolerance = surface_tolerance(object);
+            let off = object.surface_distance(&p);
+            if off > tolerance {
+                bail!(
+                    "{}: [{}, {}, {}] is {} from the object's surface; a contact must lie on it (within {})",
+                    key(".point"),
+                    crate::bounds::num(p.x),
+                    crate::bounds::num(p.y),
+                    crate::bounds::num(p.z),
+                    length(off),
+                    length(tolerance)
+                );
+            }
+            if section {
+                let off = (p.z - object.section.height).abs();
+                if off > tolerance {
+                    bail!(
+                        "{}: [{}, {}, {}] is {} off the hand's plane z = {:.4} m, where the contact candidates are (the object's section); the planner and planar analysis take contacts in that plane (within {})",
+                        key(".point"),
+                        crate::bounds::num(p.x),
+                        crate::bounds::num(p.y),
+                        crate::bounds::num(p.z),
+                        length(off),
+                        object.section.height,
+                        length(tolerance)
+                    );
+                }
+            }
+            let (n, d) = cands
+                .nearest(&p)
+                .with_context(|| format!("{}: the object has no candidates", key("")))?;
+            Ok((n, Snap::Distance(d)))
+        }
+    }
+}
+
+/// A length for messages: millimetres below a metre, metres above.
+fn length(x: Real) -> String {
+    if x < 1.0 {
+        format!("{:.2} mm", 1e3 * x)
+    } else {
+        format!("{:.3} m", x)
     }
 }

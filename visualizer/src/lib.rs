@@ -203,7 +203,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         }
         Err(TrySendError::Disconnected(_)) => false,
     };
-    ws.wait_and_process(|_| {
+    let mut on_event = |_| {
         let mut step = || -> Result<()> {
             check_opened()?;
             let t = started.elapsed().as_secs_f64();
@@ -267,7 +267,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                 CallbackProgression::Stop
             }
         }
-    })?;
+    };
+    // Until SIGTERM or SIGINT: another signal (SIGCONT, SIGWINCH, ...) only interrupts the wait.
+    while let iceoryx2::waitset::WaitSetRunResult::Interrupt = ws.wait_and_process(&mut on_event)? {
+    }
     // Stopped: what came since the last frame goes in a last one; the rest of the queue is
     // written, and the file closed.
     if state.quality.is_some()

@@ -15,6 +15,7 @@
 //! The centre of mass and volume are those of the solid bounded by the mesh, with uniform
 //! density (divergence theorem).
 
+mod distance;
 mod error;
 mod io;
 mod primitives;
