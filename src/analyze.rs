@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 use icrflow_grasp::icr::IcrError;
 use icrflow_grasp::math::Real;
+use icrflow_grasp::progress::Progress;
 use icrflow_grasp::quality::{Closure, GraspProblem};
 use icrflow_grasp::wrench::{Space, WrenchFrame};
 use serde::Serialize;
@@ -67,9 +68,11 @@ pub struct IcrReport {
 }
 
 /// Runs the verb.
-pub fn run(path: &Path, json: bool) -> Result<()> {
+pub fn run(path: &Path, json: bool, progress_after: std::time::Duration) -> Result<()> {
     let config = Config::load(path)?;
-    let report = analyze(&config)?;
+    let mut shown = crate::progress::Shown::new(progress_after);
+    let report = analyze(&config, &mut shown)?;
+    drop(shown);
     let mut out = std::io::stdout().lock();
     if json {
         serde_json::to_writer_pretty(&mut out, &report).context("writing JSON")?;
@@ -81,8 +84,8 @@ pub fn run(path: &Path, json: bool) -> Result<()> {
 }
 
 /// Analyses the configured grasp.
-pub fn analyze(config: &Config) -> Result<Report> {
-    let object = config.object.build()?;
+pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
+    let object = config.object.build_with(progress)?;
     let g = &config.grasp;
     let rho = g.rho.unwrap_or_else(|| object.max_radius());
     let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
@@ -98,7 +101,7 @@ pub fn analyze(config: &Config) -> Result<Report> {
         }
         Space::Spatial => (object.facets.clone(), None),
     };
-    let problem = GraspProblem::new(&object.facets, candidates, frame, g.model)?;
+    let problem = GraspProblem::new_with(&object.facets, candidates, frame, g.model, progress)?;
     let mut indices = Vec::with_capacity(g.contacts.len());
     let mut snaps = Vec::with_capacity(g.contacts.len());
     for (i, c) in g.contacts.iter().enumerate() {

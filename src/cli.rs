@@ -11,6 +11,16 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// Show the progress of loading the object and building the grasp problem (validate,
+    /// analyze, plan) once it has taken this long, in seconds (0 to 3600; 0: always).
+    #[arg(
+        long,
+        global = true,
+        value_name = "SECONDS",
+        default_value = "1",
+        value_parser = crate::progress::parse_after
+    )]
+    pub progress_after: std::time::Duration,
 }
 
 /// The verbs.

@@ -5,6 +5,7 @@ mod cli;
 mod monitor;
 mod output;
 mod plan;
+mod progress;
 mod run;
 mod watch;
 
@@ -14,8 +15,9 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
+    let after = cli.progress_after;
     let result = match cli.command {
-        cli::Command::Analyze { config, json } => analyze::run(&config, json).map(|()| 0),
+        cli::Command::Analyze { config, json } => analyze::run(&config, json, after).map(|()| 0),
         cli::Command::Plan {
             config,
             out,
@@ -33,8 +35,9 @@ fn main() -> ExitCode {
                 connect: connect_viewer,
                 off: false,
             },
+            after,
         ),
-        cli::Command::Validate { config } => plan::validate(&config).map(|()| 0),
+        cli::Command::Validate { config } => plan::validate(&config, after).map(|()| 0),
         cli::Command::Monitor {
             connect,
             rig,

@@ -33,9 +33,11 @@ struct Trajectory<'a> {
 }
 
 /// `icrflow validate CONFIG`: everything `plan` and `run` check before starting.
-pub fn validate(path: &Path) -> Result<()> {
+pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<()> {
     let config = Config::load(path)?;
-    let setup = Setup::new(&config)?;
+    let mut shown = crate::progress::Shown::new(progress_after);
+    let setup = Setup::new_with(&config, &mut shown)?;
+    drop(shown);
     let (contacts, quality) = setup.scenario(&config).start().context("cannot start")?;
     let surface = crate::run::surface(&setup);
     if let Ok(s) = &surface {
@@ -101,7 +103,13 @@ pub fn validate(path: &Path) -> Result<()> {
 }
 
 /// Runs the verb; returns the process exit code.
-pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Result<u8> {
+pub fn run(
+    path: &Path,
+    out: Option<PathBuf>,
+    json: bool,
+    viewer: &Viewer,
+    progress_after: std::time::Duration,
+) -> Result<u8> {
     let flag = if out.is_some() {
         "--out"
     } else {
@@ -137,7 +145,9 @@ pub fn run(path: &Path, out: Option<PathBuf>, json: bool, viewer: &Viewer) -> Re
         .as_ref()
         .map(|_| crate::run::node_program(crate::run::VISUALIZER))
         .transpose()?;
-    let setup = Setup::new(&config)?;
+    let mut shown = crate::progress::Shown::new(progress_after);
+    let setup = Setup::new_with(&config, &mut shown)?;
+    drop(shown);
     let scenario = setup.scenario(&config);
     let goal = config.plan.goal;
     let bar = std::io::stderr().is_terminal().then(|| {

@@ -15,6 +15,30 @@ static PIPELINE: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// The monitoring topics the bridge publishes by default.
 const TOPICS: [&str; 6] = icrflow_scenario::DEFAULT_MONITOR;
 
+/// What [`watched_run`] saw.
+struct Watched {
+    /// The run's stderr.
+    run_err: String,
+    /// The monitoring client's report.
+    report: serde_json::Value,
+    /// The monitor's last line.
+    last: String,
+    /// The replies the asking client got.
+    replies: u64,
+    /// The report of the client subscribing with [`KEY_EXPRS`].
+    keys: serde_json::Value,
+}
+
+/// Key expressions a generic Zenoh client may subscribe with to read rig `ztest`: wider than
+/// the rig's, the rig's, and narrower.
+const KEY_EXPRS: [&str; 5] = [
+    "icrflow/**",
+    "icrflow/ztest/**",
+    "**",
+    "icrflow/*/grasp_state",
+    "icrflow/ztest/*",
+];
+
 /// The paper scenario's config with `extra` appended, written as `dir/name.toml`.
 fn paper_config(dir: &std::path::Path, name: &str, extra: &str) -> std::path::PathBuf {
     let good = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
@@ -53,10 +77,10 @@ fn free_port() -> u16 {
 
 /// A run of the paper scenario with its bridge on a loopback port of its own (`extra` appended
 /// to its `[zenoh]` section), the Python client and `icrflow monitor` reading it meanwhile.
-/// Meanwhile a second client answers queries on the hand command key and a third asks it.
-/// Returns the run's stderr, the client's report, the monitor's last line and the replies the
-/// third client got.
-fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u64) {
+/// Meanwhile a second client answers queries on the hand command key and a third asks it,
+/// and a fourth subscribes with the key expressions of [`KEY_EXPRS`], one session each, then
+/// puts marked messages from another session.
+fn watched_run(name: &str, extra: &str) -> Watched {
     let dir = scratch(name);
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -79,6 +103,14 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u
             "--seconds",
             "4",
         ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let keys = Command::new(python())
+        .arg(root().join("tests/zenoh_client.py"))
+        .args(["--keys", &endpoint, rig, "8"])
+        .args(KEY_EXPRS)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -106,6 +138,14 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u
         .expect("the asking client's report");
     let _ = answering.kill();
     let _ = answering.wait();
+    let keys = keys.wait_with_output().unwrap();
+    let keys_out = String::from_utf8_lossy(&keys.stdout);
+    assert!(
+        keys.status.success(),
+        "key expression client: {keys_out}\n{}",
+        String::from_utf8_lossy(&keys.stderr)
+    );
+    let keys: serde_json::Value = serde_json::from_str(keys_out.trim()).unwrap();
     let monitor = monitor.wait_with_output().unwrap();
     let run = run.wait_with_output().unwrap();
     let run_err = String::from_utf8_lossy(&run.stderr).into_owned();
@@ -137,13 +177,54 @@ fn watched_run(name: &str, extra: &str) -> (String, serde_json::Value, String, u
     let last = text.lines().last().unwrap_or_default().to_string();
     assert!(text.lines().count() >= 2, "monitor printed: {text}\n{err}");
     let _ = std::fs::remove_dir_all(&dir);
-    (run_err, report, last, replies)
+    Watched {
+        run_err,
+        report,
+        last,
+        replies,
+        keys,
+    }
+}
+
+/// Every key expression of [`KEY_EXPRS`] received the rig's monitoring topics it matches, at
+/// least 5 messages each; read-only, nothing else (no key but those topics', none of the
+/// marked puts of the other session).
+fn assert_every_key_expression_reads(keys: &serde_json::Value, read_only: bool) {
+    assert_eq!(keys["complete"], true, "{keys:#}");
+    for expr in KEY_EXPRS {
+        let got = &keys["keys"][expr];
+        let expected: Vec<&str> = if expr == "icrflow/*/grasp_state" {
+            vec!["grasp_state"]
+        } else {
+            TOPICS.to_vec()
+        };
+        for t in &expected {
+            let n = got["topics"][format!("icrflow/ztest/{t}")]
+                .as_u64()
+                .unwrap_or(0);
+            assert!(n >= 5, "{expr}: {n} messages of {t}: {keys:#}");
+        }
+        if read_only {
+            let topics = got["topics"].as_object().expect("the topics received");
+            for key in topics.keys() {
+                let topic = key.strip_prefix("icrflow/ztest/").unwrap_or(key);
+                assert!(expected.contains(&topic), "{expr} received {key}: {keys:#}");
+            }
+            assert_eq!(got["foreign"], 0, "{expr} received a remote put: {keys:#}");
+        }
+    }
 }
 
 #[test]
 fn a_zenoh_client_reads_every_monitoring_topic_of_a_run_and_cannot_write() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (run_err, report, last, replies) = watched_run("zenoh", "");
+    let Watched {
+        run_err,
+        report,
+        last,
+        replies,
+        keys,
+    } = watched_run("zenoh", "");
     for part in [
         "phase ",
         "rotation ",
@@ -170,12 +251,32 @@ fn a_zenoh_client_reads_every_monitoring_topic_of_a_run_and_cannot_write() {
         replies, 0,
         "a remote queryable answered for the hand command"
     );
+    // A client reads the rig with any key expression, `icrflow/**` and `**` included (the
+    // access control once dropped every subscriber wider than `icrflow/ztest/**`), and
+    // another client's puts reach neither it nor the bridge.
+    assert_every_key_expression_reads(&keys, true);
+    assert_eq!(keys["put"]["icrflow/ztest/hand_command"], 5, "{keys}");
 }
 
 #[test]
 fn without_access_control_remote_writes_reach_the_bridge_which_ignores_them_and_says_why() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (run_err, report, _, replies) = watched_run("zenoh-open", "read_only = false");
+    let Watched {
+        run_err,
+        report,
+        replies,
+        keys,
+        ..
+    } = watched_run("zenoh-open", "read_only = false");
+    // Without access control the pipeline's session passes one client's puts on to the
+    // others: the control case of the read-only test's "no remote put reaches a subscriber".
+    assert_every_key_expression_reads(&keys, false);
+    for expr in ["icrflow/**", "**", "icrflow/ztest/**", "icrflow/ztest/*"] {
+        assert!(
+            keys["keys"][expr]["foreign"].as_u64().unwrap_or(0) > 0,
+            "{expr}: {keys:#}"
+        );
+    }
     // Without access control the pipeline's session routes a query to a remote queryable.
     assert_eq!(
         replies, 1,

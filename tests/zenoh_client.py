@@ -8,11 +8,20 @@ code of ours. Used by tests/zenoh.rs.
     python tests/zenoh_client.py --answer ENDPOINT RIG SECONDS
     python tests/zenoh_client.py --ask ENDPOINT RIG
     python tests/zenoh_client.py --put ENDPOINT KEY HEX
+    python tests/zenoh_client.py --keys ENDPOINT RIG SECONDS KEYEXPR...
 
 --answer declares a queryable on icrflow/RIG/hand_command for SECONDS, as a peer pretending
 to speak for the hand would; --ask queries that key expression through the pipeline's
 session and prints how many replies came; --put puts the bytes HEX (hex digits) on KEY and
-waits a second (tests/two_hosts.rs: bad input on a split pipeline's link topics). The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
+waits a second (tests/two_hosts.rs: bad input on a split pipeline's link topics). --keys
+opens one session per KEYEXPR (separate sessions: a session delivers its own matching
+samples to all its subscribers, which would hide a declaration the pipeline refused), each
+subscribing to its KEYEXPR, until each has received every monitoring topic it matches 5
+times or SECONDS passed; then another session puts a marked hand command on icrflow/RIG/hand_command
+and on icrflow/RIG/marker/put (beyond the monitoring keys' icrflow/RIG/*, where the main
+form's decoding would count it as an error in the same run), and after a second it prints per KEYEXPR the samples and topics
+received and how many of them were the marked puts (a pipeline that passed them on to its
+other clients would let a remote peer write to them). The third (bench/pipeline.sh) counts every topic's messages for SECONDS and the delay from
 each message's publication on the local bus (its time_ns) to its arrival here, and prints them
 as JSON. With ZENOH_USER and ZENOH_PASSWORD in the environment, the client authenticates with them
 (the pipeline's zenoh.users_file). The second form is a peer that stops reading: its subscriber's callback blocks on the first
@@ -125,7 +134,77 @@ def put(endpoint: str, key: str, payload: str) -> int:
     return 0
 
 
+MARK = "icrflow-test-foreign-put"
+
+
+def keys(endpoint: str, rig: str, seconds: float, exprs: list[str]) -> int:
+    deadline = time.monotonic() + seconds
+    lock = threading.Lock()
+    seen: dict[str, dict[str, int]] = {e: {} for e in exprs}
+    foreign: dict[str, int] = {e: 0 for e in exprs}
+    wanted = ["joint_state", "grasp_state", "wrench_space", "plan_step", "hand_command", "node_health"]
+
+    def on_sample_of(expr: str):
+        def on_sample(sample: "zenoh.Sample") -> None:
+            key = str(sample.key_expr)
+            payload = sample.payload.to_bytes()
+            with lock:
+                seen[expr][key] = seen[expr].get(key, 0) + 1
+                if MARK.encode() in payload:
+                    foreign[expr] += 1
+        return on_sample
+
+    # The monitoring keys each key expression matches.
+    matching = {
+        e: [k for k in (f"icrflow/{rig}/{t}" for t in wanted)
+            if zenoh.KeyExpr(e).intersects(zenoh.KeyExpr(k))]
+        for e in exprs
+    }
+
+    def done() -> bool:
+        with lock:
+            return all(seen[e].get(k, 0) >= 5 for e in exprs for k in matching[e])
+
+    sessions = []
+    try:
+        for expr in exprs:
+            session = zenoh.open(client_config(endpoint))
+            sessions.append(session)
+            session.declare_subscriber(expr, on_sample_of(expr))
+        while time.monotonic() < deadline and not done():
+            time.sleep(0.05)
+        complete = done()
+        command = f"icrflow/{rig}/hand_command"
+        marked = json.dumps({
+            "schema": 1, "topic": "hand_command", "rig": rig, "sequence": 2**62,
+            "time_ns": time.time_ns(), "origin_ns": 0, "mode": "track", "reason": MARK,
+            "quality": 1.0, "latency_us": 0.0, "fingers": [],
+        })
+        put_keys = [command, f"icrflow/{rig}/marker/put"]
+        with zenoh.open(client_config(endpoint)) as writer:
+            for _ in range(5):
+                for key in put_keys:
+                    writer.put(key, marked)
+                time.sleep(0.1)
+            time.sleep(1.0)
+    finally:
+        for session in sessions:
+            session.close()
+    with lock:
+        print(json.dumps({
+            "keys": {
+                e: {"samples": sum(seen[e].values()), "topics": seen[e], "foreign": foreign[e]}
+                for e in exprs
+            },
+            "complete": complete,
+            "put": {k: 5 for k in put_keys},
+        }))
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1] == "--keys":
+        return keys(sys.argv[2], sys.argv[3], float(sys.argv[4]), sys.argv[5:])
     if sys.argv[1] == "--put":
         return put(sys.argv[2], sys.argv[3], sys.argv[4])
     if sys.argv[1] == "--answer":

@@ -15,8 +15,9 @@
 //! messages instead of stalling anything local.
 //!
 //! Remote peers only read: with `zenoh.read_only` (the default) the session's access control
-//! ([`read_only_acl`]) lets them subscribe to the rig's key expressions and nothing else. The
-//! bridge takes no input from Zenoh yet; whatever remote message reaches it (read-only off) is
+//! ([`read_only_acl`]) lets them subscribe, on any key expression, and receive what the
+//! bridge puts on the rig's key expressions, and nothing else. The bridge takes no input from
+//! Zenoh on the monitoring keys; whatever remote message reaches it there (read-only off) is
 //! checked ([`json::envelope`]), logged with the reason, counted as refused, and dropped.
 
 pub mod json;
@@ -37,11 +38,20 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 
 /// The access control of a read-only pipeline session on rig `rig`: every remote peer may
-/// subscribe to the rig's key expressions and receive what the session publishes there; the
-/// loop topics in `imports` (a split pipeline's topics this host takes from the others) may
-/// be put by the peers logged in as one of `link_users` (by any peer when that is empty);
-/// everything else a remote peer sends (a put, a delete, a query, a queryable, on any key) is
-/// denied by default.
+/// declare a subscriber on any key expression and receives what the session publishes on the
+/// rig's key expressions, and nothing else; the loop topics in `imports` (a split pipeline's
+/// topics this host takes from the others) may be put by the peers logged in as one of
+/// `link_users` (by any peer when that is empty); everything else a remote peer sends (a put,
+/// a delete, a query, a queryable, a liveliness token, on any key) is denied by default.
+///
+/// Why subscriber declarations are allowed on `**`, not on the rig's `icrflow/<rig>/**`:
+/// Zenoh 1.10's access control allows a declaration only when an allowing rule's key
+/// expression *includes* the declared one (`nodes_including` in its policy decision point),
+/// so a rule on `icrflow/<rig>/**` silently drops a subscriber on `icrflow/**` or `**`, a
+/// superset, and such a client gets an empty stream. A subscription carries no data into the
+/// session; what reaches the subscriber is decided by the egress rule on the puts
+/// (`monitoring-out`: only the rig's keys), so allowing every declaration lets any client
+/// read the rig's keys, whatever its key expression, and write nothing.
 pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serde_json::Value {
     let keys = [topics::service(rig, "**")];
     let mut rules = vec![
@@ -53,16 +63,23 @@ pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serd
             "key_exprs": keys,
         }),
         serde_json::json!({
-            "id": "monitoring-subscribe",
+            "id": "remote-subscribe",
             "messages": ["declare_subscriber"],
-            "flows": ["ingress", "egress"],
+            "flows": ["ingress"],
+            "permission": "allow",
+            "key_exprs": ["**"],
+        }),
+        serde_json::json!({
+            "id": "bridge-subscribe",
+            "messages": ["declare_subscriber"],
+            "flows": ["egress"],
             "permission": "allow",
             "key_exprs": keys,
         }),
     ];
     let mut subjects = vec![serde_json::json!({ "id": "every-peer" })];
     let mut policies = vec![serde_json::json!({
-        "rules": ["monitoring-out", "monitoring-subscribe"],
+        "rules": ["monitoring-out", "remote-subscribe", "bridge-subscribe"],
         "subjects": ["every-peer"],
     })];
     if !imports.is_empty() {

@@ -14,6 +14,7 @@
 //! | [`support`] | the OWS support function by branch and bound over a tree of bounding ellipsoids |
 //! | [`lp`] | alpha* by ray-shooting linear programs (clarabel): the independent check |
 //! | [`icr`] | independent contact regions with margin alpha (search zones + region growing) |
+//! | [`progress`] | progress reports of the long operations on large meshes (loading, validation, problem building), for the caller to show |
 //! | [`reference`](mod@reference) | case export for the Python/Qhull reference `bench/reference_qhull.py` |
 //!
 //! ## Conventions
@@ -43,6 +44,7 @@ pub mod icr;
 pub mod lp;
 pub mod math;
 pub mod object;
+pub mod progress;
 pub mod quality;
 pub mod reference;
 pub mod support;

@@ -33,6 +33,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use crate::hull::{Hull, HullError, HullScratch};
 use crate::math::Real;
 use crate::object::SurfaceSamples;
+use crate::progress::{Progress, Silent, Stage, tick};
 use crate::support::SupportTree;
 use crate::wrench::{ContactModel, Space, WrenchFrame};
 
@@ -182,6 +183,18 @@ impl GraspProblem {
         frame: WrenchFrame,
         model: ContactModel,
     ) -> Result<Self, GraspError> {
+        Self::new_with(facets, candidates, frame, model, &mut Silent)
+    }
+
+    /// [`GraspProblem::new`], reporting its stages to `progress` ([`Stage::Wrenches`],
+    /// [`Stage::SupportTree`]).
+    pub fn new_with(
+        facets: &SurfaceSamples,
+        candidates: SurfaceSamples,
+        frame: WrenchFrame,
+        model: ContactModel,
+        progress: &mut dyn Progress,
+    ) -> Result<Self, GraspError> {
         let (ows_points, ows_normals) = (&facets.points, &facets.normals);
         if ows_points.is_empty() || ows_points.len() != ows_normals.len() {
             return Err(GraspError::Empty { what: "facets" });
@@ -200,24 +213,32 @@ impl GraspProblem {
             });
         }
         let d = frame.dim();
-        let mut ows = vec![0.0; d * ows_points.len()];
-        for ((l, nk), col) in ows_points
+        let m = ows_points.len();
+        let total = m + n;
+        progress.report(Stage::Wrenches, 0, total);
+        let mut ows = vec![0.0; d * m];
+        for (k, ((l, nk), col)) in ows_points
             .iter()
             .zip(ows_normals)
             .zip(ows.chunks_exact_mut(d))
+            .enumerate()
         {
+            tick(progress, Stage::Wrenches, k, total);
             frame.object_wrench(l, nk, col);
         }
         let s = model.edges();
         let mut candidate_wrenches = vec![0.0; n * s * d];
-        for ((p, nq), out) in candidates
+        for (i, ((p, nq), out)) in candidates
             .points
             .iter()
             .zip(&candidates.normals)
             .zip(candidate_wrenches.chunks_exact_mut(s * d))
+            .enumerate()
         {
+            tick(progress, Stage::Wrenches, m + i, total);
             frame.primitive_wrenches(p, nq, &model, out);
         }
+        progress.report(Stage::Wrenches, total, total);
         if let Some(k) = ows.iter().position(|x| !x.is_finite()) {
             return Err(GraspError::NonFinite {
                 what: "facet",
@@ -230,7 +251,7 @@ impl GraspProblem {
                 index: k / (s * d),
             });
         }
-        let tree = SupportTree::new(&ows, d, |i| facets.adjacency.neighbours(i));
+        let tree = SupportTree::new_with(&ows, d, |i| facets.adjacency.neighbours(i), progress);
         Ok(Self {
             frame,
             model,

@@ -35,6 +35,7 @@
 
 use crate::hull::dot;
 use crate::math::Real;
+use crate::progress::{EVERY, Progress, Silent, Stage};
 
 /// Points per leaf.
 const LEAF: usize = 32;
@@ -98,11 +99,32 @@ impl SupportTree {
     /// # Panics
     /// If `dim` is 0 or above [`MAX_DIM`] (wrench spaces have 3 or 6 dimensions).
     pub fn new<'a>(points: &[Real], dim: usize, neighbours: impl Fn(usize) -> &'a [u32]) -> Self {
+        Self::new_with(points, dim, neighbours, &mut Silent)
+    }
+
+    /// [`SupportTree::new`], reporting [`Stage::SupportTree`] to `progress` (the points
+    /// placed in leaves so far).
+    ///
+    /// # Panics
+    /// As [`SupportTree::new`].
+    pub fn new_with<'a>(
+        points: &[Real],
+        dim: usize,
+        neighbours: impl Fn(usize) -> &'a [u32],
+        progress: &mut dyn Progress,
+    ) -> Self {
         assert!(dim <= MAX_DIM && dim > 0, "support tree dimension {dim}");
         let count = points.len() / dim;
         let mut order: Vec<u32> = (0..count as u32).collect();
         let mut nodes = Vec::with_capacity(2 * count / LEAF + 1);
-        build(points, dim, &mut order, 0, count, &mut nodes);
+        progress.report(Stage::SupportTree, 0, count);
+        let mut placed = Placed {
+            progress,
+            done: 0,
+            reported: 0,
+            total: count,
+        };
+        build(points, dim, &mut order, 0, count, &mut nodes, &mut placed);
         let mut sorted = Vec::with_capacity(points.len());
         let mut position = vec![0u32; count];
         for (pos, &i) in order.iter().enumerate() {
@@ -121,6 +143,7 @@ impl SupportTree {
             );
             neighbour_offsets.push(adjacent.len() as u32);
         }
+        placed.progress.report(Stage::SupportTree, count, count);
         Self {
             dim,
             nodes,
@@ -324,6 +347,25 @@ impl SupportTree {
     }
 }
 
+/// Points placed in leaves while the tree is built, reported every [`EVERY`] points.
+struct Placed<'p> {
+    progress: &'p mut dyn Progress,
+    done: usize,
+    reported: usize,
+    total: usize,
+}
+
+impl Placed<'_> {
+    fn leaf(&mut self, points: usize) {
+        self.done += points;
+        if self.done - self.reported >= EVERY && self.done < self.total {
+            self.reported = self.done;
+            self.progress
+                .report(Stage::SupportTree, self.done, self.total);
+        }
+    }
+}
+
 /// Builds the subtree over `order[start..end]`, returns its index.
 fn build(
     points: &[Real],
@@ -332,6 +374,7 @@ fn build(
     start: usize,
     end: usize,
     nodes: &mut Vec<Node>,
+    placed: &mut Placed<'_>,
 ) -> u32 {
     let p = |i: u32| &points[i as usize * dim..(i as usize + 1) * dim];
     let mut centre = [0.0; MAX_DIM];
@@ -408,10 +451,12 @@ fn build(
         let key = |i: u32| dot(p(i), &axis[..dim]);
         let mid = start + (end - start) / 2;
         order[start..end].select_nth_unstable_by(mid - start, |&a, &b| key(a).total_cmp(&key(b)));
-        let left = build(points, dim, order, start, mid, nodes);
-        let right = build(points, dim, order, mid, end, nodes);
+        let left = build(points, dim, order, start, mid, nodes, placed);
+        let right = build(points, dim, order, mid, end, nodes, placed);
         nodes[index as usize].left = left;
         nodes[index as usize].right = right;
+    } else {
+        placed.leaf(end - start);
     }
     index
 }
@@ -420,18 +465,28 @@ fn build(
 /// I)`, `C` their covariance, `eps = 1e-12 trace(C)` (so flat sets work), `s` the largest
 /// Mahalanobis distance, inflated so rounding never excludes a point; and `L^T` packed (see
 /// [`Node::factor`]), so that `sqrt(g^T M g) = |L^T g|`.
+// The loops index the covariance and the factor by row and column at once.
+#[allow(clippy::needless_range_loop)]
 fn bounding_ellipsoid<'a>(
     points: impl Iterator<Item = &'a [Real]> + Clone,
     centre: &[Real; MAX_DIM],
     dim: usize,
 ) -> ([[Real; MAX_DIM]; MAX_DIM], [Real; PACKED]) {
     let n = points.clone().count().max(1) as Real;
-    let mut cov = nalgebra::DMatrix::<Real>::zeros(dim, dim);
+    // Accumulated on the stack (the heap matrix's stores were the build's hot spot), with
+    // the same operations in the same order, so the covariance is the same to the bit.
+    let mut lower = [[0.0; MAX_DIM]; MAX_DIM];
     for p in points.clone() {
         for i in 0..dim {
             for j in 0..=i {
-                cov[(i, j)] += (p[i] - centre[i]) * (p[j] - centre[j]) / n;
+                lower[i][j] += (p[i] - centre[i]) * (p[j] - centre[j]) / n;
             }
+        }
+    }
+    let mut cov = nalgebra::DMatrix::<Real>::zeros(dim, dim);
+    for i in 0..dim {
+        for j in 0..=i {
+            cov[(i, j)] = lower[i][j];
         }
     }
     let trace: Real = (0..dim).map(|i| cov[(i, i)]).sum();
@@ -457,11 +512,15 @@ fn bounding_ellipsoid<'a>(
         return (shape, factor);
     };
     let l = chol.l();
+    let mut lower = [[0.0; MAX_DIM]; MAX_DIM];
+    for (i, row) in lower.iter_mut().enumerate().take(dim) {
+        for (j, x) in row.iter_mut().enumerate().take(i + 1) {
+            *x = l[(i, j)];
+        }
+    }
     let mut s2: Real = 0.0;
     for p in points {
-        let dev = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
-        let y = l.solve_lower_triangular(&dev).unwrap_or(dev);
-        s2 = s2.max(y.norm_squared());
+        s2 = s2.max(mahalanobis_squared(&lower, p, centre, dim));
     }
     // Inflate so that rounding (here and in the bound) never excludes a point.
     let s2 = s2 * (1.0 + 1e-8) + Real::MIN_POSITIVE;
@@ -477,6 +536,46 @@ fn bounding_ellipsoid<'a>(
         }
     }
     (shape, factor)
+}
+
+/// `|y|^2` for `L y = p - centre` (`lower`: `L`, lower triangular), in place on the stack:
+/// the same operations, in the same order, as nalgebra's `solve_lower_triangular` and
+/// `norm_squared` on a dynamic vector (forward substitution by columns, `y_j <- (-y_i) L_ji +
+/// y_j`; the squares summed from the first), so the result is the same to the bit, without
+/// the vector's allocation per point and node (2 million points and 16 levels in a
+/// 2-million-triangle mesh). A zero on the diagonal (never, for a regularised covariance)
+/// gives `|p - centre|^2`, as nalgebra's refusal did.
+#[allow(clippy::needless_range_loop)]
+fn mahalanobis_squared(
+    lower: &[[Real; MAX_DIM]; MAX_DIM],
+    p: &[Real],
+    centre: &[Real; MAX_DIM],
+    dim: usize,
+) -> Real {
+    let mut y = [0.0; MAX_DIM];
+    for k in 0..dim {
+        y[k] = p[k] - centre[k];
+    }
+    let dev = y;
+    let mut solved = true;
+    for i in 0..dim {
+        let diag = lower[i][i];
+        if diag == 0.0 {
+            solved = false;
+            break;
+        }
+        let coeff = y[i] / diag;
+        y[i] = coeff;
+        for j in i + 1..dim {
+            y[j] += -coeff * lower[j][i]; // = (-coeff L_ji) + y_j: addition commutes, bit for bit
+        }
+    }
+    let y = if solved { &y } else { &dev };
+    let mut sum = 0.0;
+    for x in &y[..dim] {
+        sum += x * x;
+    }
+    sum
 }
 
 /// The two coordinate blocks of the bounds split at this index: force `..3` and torque `3..`
@@ -561,6 +660,50 @@ mod tests {
         pts.chunks_exact(dim)
             .map(|p| dot(p, a))
             .fold(Real::NEG_INFINITY, Real::max)
+    }
+
+    /// The stack solve gives what nalgebra's dynamic solve and norm gave before it, to the
+    /// bit, so the trees (and every bound, hence every search) are unchanged.
+    #[test]
+    fn mahalanobis_on_the_stack_equals_nalgebra_to_the_bit() {
+        for (dim, seed) in [(3, 1), (6, 2), (6, 3)] {
+            let pts = points(200, dim, seed);
+            let mut centre = [0.0; MAX_DIM];
+            for p in pts.chunks_exact(dim) {
+                for k in 0..dim {
+                    centre[k] += p[k] / 200.0;
+                }
+            }
+            let mut cov = nalgebra::DMatrix::<Real>::zeros(dim, dim);
+            for p in pts.chunks_exact(dim) {
+                let d = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
+                cov += &d * d.transpose() / 200.0;
+            }
+            let l = cov.cholesky().unwrap().l();
+            let mut lower = [[0.0; MAX_DIM]; MAX_DIM];
+            for i in 0..dim {
+                for j in 0..=i {
+                    lower[i][j] = l[(i, j)];
+                }
+            }
+            for p in pts.chunks_exact(dim) {
+                let dev = nalgebra::DVector::from_iterator(dim, (0..dim).map(|k| p[k] - centre[k]));
+                let expected = l.solve_lower_triangular(&dev).unwrap().norm_squared();
+                let got = mahalanobis_squared(&lower, p, &centre, dim);
+                assert_eq!(
+                    got.to_bits(),
+                    expected.to_bits(),
+                    "dim {dim}: {got} vs {expected}"
+                );
+            }
+            // A zero on the diagonal: the plain squared distance, as before.
+            let mut singular = lower;
+            singular[1][1] = 0.0;
+            let p = &pts[..dim];
+            let plain: Real = (0..dim).map(|k| (p[k] - centre[k]).powi(2)).sum();
+            let got = mahalanobis_squared(&singular, p, &centre, dim);
+            assert!((got - plain).abs() <= 1e-15 * plain, "{got} vs {plain}");
+        }
     }
 
     #[test]

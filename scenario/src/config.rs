@@ -72,6 +72,14 @@ pub enum ObjectSpec {
 impl ObjectSpec {
     /// Builds (and validates) the object.
     pub fn build(&self) -> Result<Object> {
+        self.build_with(&mut icrflow_grasp::progress::Silent)
+    }
+
+    /// [`ObjectSpec::build`], reporting a mesh file's loading to `progress`.
+    pub fn build_with(
+        &self,
+        progress: &mut dyn icrflow_grasp::progress::Progress,
+    ) -> Result<Object> {
         let object = match self {
             ObjectSpec::Sphere { radius, segments } => {
                 Object::sphere(*radius, segments[0], segments[1])
@@ -89,7 +97,7 @@ impl ObjectSpec {
                 height,
                 segments,
             } => Object::cylinder(*radius, *height, segments[0], segments[1]),
-            ObjectSpec::Mesh { path } => Object::from_file(path),
+            ObjectSpec::Mesh { path } => Object::from_file_with(path, progress),
         };
         match self {
             // The mesh error names the file.

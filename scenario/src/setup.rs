@@ -25,7 +25,16 @@ pub struct Setup {
 impl Setup {
     /// Builds and checks the scenario's parts; errors name the key or finger.
     pub fn new(config: &Config) -> Result<Self> {
-        let object = config.object.build()?;
+        Self::new_with(config, &mut icrflow_grasp::progress::Silent)
+    }
+
+    /// [`Setup::new`], reporting the object's loading and the grasp problem's building to
+    /// `progress`.
+    pub fn new_with(
+        config: &Config,
+        progress: &mut dyn icrflow_grasp::progress::Progress,
+    ) -> Result<Self> {
+        let object = config.object.build_with(progress)?;
         let g = &config.grasp;
         let rho = g.rho.unwrap_or_else(|| object.max_radius());
         let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
@@ -35,11 +44,12 @@ impl Setup {
                 object.section.height
             );
         }
-        let problem = GraspProblem::new(
+        let problem = GraspProblem::new_with(
             &object.facets,
             object.section.samples.clone(),
             frame,
             g.model,
+            progress,
         )?;
         let hand = config.hand.build()?;
         let mut initial = Vec::with_capacity(g.contacts.len());

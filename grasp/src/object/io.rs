@@ -8,6 +8,7 @@ use super::Object;
 use super::error::ObjectError;
 use super::validate::face_geometry;
 use crate::math::Vec3;
+use crate::progress::{Progress, Silent, Stage, tick};
 
 impl Object {
     /// Reads a closed mesh from an `.stl` (binary or ASCII) or `.obj` file, chosen by the
@@ -22,19 +23,26 @@ impl Object {
     /// [`ObjectError::Parse`] (including an empty file), or any validation error wrapped in
     /// [`ObjectError::InvalidMesh`] with the path.
     pub fn from_file(path: &Path) -> Result<Object, ObjectError> {
+        Self::from_file_with(path, &mut Silent)
+    }
+
+    /// [`Object::from_file`], reporting its stages to `progress` ([`Stage::Read`],
+    /// [`Stage::Weld`], then those of [`Object::from_polygons_with`]).
+    pub fn from_file_with(path: &Path, progress: &mut dyn Progress) -> Result<Object, ObjectError> {
         let extension = path
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let parse: fn(&[u8]) -> Result<RawMesh, String> = match extension.as_deref() {
-            Some("stl") => parse_stl,
-            Some("obj") => parse_obj,
-            _ => {
-                return Err(ObjectError::UnsupportedExtension {
-                    path: path.to_owned(),
-                });
-            }
-        };
+        let parse: fn(&[u8], &mut dyn Progress) -> Result<RawMesh, String> =
+            match extension.as_deref() {
+                Some("stl") => parse_stl,
+                Some("obj") => parse_obj,
+                _ => {
+                    return Err(ObjectError::UnsupportedExtension {
+                        path: path.to_owned(),
+                    });
+                }
+            };
         let format = if extension.as_deref() == Some("stl") {
             "STL"
         } else {
@@ -52,15 +60,18 @@ impl Object {
         if bytes.is_empty() {
             return Err(parse_error("the file is empty".to_owned()));
         }
-        let (vertices, faces) = parse(&bytes).map_err(parse_error)?;
-        let (vertices, faces) = weld(&vertices, faces);
+        let (vertices, faces) = parse(&bytes, progress).map_err(parse_error)?;
+        drop(bytes);
+        let (vertices, faces) = weld(&vertices, faces, progress);
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        Object::from_polygons(&name, vertices, faces).map_err(|e| ObjectError::InvalidMesh {
-            path: path.to_owned(),
-            source: Box::new(e),
+        Object::from_polygons_with(&name, vertices, faces, progress).map_err(|e| {
+            ObjectError::InvalidMesh {
+                path: path.to_owned(),
+                source: Box::new(e),
+            }
         })
     }
 
@@ -103,7 +114,7 @@ type RawMesh = (Vec<Vec3>, Vec<Vec<u32>>);
 /// Reads binary or ASCII STL with `stl_io`. A binary file whose 80-byte header happens to
 /// start with `solid` (some exporters write that) would be taken for ASCII, so a file whose
 /// size is exactly that of a binary STL with its stated triangle count is read as binary.
-fn parse_stl(bytes: &[u8]) -> Result<RawMesh, String> {
+fn parse_stl(bytes: &[u8], progress: &mut dyn Progress) -> Result<RawMesh, String> {
     let mut bytes = std::borrow::Cow::Borrowed(bytes);
     if let Some(count) = bytes.get(80..84) {
         let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]) as u64;
@@ -113,9 +124,15 @@ fn parse_stl(bytes: &[u8]) -> Result<RawMesh, String> {
     }
     let mut cursor = Cursor::new(bytes.as_ref());
     let reader = stl_io::create_stl_reader(&mut cursor).map_err(|e| e.to_string())?;
-    let mut vertices = Vec::new();
-    let mut faces = Vec::new();
+    // A binary file's stated count (an ASCII file's is not known before the end); what is
+    // reserved is bounded by the file's size, whatever the header says.
+    let stated = reader.size_hint().1.unwrap_or(0);
+    let reserve = stated.min(bytes.len() / 50);
+    let mut vertices = Vec::with_capacity(3 * reserve);
+    let mut faces = Vec::with_capacity(reserve);
+    progress.report(Stage::Read, 0, stated);
     for (i, triangle) in reader.enumerate() {
+        tick(progress, Stage::Read, i, stated);
         let triangle = triangle.map_err(|e| format!("triangle {i}: {e}"))?;
         let first = u32::try_from(vertices.len())
             .ok()
@@ -126,10 +143,12 @@ fn parse_stl(bytes: &[u8]) -> Result<RawMesh, String> {
         }
         faces.push(vec![first, first + 1, first + 2]);
     }
+    progress.report(Stage::Read, faces.len(), faces.len());
     Ok((vertices, faces))
 }
 
-fn parse_obj(bytes: &[u8]) -> Result<RawMesh, String> {
+fn parse_obj(bytes: &[u8], progress: &mut dyn Progress) -> Result<RawMesh, String> {
+    progress.report(Stage::Read, 0, 0);
     let options = tobj::LoadOptions {
         single_index: false,
         triangulate: false,
@@ -165,17 +184,25 @@ fn parse_obj(bytes: &[u8]) -> Result<RawMesh, String> {
             start += arity;
         }
     }
+    progress.report(Stage::Read, faces.len(), faces.len());
     Ok((vertices, faces))
 }
 
 /// Merges vertices with exactly equal coordinates (`-0.0 == 0.0`; NaN coordinates are kept
 /// distinct, for validation to report).
-fn weld(vertices: &[Vec3], mut faces: Vec<Vec<u32>>) -> (Vec<Vec3>, Vec<Vec<u32>>) {
+fn weld(
+    vertices: &[Vec3],
+    mut faces: Vec<Vec<u32>>,
+    progress: &mut dyn Progress,
+) -> (Vec<Vec3>, Vec<Vec<u32>>) {
     let key = |v: &Vec3| v.map(|c| (c + 0.0).to_bits());
     let mut index: HashMap<_, u32> = HashMap::with_capacity(vertices.len());
     let mut welded = Vec::with_capacity(vertices.len());
     let mut new_index = Vec::with_capacity(vertices.len());
-    for v in vertices {
+    let total = vertices.len();
+    progress.report(Stage::Weld, 0, total);
+    for (k, v) in vertices.iter().enumerate() {
+        tick(progress, Stage::Weld, k, total);
         let i = if v.iter().all(|c| c.is_finite()) {
             *index.entry(key(v)).or_insert_with(|| {
                 welded.push(*v);
@@ -193,6 +220,7 @@ fn weld(vertices: &[Vec3], mut faces: Vec<Vec<u32>>) -> (Vec<Vec3>, Vec<Vec<u32>
             *i = n;
         }
     }
+    progress.report(Stage::Weld, total, total);
     (welded, faces)
 }
 
@@ -487,7 +515,7 @@ f 2 4 8 6
             Vec3::new(Real::NAN, 0.0, 0.0),
             Vec3::new(Real::NAN, 0.0, 0.0),
         ];
-        let (w, f) = weld(&v, vec![vec![0, 1, 2, 3, 4, 5, 9]]);
+        let (w, f) = weld(&v, vec![vec![0, 1, 2, 3, 4, 5, 9]], &mut Silent);
         assert_eq!(w.len(), 5);
         assert_eq!(f, vec![vec![0, 0, 1, 2, 3, 4, 9]]);
     }
