@@ -39,7 +39,7 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<()> 
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
     let (contacts, quality) = setup.scenario(&config).start().context("cannot start")?;
-    let surface = crate::run::surface(&setup);
+    let surface = setup.surface();
     if let Ok(s) = &surface {
         crate::run::slip(&config, s)?;
     }

@@ -8,12 +8,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
-use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, JointState, NodeHealth, PlanPhase, PlanStepHeader,
-    PlantTruth, read_text, topics,
-};
-use icrflow_nodes::bus::{Bus, BusConfig, Sub};
-use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
+use icrflow_interfaces::{CommandMode, NodeHealth, PlanPhase, read_text, topics};
+use icrflow_plan::rolling::Surface;
+use icrflow_runtime::bus::{Bus, BusConfig, Sub};
+use icrflow_runtime::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 use icrflow_scenario::{Config, Recording, Setup};
 use serde::Serialize;
 
@@ -465,21 +463,11 @@ pub(crate) fn node_program(name: &str) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// The object's section as the plant and the estimator roll fingertips on it, or why the
-/// pipeline cannot (named by its key).
-pub fn surface(setup: &Setup) -> Result<icrflow_nodes::rolling::Surface> {
-    let o = &setup.object;
-    icrflow_nodes::rolling::Surface::new(&o.section, [o.centre_of_mass.x, o.centre_of_mass.y])
-        .context("object: the pipeline's plant and estimator cannot roll fingertips on it")
-}
-
 /// Refuses `pipeline.slip_deg` on a section other than a circle: the simulated slip turns the
 /// object under fingertips that stay where they are, which keeps them on it only when the
 /// section is a circle about the centre.
-pub fn slip(config: &Config, surface: &icrflow_nodes::rolling::Surface) -> Result<()> {
-    if config.pipeline.slip != 0.0
-        && !matches!(surface, icrflow_nodes::rolling::Surface::Circle { .. })
-    {
+pub fn slip(config: &Config, surface: &Surface) -> Result<()> {
+    if config.pipeline.slip != 0.0 && !matches!(surface, Surface::Circle { .. }) {
         anyhow::bail!(
             "pipeline.slip_deg: the simulated slip turns the object under fingertips that stay \
              where they are, which keeps them on it only for a circular section; this object's \
@@ -498,7 +486,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
-    slip(&config, &surface(&setup)?)?;
+    slip(&config, setup.surface()?)?;
     setup.scenario(&config).start().context("cannot start")?;
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
@@ -513,7 +501,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             .iter()
             .any(|n| REALTIME_NODES.contains(&n.as_str())) =>
         {
-            match icrflow_nodes::runtime::realtime_allowed(p) {
+            match icrflow_runtime::node::realtime_allowed(p) {
                 Ok(()) => Some(p),
                 Err(why) => {
                     eprintln!(
@@ -535,7 +523,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
             essential: true,
             env: match realtime {
                 Some(p) if REALTIME_NODES.contains(&n.as_str()) => {
-                    vec![(icrflow_nodes::runtime::ENV_REALTIME.into(), p.to_string())]
+                    vec![(icrflow_runtime::node::ENV_REALTIME.into(), p.to_string())]
                 }
                 _ => Vec::new(),
             },
@@ -618,7 +606,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     // A run that was killed outright (SIGKILL, power loss) leaves its bus and the plant's and
     // estimator's checkpoints behind under its pid; a later run given the same pid must not
     // resume from them. No live process has our pid, so what is there is stale.
-    remove_run_files(&bus_config);
+    bus_config.remove_files();
     let swept = sweep_killed_runs(&config.pipeline.rig);
     if !swept.is_empty() {
         eprintln!("run: removed what killed runs left in {RUNS_DIR} (pids {swept:?})");
@@ -631,18 +619,18 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     // run's iceoryx2 directory is removed.
     let stats = {
         let bus = Bus::new("run", &bus_config)?;
-        let plans = bus.slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
+        let plans = bus.slice_subscriber(topics::PLAN_STEP)?;
         // Read on the run's own tick (only the newest matters), so they cost no wake-up.
-        let grasps = bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-        let joints = bus.subscriber::<JointState>(topics::JOINT_STATE)?;
+        let grasps = bus.subscriber(topics::GRASP_STATE)?;
+        let joints = bus.subscriber(topics::JOINT_STATE)?;
         // Joint measurements, counted by their sequence numbers (one per measurement; a
         // restarted plant starts higher up).
         let (mut measurements, mut last_joint) = (0u64, 0u64);
         let (mut measurement_rate, mut command_rate, mut plan_rate) =
             (Rate::default(), Rate::default(), Rate::default());
-        let commands = bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+        let commands = bus.subscriber(topics::HAND_COMMAND)?;
         // Read on the run's tick: the nodes' allocation counts.
-        let healths = bus.subscriber::<NodeHealth>(topics::NODE_HEALTH)?;
+        let healths = bus.subscriber(topics::NODE_HEALTH)?;
         let mut tracks = std::collections::BTreeMap::<String, AllocationTrack>::new();
         // The visualizer's frames recorded and dropped, per process (a restart counts anew).
         let mut frames = std::collections::BTreeMap::<u32, (u64, u64)>::new();
@@ -651,7 +639,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let mut beats = Heartbeats::default();
         let hung_restart = Duration::from_secs_f64(config.pipeline.hung_restart);
         // The simulated plant's truth, against which the estimate is measured.
-        let truths = bus.subscriber::<PlantTruth>(topics::PLANT_TRUTH)?;
+        let truths = bus.subscriber(topics::PLANT_TRUTH)?;
         let mut truth = TruthTrack::default();
         let estimate_bound = config.pipeline.max_pose_innovation;
         let mut estimate_holds = 0u64;
@@ -713,11 +701,11 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
         let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
         let _plans = ws.attach_notification(plans.listener())?;
         let _commands = ws.attach_notification(commands.listener())?;
-        let tick = ws.attach_interval(icrflow_nodes::runtime::RESYNC)?;
+        let tick = ws.attach_interval(icrflow_runtime::event::RESYNC)?;
         let mut failure = None;
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             let mut step = || -> Result<bool> {
-                // Every wake-up reads every input (see icrflow_nodes::runtime::serve).
+                // Every wake-up reads every input (see icrflow_runtime::event::serve).
                 plans.drain(|p, _| {
                     plan_published += 1;
                     if let [.., taken, published] = p.header.trace.as_slice() {
@@ -967,7 +955,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                 .fold((0, 0), |(a, b), (p, r)| (a + p, b + r)),
         }
     };
-    remove_run_files(&bus_config);
+    bus_config.remove_files();
     let summary = RunSummary {
         completed: stats.done && stats.rotation >= goal - 0.5f64.to_radians(),
         reason: stats.reason,
@@ -1241,28 +1229,15 @@ fn sweep_killed_runs(rig: &str) -> Vec<u32> {
             continue;
         }
         let Ok(bus) = run_bus(rig, pid) else { continue };
-        if icrflow_nodes::supervise::live_nodes(&bus) != Some(0) {
+        if icrflow_runtime::supervise::live_nodes(&bus) != Some(0) {
             continue;
         }
         // All its files go, dead iceoryx2 nodes' resources with them.
-        remove_run_files(&bus);
+        bus.remove_files();
         swept.push(pid);
     }
     swept.sort_unstable();
     swept
-}
-
-/// Removes what iceoryx2 leaves of a finished run: its root directory (empty directories by
-/// then) and the one shared-memory counter it keeps by design.
-fn remove_run_files(bus: &BusConfig) {
-    let _ = std::fs::remove_dir_all(&bus.root);
-    if let Ok(dir) = std::fs::read_dir("/dev/shm") {
-        for e in dir.flatten() {
-            if e.file_name().to_string_lossy().starts_with(&bus.prefix) {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
 }
 
 /// Takes a node's health report, taken off the bus at `now`: its allocations into its track,
@@ -1332,7 +1307,7 @@ fn visualizer_listening(
         }
         // Sleeps (a signal cuts it short); SIGTERM, SIGINT or SIGHUP stop the run.
         let _ = bus.node().wait(Duration::from_millis(5));
-        if icrflow_nodes::runtime::termination_requested(bus.node()) || hangup.came() {
+        if icrflow_runtime::event::termination_requested(bus.node()) || hangup.came() {
             return Ok(VisualizerStart::Interrupted);
         }
     }

@@ -90,7 +90,7 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     // The loops of the loop's nodes ran at the default real-time priority where this machine
     // allows it (as root, or with CAP_SYS_NICE or an RLIMIT_RTPRIO), the others at normal
     // priority; elsewhere all at normal priority, and the run said why.
-    let allowed = icrflow_nodes::runtime::realtime_allowed(50).is_ok();
+    let allowed = icrflow_runtime::node::realtime_allowed(50).is_ok();
     let policy = |n: &str| s["scheduling"][n].as_str().unwrap_or("missing").to_string();
     for n in ["plant", "estimator", "wrench", "command"] {
         let expected = if allowed { "fifo 50" } else { "normal" };

@@ -10,7 +10,7 @@
 //! every service both ways, where the pipeline must choose per topic and direction.
 //!
 //! The bridge is off the control loop: it polls its subscribers every
-//! [`icrflow_nodes::runtime::RESYNC`] (no publisher on the loop wakes it), and publishes with
+//! [`icrflow_runtime::event::RESYNC`] (no publisher on the loop wakes it), and publishes with
 //! congestion control `Drop` at a low priority, so a slow or lost link drops monitoring
 //! messages instead of stalling anything local.
 //!
@@ -29,9 +29,12 @@ pub use zenoh;
 use anyhow::{Context as _, Result, anyhow};
 use icrflow_interfaces::{
     Facet, GraspState, HandCommand, JointState, NodeHealth, PlanStepHeader, WrenchSpaceHeader,
-    topics,
+    topics::{self, TopicId},
 };
-use icrflow_nodes::runtime::{Context, Health, serve};
+use icrflow_runtime::event::serve;
+use icrflow_runtime::health::Health;
+use icrflow_runtime::node::Context;
+use icrflow_scenario::Config;
 use icrflow_scenario::ZenohSpec;
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
@@ -52,7 +55,7 @@ use zenoh::sample::Locality;
 /// session; what reaches the subscriber is decided by the egress rule on the puts
 /// (`monitoring-out`: only the rig's keys), so allowing every declaration lets any client
 /// read the rig's keys, whatever its key expression, and write nothing.
-pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serde_json::Value {
+pub fn read_only_acl(rig: &str, imports: &[TopicId], link_users: &[String]) -> serde_json::Value {
     let keys = [topics::service(rig, "**")];
     let mut rules = vec![
         serde_json::json!({
@@ -83,7 +86,7 @@ pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serd
         "subjects": ["every-peer"],
     })];
     if !imports.is_empty() {
-        let links: Vec<String> = imports.iter().map(|t| topics::link(rig, t)).collect();
+        let links: Vec<String> = imports.iter().map(|&t| topics::link(rig, t)).collect();
         rules.push(serde_json::json!({
             "id": "link-in",
             "messages": ["put"],
@@ -110,7 +113,7 @@ pub fn read_only_acl(rig: &str, imports: &[&str], link_users: &[String]) -> serd
 
 /// A Zenoh session's settings from the config's `[zenoh]` section, for rig `rig` on a host
 /// that takes the loop topics `imports` from other hosts.
-pub fn session_config(z: &ZenohSpec, rig: &str, imports: &[&str]) -> Result<zenoh::Config> {
+pub fn session_config(z: &ZenohSpec, rig: &str, imports: &[TopicId]) -> Result<zenoh::Config> {
     let mut c = zenoh::Config::default();
     let mut set = |key: &str, value: serde_json::Value| -> Result<()> {
         c.insert_json5(key, &value.to_string())
@@ -185,19 +188,19 @@ pub fn open(config: zenoh::Config, what: &str) -> Result<zenoh::Session> {
 
 /// One monitored topic: its local subscriber and its Zenoh publisher.
 enum Forward {
-    Joints(icrflow_nodes::bus::Sub<JointState>),
-    Grasp(icrflow_nodes::bus::Sub<GraspState>),
-    Wrench(icrflow_nodes::bus::SliceSub<WrenchSpaceHeader, Facet>),
-    Plan(icrflow_nodes::bus::SliceSub<PlanStepHeader, u32>),
-    Command(icrflow_nodes::bus::Sub<HandCommand>),
-    Health(icrflow_nodes::bus::Sub<NodeHealth>),
+    Joints(icrflow_runtime::bus::Sub<JointState>),
+    Grasp(icrflow_runtime::bus::Sub<GraspState>),
+    Wrench(icrflow_runtime::bus::SliceSub<WrenchSpaceHeader, Facet>),
+    Plan(icrflow_runtime::bus::SliceSub<PlanStepHeader, u32>),
+    Command(icrflow_runtime::bus::Sub<HandCommand>),
+    Health(icrflow_runtime::bus::Sub<NodeHealth>),
 }
 
 /// Runs the bridge node.
-pub fn run(ctx: &Context) -> Result<()> {
-    let z = &ctx.config.zenoh;
-    let rig = ctx.config.pipeline.rig.as_str();
-    let links = topics::links(&ctx.config.pipeline.nodes);
+pub fn run(ctx: &Context<Config>) -> Result<()> {
+    let z = &ctx.scenario.zenoh;
+    let rig = ctx.scenario.pipeline.rig.as_str();
+    let links = topics::links(&ctx.scenario.pipeline.nodes);
     let session = open(
         session_config(z, rig, &links.import)?,
         &format!("listen {:?}, connect {:?}", z.listen, z.connect),
@@ -206,7 +209,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let exports = links
         .export
         .iter()
-        .map(|t| link::Export::new(&ctx.bus, &session, t))
+        .map(|&t| link::Export::new(&ctx.bus, &session, t))
         .collect::<Result<Vec<_>>>()?;
     let importer = if links.import.is_empty() {
         None
@@ -220,19 +223,22 @@ pub fn run(ctx: &Context) -> Result<()> {
     if !links.export.is_empty() || !links.import.is_empty() {
         eprintln!(
             "icrflow-bridge: this host runs {:?}; to other hosts: {:?}; from them: {:?}",
-            ctx.config.pipeline.nodes, links.export, links.import
+            ctx.scenario.pipeline.nodes, links.export, links.import
         );
     }
     let mut forwards = Vec::with_capacity(z.monitor.len());
     for topic in &z.monitor {
-        let forward = match topic.as_str() {
-            topics::JOINT_STATE => Forward::Joints(ctx.bus.subscriber(topic)?),
-            topics::GRASP_STATE => Forward::Grasp(ctx.bus.subscriber(topic)?),
-            topics::WRENCH_SPACE => Forward::Wrench(ctx.bus.slice_subscriber(topic)?),
-            topics::PLAN_STEP => Forward::Plan(ctx.bus.slice_subscriber(topic)?),
-            topics::HAND_COMMAND => Forward::Command(ctx.bus.subscriber(topic)?),
-            topics::NODE_HEALTH => Forward::Health(ctx.bus.subscriber(topic)?),
-            other => anyhow::bail!("zenoh.monitor: no such topic {other:?}"),
+        let bus = &ctx.bus;
+        let forward = match TopicId::from_name(topic) {
+            Some(TopicId::JointState) => Forward::Joints(bus.subscriber(topics::JOINT_STATE)?),
+            Some(TopicId::GraspState) => Forward::Grasp(bus.subscriber(topics::GRASP_STATE)?),
+            Some(TopicId::WrenchSpace) => {
+                Forward::Wrench(bus.slice_subscriber(topics::WRENCH_SPACE)?)
+            }
+            Some(TopicId::PlanStep) => Forward::Plan(bus.slice_subscriber(topics::PLAN_STEP)?),
+            Some(TopicId::HandCommand) => Forward::Command(bus.subscriber(topics::HAND_COMMAND)?),
+            Some(TopicId::NodeHealth) => Forward::Health(bus.subscriber(topics::NODE_HEALTH)?),
+            _ => anyhow::bail!("zenoh.monitor: no such topic {topic:?}"),
         };
         let publisher = session
             .declare_publisher(topics::service(rig, topic))

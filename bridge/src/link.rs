@@ -18,19 +18,15 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use anyhow::{Result, anyhow};
+use icrflow_interfaces::topics::{self, TopicId};
 use icrflow_interfaces::{
-    Facet, GraspState, HandCommand, JointState, Message, ObjectPose, PlanStepHeader,
-    WrenchSpaceHeader, topics, wire,
+    Facet, GraspState, HandCommand, JointState, MAX_FACETS, MAX_REGION_POINTS, Message, ObjectPose,
+    PlanStepHeader, WrenchSpaceHeader, wire,
 };
-use icrflow_nodes::bus::{Bus, BusConfig, Pub, SlicePub, SliceSub, Sub};
+use icrflow_runtime::bus::{Bus, BusConfig, Pub, SlicePub, SliceSub, Sub};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
-
-/// Most facets a wrench space carries.
-const MAX_FACETS: usize = icrflow_nodes::wrench::MAX_FACETS;
-/// Most ICR points a plan step carries.
-const MAX_REGION_POINTS: usize = icrflow_nodes::planner::MAX_REGION_POINTS;
 
 /// A loop topic's local subscriber, for export.
 enum Source {
@@ -50,14 +46,14 @@ pub struct Export {
 
 impl Export {
     /// The export of `topic` (a loop topic) from `bus` through `session`.
-    pub fn new(bus: &Bus, session: &zenoh::Session, topic: &str) -> Result<Self> {
+    pub fn new(bus: &Bus, session: &zenoh::Session, topic: TopicId) -> Result<Self> {
         let source = match topic {
-            topics::JOINT_STATE => Source::Joints(bus.subscriber(topic)?),
-            topics::OBJECT_POSE => Source::Pose(bus.subscriber(topic)?),
-            topics::GRASP_STATE => Source::Grasp(bus.subscriber(topic)?),
-            topics::WRENCH_SPACE => Source::Wrench(bus.slice_subscriber(topic)?),
-            topics::PLAN_STEP => Source::Plan(bus.slice_subscriber(topic)?),
-            topics::HAND_COMMAND => Source::Command(bus.subscriber(topic)?),
+            TopicId::JointState => Source::Joints(bus.subscriber(topics::JOINT_STATE)?),
+            TopicId::ObjectPose => Source::Pose(bus.subscriber(topics::OBJECT_POSE)?),
+            TopicId::GraspState => Source::Grasp(bus.subscriber(topics::GRASP_STATE)?),
+            TopicId::WrenchSpace => Source::Wrench(bus.slice_subscriber(topics::WRENCH_SPACE)?),
+            TopicId::PlanStep => Source::Plan(bus.slice_subscriber(topics::PLAN_STEP)?),
+            TopicId::HandCommand => Source::Command(bus.subscriber(topics::HAND_COMMAND)?),
             other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
         };
         let key = topics::link(&bus.config().rig, topic);
@@ -135,20 +131,20 @@ enum Sink {
 }
 
 impl Sink {
-    fn new(bus: &Bus, topic: &str) -> Result<Self> {
+    fn new(bus: &Bus, topic: TopicId) -> Result<Self> {
         Ok(match topic {
-            topics::JOINT_STATE => Self::Joints(bus.publisher(topic)?),
-            topics::OBJECT_POSE => Self::Pose(bus.publisher(topic)?),
-            topics::GRASP_STATE => Self::Grasp(bus.publisher(topic)?),
-            topics::WRENCH_SPACE => Self::Wrench(
-                bus.slice_publisher(topic, MAX_FACETS)?,
+            TopicId::JointState => Self::Joints(bus.publisher(topics::JOINT_STATE)?),
+            TopicId::ObjectPose => Self::Pose(bus.publisher(topics::OBJECT_POSE)?),
+            TopicId::GraspState => Self::Grasp(bus.publisher(topics::GRASP_STATE)?),
+            TopicId::WrenchSpace => Self::Wrench(
+                bus.slice_publisher(topics::WRENCH_SPACE)?,
                 Vec::with_capacity(MAX_FACETS),
             ),
-            topics::PLAN_STEP => Self::Plan(
-                bus.slice_publisher(topic, MAX_REGION_POINTS)?,
+            TopicId::PlanStep => Self::Plan(
+                bus.slice_publisher(topics::PLAN_STEP)?,
                 Vec::with_capacity(MAX_REGION_POINTS),
             ),
-            topics::HAND_COMMAND => Self::Command(bus.publisher(topic)?),
+            TopicId::HandCommand => Self::Command(bus.publisher(topics::HAND_COMMAND)?),
             other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
         })
     }
@@ -209,9 +205,13 @@ pub struct Importer {
 
 impl Importer {
     /// Starts importing `imports` (loop topics) from Zenoh into the bus of `config`.
-    pub fn start(session: &zenoh::Session, config: &BusConfig, imports: &[&str]) -> Result<Self> {
+    pub fn start(
+        session: &zenoh::Session,
+        config: &BusConfig,
+        imports: &[TopicId],
+    ) -> Result<Self> {
         let rig = config.rig.clone();
-        let keys = topics::link(&rig, "*");
+        let keys = format!("{}*", topics::link_prefix(&rig));
         let subscriber = session
             .declare_subscriber(&keys)
             .allowed_origin(Locality::Remote)
@@ -221,7 +221,7 @@ impl Importer {
         let imported = Arc::new(AtomicU64::new(0));
         let (tell, refusals) = mpsc::channel();
         let config = config.clone();
-        let imports: Vec<String> = imports.iter().map(|t| t.to_string()).collect();
+        let imports = imports.to_vec();
         let (stopping, count) = (stop.clone(), imported.clone());
         // The ports are made on the thread that uses them (iceoryx2 ports stay on theirs).
         let (ready_tx, ready_rx) = mpsc::channel();
@@ -231,7 +231,7 @@ impl Importer {
                 let setup = || -> Result<_> {
                     let bus = Bus::new("bridge-link", &config)?;
                     let mut sinks = Vec::new();
-                    for t in &imports {
+                    for &t in &imports {
                         sinks.push((topics::link(&rig, t), Sink::new(&bus, t)?));
                     }
                     Ok((bus, sinks))

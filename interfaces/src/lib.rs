@@ -747,36 +747,254 @@ pub fn read_text(buf: &[u8]) -> String {
     String::from_utf8_lossy(&buf[..end]).into_owned()
 }
 
-/// Topic (iceoryx2 service) names, one place for all. Each is prefixed by the rig name:
-/// `icrflow/<rig>/<topic>`, the same key expression the Zenoh bridge uses.
+/// The most facets a wrench-space message carries (the slice's capacity).
+pub const MAX_FACETS: usize = 4096;
+
+/// The most region points a plan-step message carries (the slice's capacity).
+pub const MAX_REGION_POINTS: usize = 4096;
+
+/// The pipeline's topology, one place for all: which topics there are and what each carries
+/// ([`Topic`], [`SliceTopic`]: a topic opened with another message type does not compile),
+/// the nodes ([`NodeRole`]), and who publishes and reads what. Each topic's service is prefixed
+/// by the rig name: `icrflow/<rig>/<topic>`, the same key expression the Zenoh bridge uses.
 pub mod topics {
-    /// Joint encoder readings ([`crate::JointState`]).
-    pub const JOINT_STATE: &str = "joint_state";
-    /// Object-pose measurements ([`crate::ObjectPose`]).
-    pub const OBJECT_POSE: &str = "object_pose";
-    /// Estimated grasp state ([`crate::GraspState`]).
-    pub const GRASP_STATE: &str = "grasp_state";
-    /// Wrench space ([`crate::WrenchSpaceHeader`] + facets).
-    pub const WRENCH_SPACE: &str = "wrench_space";
-    /// Plan steps ([`crate::PlanStepHeader`] + regions).
-    pub const PLAN_STEP: &str = "plan_step";
-    /// Hand commands ([`crate::HandCommand`]).
-    pub const HAND_COMMAND: &str = "hand_command";
-    /// Node health ([`crate::NodeHealth`]).
-    pub const NODE_HEALTH: &str = "node_health";
-    /// The simulated plant's true state ([`crate::PlantTruth`]): for the run's summary, the
-    /// tests and the visualizer; no node of the loop reads it, and it does not cross hosts.
-    pub const PLANT_TRUTH: &str = "plant_truth";
-    /// Every topic.
-    pub const ALL: [&str; 7] = [
-        JOINT_STATE,
-        OBJECT_POSE,
-        GRASP_STATE,
-        WRENCH_SPACE,
-        PLAN_STEP,
-        HAND_COMMAND,
-        NODE_HEALTH,
+    use std::marker::PhantomData;
+
+    use crate::{
+        GraspState, HandCommand, JointState, MAX_FACETS, MAX_REGION_POINTS, NodeHealth, ObjectPose,
+        PlanStepHeader, PlantTruth, WrenchSpaceHeader,
+    };
+
+    /// A topic: its name, and what it carries. Shown (`{}` and `{:?}`) by its name.
+    #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+    #[non_exhaustive]
+    pub enum TopicId {
+        /// Joint encoder readings ([`JointState`]).
+        JointState,
+        /// Object-pose measurements ([`ObjectPose`]).
+        ObjectPose,
+        /// Estimated grasp state ([`GraspState`]).
+        GraspState,
+        /// Wrench space ([`WrenchSpaceHeader`] + facets).
+        WrenchSpace,
+        /// Plan steps ([`PlanStepHeader`] + regions).
+        PlanStep,
+        /// Hand commands ([`HandCommand`]).
+        HandCommand,
+        /// Node health ([`NodeHealth`]).
+        NodeHealth,
+        /// The simulated plant's true state ([`PlantTruth`]): for the run's summary, the
+        /// tests and the visualizer; no node of the loop reads it, and it does not cross hosts.
+        PlantTruth,
+    }
+
+    impl TopicId {
+        /// Its name in service names and key expressions.
+        pub const fn name(self) -> &'static str {
+            match self {
+                Self::JointState => "joint_state",
+                Self::ObjectPose => "object_pose",
+                Self::GraspState => "grasp_state",
+                Self::WrenchSpace => "wrench_space",
+                Self::PlanStep => "plan_step",
+                Self::HandCommand => "hand_command",
+                Self::NodeHealth => "node_health",
+                Self::PlantTruth => "plant_truth",
+            }
+        }
+
+        /// The topic named `name`, if any.
+        pub fn from_name(name: &str) -> Option<Self> {
+            ALL.into_iter()
+                .chain([Self::PlantTruth])
+                .find(|t| t.name() == name)
+        }
+    }
+
+    impl std::fmt::Display for TopicId {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str(self.name())
+        }
+    }
+
+    impl std::fmt::Debug for TopicId {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "{:?}", self.name())
+        }
+    }
+
+    /// A topic carrying messages `T`.
+    #[derive(Debug)]
+    pub struct Topic<T> {
+        /// Which topic.
+        pub id: TopicId,
+        message: PhantomData<fn() -> T>,
+    }
+
+    impl<T> Clone for Topic<T> {
+        fn clone(&self) -> Self {
+            *self
+        }
+    }
+    impl<T> Copy for Topic<T> {}
+
+    impl<T> Topic<T> {
+        const fn new(id: TopicId) -> Self {
+            Self {
+                id,
+                message: PhantomData,
+            }
+        }
+
+        /// Its name.
+        pub const fn name(self) -> &'static str {
+            self.id.name()
+        }
+    }
+
+    /// A topic carrying a header `H` and up to `max_len` items `T` per message.
+    #[derive(Debug)]
+    pub struct SliceTopic<H, T> {
+        /// Which topic.
+        pub id: TopicId,
+        /// The most items a message carries.
+        pub max_len: usize,
+        message: PhantomData<fn() -> (H, T)>,
+    }
+
+    impl<H, T> Clone for SliceTopic<H, T> {
+        fn clone(&self) -> Self {
+            *self
+        }
+    }
+    impl<H, T> Copy for SliceTopic<H, T> {}
+
+    impl<H, T> SliceTopic<H, T> {
+        const fn new(id: TopicId, max_len: usize) -> Self {
+            Self {
+                id,
+                max_len,
+                message: PhantomData,
+            }
+        }
+
+        /// Its name.
+        pub const fn name(self) -> &'static str {
+            self.id.name()
+        }
+    }
+
+    /// Joint encoder readings.
+    pub const JOINT_STATE: Topic<JointState> = Topic::new(TopicId::JointState);
+    /// Object-pose measurements.
+    pub const OBJECT_POSE: Topic<ObjectPose> = Topic::new(TopicId::ObjectPose);
+    /// Estimated grasp state.
+    pub const GRASP_STATE: Topic<GraspState> = Topic::new(TopicId::GraspState);
+    /// Wrench space: the header and the hull's facets.
+    pub const WRENCH_SPACE: SliceTopic<WrenchSpaceHeader, crate::Facet> =
+        SliceTopic::new(TopicId::WrenchSpace, MAX_FACETS);
+    /// Plan steps: the header and the regions' candidate indices.
+    pub const PLAN_STEP: SliceTopic<PlanStepHeader, u32> =
+        SliceTopic::new(TopicId::PlanStep, MAX_REGION_POINTS);
+    /// Hand commands.
+    pub const HAND_COMMAND: Topic<HandCommand> = Topic::new(TopicId::HandCommand);
+    /// Node health.
+    pub const NODE_HEALTH: Topic<NodeHealth> = Topic::new(TopicId::NodeHealth);
+    /// The simulated plant's true state (see [`TopicId::PlantTruth`]).
+    pub const PLANT_TRUTH: Topic<PlantTruth> = Topic::new(TopicId::PlantTruth);
+
+    /// Every topic the bridge may carry (all but the plant's truth).
+    pub const ALL: [TopicId; 7] = [
+        TopicId::JointState,
+        TopicId::ObjectPose,
+        TopicId::GraspState,
+        TopicId::WrenchSpace,
+        TopicId::PlanStep,
+        TopicId::HandCommand,
+        TopicId::NodeHealth,
     ];
+
+    /// A process of the pipeline.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    #[non_exhaustive]
+    pub enum NodeRole {
+        /// The simulated hand and object.
+        Plant,
+        /// The state estimator.
+        Estimator,
+        /// The wrench-space node.
+        Wrench,
+        /// The ICR planner.
+        Planner,
+        /// The hand command node.
+        Command,
+        /// The Zenoh bridge.
+        Bridge,
+        /// The Rerun visualizer.
+        Visualizer,
+    }
+
+    impl NodeRole {
+        /// The loop's nodes, in the order they start (`icrflow_scenario::NODES`, the config's
+        /// names, is the same list).
+        pub const LOOP: [NodeRole; 5] = [
+            Self::Plant,
+            Self::Estimator,
+            Self::Wrench,
+            Self::Planner,
+            Self::Command,
+        ];
+
+        /// Its name: in the config, in health reports, and as `icrflow-<name>`, its binary.
+        pub const fn name(self) -> &'static str {
+            match self {
+                Self::Plant => "plant",
+                Self::Estimator => "estimator",
+                Self::Wrench => "wrench",
+                Self::Planner => "planner",
+                Self::Command => "command",
+                Self::Bridge => "bridge",
+                Self::Visualizer => "visualizer",
+            }
+        }
+
+        /// The role named `name`, if any.
+        pub fn from_name(name: &str) -> Option<Self> {
+            Self::LOOP
+                .into_iter()
+                .chain([Self::Bridge, Self::Visualizer])
+                .find(|r| r.name() == name)
+        }
+
+        /// The loop topics it publishes (every node also publishes [`NODE_HEALTH`]).
+        pub const fn publishes(self) -> &'static [TopicId] {
+            match self {
+                Self::Plant => &[TopicId::JointState, TopicId::ObjectPose],
+                Self::Estimator => &[TopicId::GraspState],
+                Self::Wrench => &[TopicId::WrenchSpace],
+                Self::Planner => &[TopicId::PlanStep],
+                Self::Command => &[TopicId::HandCommand],
+                Self::Bridge | Self::Visualizer => &[],
+            }
+        }
+
+        /// The loop topics it reads.
+        pub const fn reads(self) -> &'static [TopicId] {
+            match self {
+                Self::Plant => &[TopicId::HandCommand],
+                Self::Estimator => &[TopicId::JointState, TopicId::ObjectPose],
+                Self::Wrench | Self::Planner => &[TopicId::GraspState],
+                Self::Command => &[TopicId::PlanStep, TopicId::GraspState, TopicId::WrenchSpace],
+                Self::Bridge | Self::Visualizer => &[],
+            }
+        }
+    }
+
+    impl std::fmt::Display for NodeRole {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str(self.name())
+        }
+    }
 
     /// The full service name of `topic` on rig `rig`.
     pub fn service(rig: &str, topic: &str) -> String {
@@ -785,56 +1003,41 @@ pub mod topics {
 
     /// The Zenoh key expression that carries `topic` of rig `rig` between hosts, as bytes
     /// ([`crate::wire`]), beside the JSON one of monitoring ([`service`]).
-    pub fn link(rig: &str, topic: &str) -> String {
-        format!("icrflow/{rig}/link/{topic}")
+    pub fn link(rig: &str, topic: TopicId) -> String {
+        format!("{}{topic}", link_prefix(rig))
     }
 
-    /// Each node's loop topics: what it publishes, and what it subscribes to (every node also
-    /// publishes [`NODE_HEALTH`]).
-    const GRAPH: [(&str, &[&str], &[&str]); 5] = [
-        ("plant", &[JOINT_STATE, OBJECT_POSE], &[HAND_COMMAND]),
-        ("estimator", &[GRASP_STATE], &[JOINT_STATE, OBJECT_POSE]),
-        ("wrench", &[WRENCH_SPACE], &[GRASP_STATE]),
-        ("planner", &[PLAN_STEP], &[GRASP_STATE]),
-        (
-            "command",
-            &[HAND_COMMAND],
-            &[PLAN_STEP, GRASP_STATE, WRENCH_SPACE],
-        ),
-    ];
+    /// What every [`link`] key expression of rig `rig` starts with.
+    pub fn link_prefix(rig: &str) -> String {
+        format!("icrflow/{rig}/link/")
+    }
 
     /// The loop topics that cross between a host running the nodes `local` and the host(s)
     /// running the others.
     #[derive(Debug, Clone, PartialEq, Eq, Default)]
     pub struct Links {
         /// Published here, read by a node elsewhere.
-        pub export: Vec<&'static str>,
+        pub export: Vec<TopicId>,
         /// Read here, published by a node elsewhere.
-        pub import: Vec<&'static str>,
+        pub import: Vec<TopicId>,
     }
 
     /// The links of a host running `local` (node names as in `icrflow_scenario::NODES`, the
-    /// config's list; others are ignored).
+    /// config's list; other names are ignored).
     pub fn links(local: &[impl AsRef<str>]) -> Links {
-        let here = |node: &str| local.iter().any(|n| n.as_ref() == node);
+        let here = |node: NodeRole| local.iter().any(|n| n.as_ref() == node.name());
         let mut links = Links::default();
         for topic in ALL {
-            let published_here = GRAPH
-                .iter()
-                .any(|(n, out, _)| here(n) && out.contains(&topic));
-            let published_elsewhere = GRAPH
-                .iter()
-                .any(|(n, out, _)| !here(n) && out.contains(&topic));
-            let read_here = GRAPH
-                .iter()
-                .any(|(n, _, inputs)| here(n) && inputs.contains(&topic));
-            let read_elsewhere = GRAPH
-                .iter()
-                .any(|(n, _, inputs)| !here(n) && inputs.contains(&topic));
-            if published_here && read_elsewhere {
+            let (mut published, mut read) = ([false; 2], [false; 2]);
+            for node in NodeRole::LOOP {
+                let side = usize::from(!here(node));
+                published[side] |= node.publishes().contains(&topic);
+                read[side] |= node.reads().contains(&topic);
+            }
+            if published[0] && read[1] {
                 links.export.push(topic);
             }
-            if read_here && published_elsewhere {
+            if read[0] && published[1] {
                 links.import.push(topic);
             }
         }
@@ -919,19 +1122,61 @@ mod tests {
 
     #[test]
     fn a_split_pipeline_links_exactly_the_topics_that_cross_hosts() {
+        use topics::TopicId::*;
         use topics::*;
         let robot = links(&["plant", "estimator", "command"]);
-        assert_eq!(robot.export, [GRASP_STATE]);
-        assert_eq!(robot.import, [WRENCH_SPACE, PLAN_STEP]);
+        assert_eq!(robot.export, [GraspState]);
+        assert_eq!(robot.import, [WrenchSpace, PlanStep]);
         let workstation = links(&["wrench", "planner"]);
-        assert_eq!(workstation.export, [WRENCH_SPACE, PLAN_STEP]);
-        assert_eq!(workstation.import, [GRASP_STATE]);
+        assert_eq!(workstation.export, [WrenchSpace, PlanStep]);
+        assert_eq!(workstation.import, [GraspState]);
         // One host: nothing crosses.
         assert_eq!(links(&icrflow_scenario::NODES), Links::default());
         // The plant alone: commands in, measurements out.
         let plant = links(&["plant"]);
-        assert_eq!(plant.export, [JOINT_STATE, OBJECT_POSE]);
-        assert_eq!(plant.import, [HAND_COMMAND]);
+        assert_eq!(plant.export, [JointState, ObjectPose]);
+        assert_eq!(plant.import, [HandCommand]);
+    }
+
+    #[test]
+    fn topics_and_roles_round_trip_their_names_and_the_config_names_the_loop() {
+        use topics::{NodeRole, TopicId};
+        for t in topics::ALL.into_iter().chain([TopicId::PlantTruth]) {
+            assert_eq!(TopicId::from_name(t.name()), Some(t));
+        }
+        assert_eq!(TopicId::from_name("joint"), None);
+        let names: Vec<&str> = NodeRole::LOOP.iter().map(|r| r.name()).collect();
+        assert_eq!(names, icrflow_scenario::NODES);
+        for r in NodeRole::LOOP
+            .into_iter()
+            .chain([NodeRole::Bridge, NodeRole::Visualizer])
+        {
+            assert_eq!(NodeRole::from_name(r.name()), Some(r));
+        }
+        // Every loop topic has a publisher and a reader among the loop's nodes.
+        for t in topics::ALL
+            .into_iter()
+            .filter(|t| *t != TopicId::NodeHealth)
+        {
+            assert!(
+                NodeRole::LOOP.iter().any(|r| r.publishes().contains(&t)),
+                "{t}"
+            );
+            assert!(NodeRole::LOOP.iter().any(|r| r.reads().contains(&t)), "{t}");
+        }
+    }
+
+    #[test]
+    fn plan_phase_codes_are_the_planners() {
+        use icrflow_plan::planner::Phase;
+        for (phase, wire) in [
+            (Phase::Start, PlanPhase::Start),
+            (Phase::Rolling, PlanPhase::Rolling),
+            (Phase::Attach, PlanPhase::Attach),
+            (Phase::Detach, PlanPhase::Detach),
+        ] {
+            assert_eq!(phase as u32, wire as u32);
+        }
     }
 
     #[test]

@@ -31,12 +31,14 @@ use anyhow::Result;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
-    WrenchSpaceHeader, topics, write_text,
+    topics, write_text,
 };
 use icrflow_plan::forces::{ForceContact, ForceSolver, Load};
 
-use crate::runtime::{Context, Health, Sequence, now, serve};
+use crate::Context;
 use crate::safety::{EstimateBounds, Gate, Hold};
+use icrflow_runtime::event::serve;
+use icrflow_runtime::health::{Health, Sequence, now};
 
 /// Periods without a wrench space after which the node holds on its own timer.
 pub const WATCHDOG_PERIODS: f64 = 3.0;
@@ -45,15 +47,11 @@ const RECENT: usize = 16;
 
 /// Runs the hand command node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let p = &ctx.config.pipeline;
-    let plans = ctx
-        .bus
-        .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
-    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-    let wrenches = ctx
-        .bus
-        .slice_subscriber::<WrenchSpaceHeader, icrflow_interfaces::Facet>(topics::WRENCH_SPACE)?;
-    let out = ctx.bus.publisher::<HandCommand>(topics::HAND_COMMAND)?;
+    let p = &ctx.scenario.config.pipeline;
+    let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
+    let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
+    let wrenches = ctx.bus.slice_subscriber(topics::WRENCH_SPACE)?;
+    let out = ctx.bus.publisher(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let bounds = EstimateBounds {
@@ -62,7 +60,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     };
     let mut gate = Gate::new(
         (p.max_input_age * 1e9) as u64,
-        ctx.config.grasp.alpha,
+        ctx.scenario.config.grasp.alpha,
         bounds,
     );
     let mut regions = Vec::with_capacity(4096);
@@ -190,9 +188,9 @@ impl Tracker<'_> {
         t: u64,
     ) -> Result<HandCommand, String> {
         let ctx = self.ctx;
-        let p = &ctx.config.pipeline;
-        let hand = &ctx.setup.hand;
-        let cands = ctx.setup.problem.candidates();
+        let p = &ctx.scenario.config.pipeline;
+        let hand = &ctx.scenario.setup.hand;
+        let cands = ctx.scenario.setup.problem.candidates();
         let theta = gate.grasp().map_or(0.0, |g| g.rotation);
         let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
         let n = (plan.finger_count as usize).min(MAX_FINGERS);
@@ -214,7 +212,7 @@ impl Tracker<'_> {
             self.contacts.clear();
             for &c in set.iter().take(count) {
                 self.contacts.push(ForceContact {
-                    point: cands.points[c as usize] - ctx.setup.object.centre_of_mass,
+                    point: cands.points[c as usize] - ctx.scenario.setup.object.centre_of_mass,
                     normal: cands.normals[c as usize],
                 });
             }
@@ -222,7 +220,7 @@ impl Tracker<'_> {
                 .solve(
                     &self.contacts,
                     &Load::none(),
-                    ctx.config.grasp.model.mu(),
+                    ctx.scenario.config.grasp.model.mu(),
                     p.min_normal_force,
                     &mut self.forces,
                 )

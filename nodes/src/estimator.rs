@@ -1,5 +1,5 @@
 //! The state estimator (`icrflow-estimator`): fuses the joint encoders, through forward
-//! kinematics and the rolling kinematics ([`crate::rolling`]), with the delayed object-pose
+//! kinematics and the rolling kinematics ([`icrflow_plan::rolling`]), with the delayed object-pose
 //! measurements into the object's rotation and the fingers' contact state.
 //!
 //! [`Estimator`] is the pure step (measurements and their times in, the grasp state out);
@@ -38,12 +38,15 @@ use std::fmt::Write as _;
 use anyhow::Result;
 use icrflow_grasp::object::Section;
 use icrflow_interfaces::{
-    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, ObjectPose, topics,
+    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, topics,
 };
 use icrflow_plan::hand::{Hand, wrap};
 
-use crate::rolling::{Surface, Tip, tip};
-use crate::runtime::{Checkpoint, Context, Health, Sequence, serve};
+use crate::Context;
+use icrflow_plan::rolling::{Surface, Tip, tip};
+use icrflow_runtime::checkpoint::Checkpoint;
+use icrflow_runtime::event::serve;
+use icrflow_runtime::health::{Health, Sequence};
 
 /// Weight of a pose measurement's correction.
 pub const GAIN: f64 = 0.3;
@@ -274,14 +277,11 @@ impl<'a> Estimator<'a> {
 
 /// Runs the estimator node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let object = &ctx.setup.object;
-    let surface = Surface::new(
-        &object.section,
-        [object.centre_of_mass.x, object.centre_of_mass.y],
-    )?;
-    let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
-    let poses = ctx.bus.subscriber::<ObjectPose>(topics::OBJECT_POSE)?;
-    let out = ctx.bus.publisher::<GraspState>(topics::GRASP_STATE)?;
+    let object = &ctx.scenario.setup.object;
+    let surface = ctx.scenario.setup.surface()?;
+    let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
+    let poses = ctx.bus.subscriber(topics::OBJECT_POSE)?;
+    let out = ctx.bus.publisher(topics::GRASP_STATE)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let checkpoint = ctx.bus.config().root.join("estimator.state");
@@ -290,7 +290,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .and_then(|t| t.trim().parse().ok())
         .filter(|x: &f64| x.is_finite())
         .unwrap_or(0.0);
-    let mut estimator = Estimator::new(&ctx.setup.hand, &surface, &object.section, theta);
+    let mut estimator = Estimator::new(&ctx.scenario.setup.hand, surface, &object.section, theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let saved = Checkpoint::new(checkpoint)?;
@@ -314,7 +314,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         let Some(m) = joints.latest()? else {
             return Ok(());
         };
-        let received = crate::runtime::now();
+        let received = icrflow_runtime::health::now();
         if !health.accept(
             "joint state",
             &m.header,
@@ -356,7 +356,7 @@ pub fn run(ctx: &Context) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::runtime::Noise;
+    use crate::noise::Noise;
     use icrflow_scenario::{Config, Setup};
 
     fn paper() -> (Config, Setup) {
@@ -438,14 +438,14 @@ mod tests {
     #[test]
     fn the_estimate_converges_from_a_wrong_start_at_any_pose_latency() {
         let (config, setup) = paper();
-        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
         let sigma = 0.2_f64.to_radians();
         for latency in [0, 30, 100, 200, 300, 500] {
             // 10 degrees off at the start; the object still at 0.
             let mut e = Estimator::new(
                 &setup.hand,
-                &surface,
+                surface,
                 &setup.object.section,
                 10f64.to_radians(),
             );
@@ -473,9 +473,9 @@ mod tests {
     #[test]
     fn a_jump_of_the_object_raises_the_innovation_until_the_estimate_has_followed() {
         let (config, setup) = paper();
-        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(&setup.hand, &surface, &setup.object.section, 0.0);
+        let mut e = Estimator::new(&setup.hand, surface, &setup.object.section, 0.0);
         let slip = 12f64.to_radians();
         // The object turns by 12 degrees at 2 s (a slip), seen 200 ms later.
         let truth = |t: u64| if t >= 2_000_000_000 { slip } else { 0.0 };
@@ -506,9 +506,9 @@ mod tests {
     #[test]
     fn a_non_finite_measurement_is_refused_and_changes_nothing() {
         let (config, setup) = paper();
-        let surface = Surface::new(&setup.object.section, [0.0, 0.0]).unwrap();
+        let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(&setup.hand, &surface, &setup.object.section, 0.5);
+        let mut e = Estimator::new(&setup.hand, surface, &setup.object.section, 0.5);
         assert_eq!(e.on_pose(f64::NAN, 1), Err(Refusal::PoseNotFinite));
         let mut m = measurement(&setup, &q, 1_000_000, &mut Noise::new(1));
         m.positions[1][2] = f64::INFINITY;

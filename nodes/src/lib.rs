@@ -1,19 +1,28 @@
-//! # icrflow-nodes: the pipeline's processes
+//! # icrflow-nodes: the pipeline's loop nodes
 //!
-//! The plumbing every node shares ([`bus`]: the run's isolated iceoryx2 bus, topics as
-//! publisher + notifier and subscriber + listener pairs) and the hand command node's
-//! [`safety`] gate. The node binaries (state estimator,
-//! wrench-space node, ICR planner, hand command node, sim plant; issue #4) build on it.
+//! The processes of the loop, each a module with its `run` (what its `icrflow-<name>` binary
+//! runs) on the plumbing of `icrflow-runtime`: the simulated [`plant`], the state
+//! [`estimator`], the [`wrench`]-space node, the ICR [`planner`] node that follows the plan, and
+//! the hand [`command`] node with its [`safety`] gate. The rolling kinematics they share are
+//! the planner crate's (`icrflow_plan::rolling`).
 
 #![warn(missing_docs)]
 
-pub mod bus;
 pub mod command;
 pub mod estimator;
+pub mod noise;
 pub mod planner;
 pub mod plant;
-pub mod rolling;
-pub mod runtime;
 pub mod safety;
-pub mod supervise;
 pub mod wrench;
+
+/// A loop node's context: its config loaded with what it builds, and its bus.
+pub type Context = icrflow_runtime::node::Context<icrflow_scenario::Loaded>;
+
+/// Runs loop node `name` ([`icrflow_runtime::node::main`], loading the config with its setup).
+pub fn main(
+    name: &'static str,
+    body: fn(&Context) -> anyhow::Result<()>,
+) -> std::process::ExitCode {
+    icrflow_runtime::node::main(name, icrflow_scenario::Loaded::load, body)
+}

@@ -21,15 +21,17 @@ use std::time::Duration;
 
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{
-    FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
-    topics,
+    FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, MAX_REGION_POINTS, PlanPhase,
+    PlanStepHeader, topics,
 };
 use icrflow_plan::hand::wrap;
 use icrflow_plan::planner::{Phase, Start, Step};
 use icrflow_plan::route::Keepout;
 
-use crate::rolling::{Surface, tip};
-use crate::runtime::{Context, Health, Sequence, now, serve};
+use crate::Context;
+use icrflow_plan::rolling::{Surface, tip};
+use icrflow_runtime::event::serve;
+use icrflow_runtime::health::{Health, Sequence, now};
 
 /// How close the estimated rotation must come to a step's target (rad).
 pub const ROTATION_TOLERANCE: f64 = 0.3 * std::f64::consts::PI / 180.0;
@@ -300,16 +302,6 @@ fn targets(steps: &[Step], hand: &icrflow_plan::hand::Hand, surface: &Surface) -
     out
 }
 
-/// The plan-step message's phase of a planned step.
-pub fn phase(p: Phase) -> PlanPhase {
-    match p {
-        Phase::Start => PlanPhase::Start,
-        Phase::Rolling => PlanPhase::Rolling,
-        Phase::Attach => PlanPhase::Attach,
-        Phase::Detach => PlanPhase::Detach,
-    }
-}
-
 /// The fingers in contact in a plan step.
 fn fingers_in_contact(step: &Step) -> impl Iterator<Item = u32> + '_ {
     step.fingers
@@ -414,9 +406,6 @@ pub const REPLAN_NS: u64 = 1_000_000_000;
 /// until session 11, was never met through that noise: an object that stopped 0.3 to 2 deg
 /// short of a step was neither reached nor re-planned, and the run waited for its timeout.
 pub const STOPPED: f64 = 0.5 * std::f64::consts::PI / 180.0;
-
-/// Most ICR points a plan step carries (all fingers' regions together).
-pub const MAX_REGION_POINTS: usize = 4096;
 
 /// Whether the hand is stuck short of `target`, a rolling step: the estimate has two fingers
 /// or more in contact (the step's, or others: a finger that lost its contact after a slip)
@@ -661,29 +650,23 @@ fn regions(
 
 /// Runs the planner node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let scenario = ctx.setup.scenario(&ctx.config);
+    let scenario = ctx.scenario.setup.scenario(&ctx.scenario.config);
     let plan = scenario.plan(&mut |_| {}).context("planning")?;
-    let object = &ctx.setup.object;
-    let surface = Surface::new(
-        &object.section,
-        [object.centre_of_mass.x, object.centre_of_mass.y],
-    )?;
-    let mut steps = targets(&plan.steps, &ctx.setup.hand, &surface);
+    let surface = ctx.scenario.setup.surface()?;
+    let mut steps = targets(&plan.steps, &ctx.scenario.setup.hand, surface);
     // Whether the plan's last step is the goal (a plan made again may end short of it).
     let mut ends_at_goal = plan.summary.completed;
     // Plans made again from the estimate (see `replan`); 0 while the first plan is followed.
     let mut replans = 0u32;
-    let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.config.pipeline.joint_noise;
-    let hand_tolerance = HAND_AT_TARGET + 5.0 * ctx.config.pipeline.joint_noise;
+    let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.scenario.config.pipeline.joint_noise;
+    let hand_tolerance = HAND_AT_TARGET + 5.0 * ctx.scenario.config.pipeline.joint_noise;
     let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
-    let problem = &ctx.setup.problem;
-    let alpha = ctx.config.grasp.alpha;
+    let problem = &ctx.scenario.setup.problem;
+    let alpha = ctx.scenario.config.grasp.alpha;
     // The regions each target's messages carry, computed now rather than per step.
     let mut step_regions = regions(&steps, problem, alpha);
-    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-    let out = ctx
-        .bus
-        .slice_publisher::<PlanStepHeader, u32>(topics::PLAN_STEP, MAX_REGION_POINTS)?;
+    let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
+    let out = ctx.bus.slice_publisher(topics::PLAN_STEP)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last_grasp = 0;
@@ -713,7 +696,7 @@ pub fn run(ctx: &Context) -> Result<()> {
             phase: if done {
                 PlanPhase::Done as u32
             } else {
-                phase(step.phase) as u32
+                step.phase as u32
             },
             finger_count: step.fingers.len().min(MAX_FINGERS) as u32,
             step: step.step as u64,
@@ -808,7 +791,14 @@ pub fn run(ctx: &Context) -> Result<()> {
                     let mut beat = || {
                         let _ = health.tick();
                     };
-                    match replan(&ctx.setup, &ctx.config, &g, &surface, first, &mut beat) {
+                    match replan(
+                        &ctx.scenario.setup,
+                        &ctx.scenario.config,
+                        &g,
+                        surface,
+                        first,
+                        &mut beat,
+                    ) {
                         Ok((next, plan, delta)) => {
                             replans += 1;
                             eprintln!(

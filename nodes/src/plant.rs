@@ -5,7 +5,7 @@
 //! Each tick (`pipeline.rate_hz`): each finger's joints move toward the last tracked command
 //! along a straight line in joint space, the largest at `pipeline.joint_speed_deg_s` for the
 //! time since the last tick; a held command keeps them still. The fingers commanded with
-//! a force that touch the object before and after the move roll it ([`crate::rolling`]): the
+//! a force that touch the object before and after the move roll it ([`icrflow_plan::rolling`]): the
 //! object's rotation is the mean of what each implies. Encoders get Gaussian noise
 //! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
 //! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
@@ -36,8 +36,11 @@ use icrflow_interfaces::{
     PlantTruth, topics,
 };
 
-use crate::rolling::{Surface, tip};
-use crate::runtime::{Checkpoint, Context, Health, Noise, Sequence, now};
+use crate::Context;
+use crate::noise::Noise;
+use icrflow_plan::rolling::tip;
+use icrflow_runtime::checkpoint::Checkpoint;
+use icrflow_runtime::health::{Health, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
@@ -62,17 +65,14 @@ pub fn initial_joints(
 
 /// Runs the plant.
 pub fn run(ctx: &Context) -> Result<()> {
-    let p = &ctx.config.pipeline;
-    let hand = &ctx.setup.hand;
-    let object = &ctx.setup.object;
-    let surface = Surface::new(
-        &object.section,
-        [object.centre_of_mass.x, object.centre_of_mass.y],
-    )?;
+    let p = &ctx.scenario.config.pipeline;
+    let hand = &ctx.scenario.setup.hand;
+    let surface = ctx.scenario.setup.surface()?;
     // The true state starts in the initial grasp, as the planner computes it.
     let (contacts, _) = ctx
+        .scenario
         .setup
-        .scenario(&ctx.config)
+        .scenario(&ctx.scenario.config)
         .start()
         .context("the initial grasp")?;
     let mut q = initial_joints(hand, &contacts);
@@ -114,11 +114,11 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
     let mut noise = Noise::new(p.seed);
     let mut target: Option<HandCommand> = None;
-    let joints = ctx.bus.publisher::<JointState>(topics::JOINT_STATE)?;
-    let poses = ctx.bus.publisher::<ObjectPose>(topics::OBJECT_POSE)?;
-    let truths = ctx.bus.publisher::<PlantTruth>(topics::PLANT_TRUTH)?;
+    let joints = ctx.bus.publisher(topics::JOINT_STATE)?;
+    let poses = ctx.bus.publisher(topics::OBJECT_POSE)?;
+    let truths = ctx.bus.publisher(topics::PLANT_TRUTH)?;
     let mut truth_seq = Sequence::default();
-    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
+    let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
     let dt = 1.0 / p.rate_hz;
@@ -129,7 +129,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
     let saved = Checkpoint::new(state_file)?;
     // Its thread (started above) stays at normal priority.
-    crate::runtime::promote(ctx.name);
+    icrflow_runtime::node::promote(ctx.name);
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it (another
@@ -143,7 +143,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         next += period;
         let early = next.saturating_duration_since(Instant::now());
         if early > Duration::ZERO {
-            if crate::runtime::sleep_until(ctx.bus.node(), next) {
+            if icrflow_runtime::event::sleep_until(ctx.bus.node(), next) {
                 return Ok(());
             }
         } else if Instant::now().duration_since(next) > period {

@@ -11,22 +11,19 @@
 
 use anyhow::Result;
 use icrflow_grasp::quality::{Evaluation, EvaluationScratch};
-use icrflow_interfaces::{Facet, GraspState, Header, Kind, MAX_FINGERS, WrenchSpaceHeader, topics};
+use icrflow_interfaces::{Facet, Header, Kind, MAX_FACETS, MAX_FINGERS, WrenchSpaceHeader, topics};
 
-use crate::runtime::{Context, Health, Sequence, serve};
-
-/// Most facets published (a 6D hull of 8 fingers x 8 edges stays well below).
-pub const MAX_FACETS: usize = 4096;
+use crate::Context;
+use icrflow_runtime::event::serve;
+use icrflow_runtime::health::{Health, Sequence};
 
 /// Runs the wrench-space node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let problem = &ctx.setup.problem;
-    let alpha = ctx.config.grasp.alpha;
+    let problem = &ctx.scenario.setup.problem;
+    let alpha = ctx.scenario.config.grasp.alpha;
     let dim = problem.dim();
-    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-    let out = ctx
-        .bus
-        .slice_publisher::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE, MAX_FACETS)?;
+    let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
+    let out = ctx.bus.slice_publisher(topics::WRENCH_SPACE)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last = 0;
@@ -44,7 +41,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         let Some(g) = grasps.latest()? else {
             return Ok(());
         };
-        let received = crate::runtime::now();
+        let received = icrflow_runtime::health::now();
         if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last) {
             return Ok(());
         }

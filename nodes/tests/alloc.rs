@@ -4,15 +4,12 @@
 //! `ChunkMutSharedState` per sample), which no use of its API avoids.
 
 use icrflow_interfaces::{Header, JointState, Kind, topics};
-use icrflow_nodes::bus::Bus;
-use icrflow_nodes::runtime::allocations;
-
-mod common;
-use common::{isolated, remove};
+use icrflow_runtime::bus::{Bus, BusConfig};
+use icrflow_runtime::health::allocations;
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 /// The tests count the whole process's allocations, so they run one after another on the main
 /// thread, without libtest (`harness = false`): its runner thread reports a finished test while
@@ -77,12 +74,12 @@ fn main() -> std::process::ExitCode {
 }
 
 fn receiving_allocates_nothing_and_sending_once() {
-    let c = isolated("alloc");
+    let c = BusConfig::isolated("alloc").unwrap();
     {
         let a = Bus::new("sender", &c).unwrap();
         let b = Bus::new("receiver", &c).unwrap();
-        let sub = b.subscriber::<JointState>(topics::JOINT_STATE).unwrap();
-        let publisher = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let sub = b.subscriber(topics::JOINT_STATE).unwrap();
+        let publisher = a.publisher(topics::JOINT_STATE).unwrap();
         let m = JointState {
             header: Header::new(Kind::JointState, 1, 0, 0),
             ..Default::default()
@@ -118,23 +115,19 @@ fn receiving_allocates_nothing_and_sending_once() {
         assert_eq!(counts[1], 0, "draining a message allocates");
         assert_eq!(counts[2], 0, "polling an empty subscriber allocates");
     }
-    remove(&c);
+    c.remove_files();
 }
 
 /// The same for a topic with a dynamic slice (the wrench space's facets): receiving into a
 /// reused vector allocates nothing; sending allocates once, in iceoryx2 0.10 (as above).
 fn a_slice_topic_allocates_only_in_iceoryx2s_send() {
     use icrflow_interfaces::{Facet, WrenchSpaceHeader};
-    let c = isolated("alloc-slice");
+    let c = BusConfig::isolated("alloc-slice").unwrap();
     {
         let a = Bus::new("sender", &c).unwrap();
         let b = Bus::new("receiver", &c).unwrap();
-        let sub = b
-            .slice_subscriber::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE)
-            .unwrap();
-        let publisher = a
-            .slice_publisher::<WrenchSpaceHeader, Facet>(topics::WRENCH_SPACE, 64)
-            .unwrap();
+        let sub = b.slice_subscriber(topics::WRENCH_SPACE).unwrap();
+        let publisher = a.slice_publisher(topics::WRENCH_SPACE).unwrap();
         let header = WrenchSpaceHeader {
             header: Header::new(Kind::WrenchSpace, 1, 0, 0),
             ..Default::default()
@@ -165,19 +158,19 @@ fn a_slice_topic_allocates_only_in_iceoryx2s_send() {
         assert_eq!(taken, 0, "receiving a slice allocates");
         assert!(sent <= n, "a slice send allocates more than once: {sent}");
     }
-    remove(&c);
+    c.remove_files();
 }
 
 /// How the nodes sleep (`runtime::Waiter`, ppoll on the listener): a send wakes the waiter,
 /// waiting allocates nothing, and with nothing sent it sleeps out its timeout.
 fn waiting_on_a_listener_allocates_nothing() {
-    let c = isolated("alloc-wait");
+    let c = BusConfig::isolated("alloc-wait").unwrap();
     {
         let a = Bus::new("sender", &c).unwrap();
         let b = Bus::new("receiver", &c).unwrap();
-        let sub = b.subscriber::<JointState>(topics::JOINT_STATE).unwrap();
-        let publisher = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
-        let mut waiter = icrflow_nodes::runtime::Waiter::new(&[sub.listener()]);
+        let sub = b.subscriber(topics::JOINT_STATE).unwrap();
+        let publisher = a.publisher(topics::JOINT_STATE).unwrap();
+        let mut waiter = icrflow_runtime::event::Waiter::new(&[sub.listener()]);
         let m = JointState {
             header: Header::new(Kind::JointState, 1, 0, 0),
             ..Default::default()
@@ -202,7 +195,7 @@ fn waiting_on_a_listener_allocates_nothing() {
         );
         assert!(sub.latest().unwrap().is_none());
     }
-    remove(&c);
+    c.remove_files();
 }
 
 /// The hand command node's force solve (`forces::ForceSolver`, kept across commands): once it

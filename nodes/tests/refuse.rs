@@ -6,14 +6,8 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use icrflow_interfaces::{
-    GraspState, HandCommand, Header, JointState, Kind, NodeHealth, SCHEMA_VERSION, read_text,
-    topics,
-};
-use icrflow_nodes::bus::{Bus, BusConfig};
-
-mod common;
-use common::{isolated, leftovers, remove};
+use icrflow_interfaces::{Header, JointState, Kind, SCHEMA_VERSION, read_text, topics};
+use icrflow_runtime::bus::{Bus, BusConfig};
 
 /// The paper scenario's config.
 fn config() -> PathBuf {
@@ -53,11 +47,11 @@ fn finish(mut child: Child) -> (Option<i32>, String) {
 
 #[test]
 fn a_node_facing_a_topic_of_another_message_type_exits_naming_both() {
-    let c = isolated("wrongtype");
+    let c = BusConfig::isolated("wrongtype").unwrap();
     let (code, err) = {
         // Another program made the joint-state topic with hand commands on it.
         let bus = Bus::new("intruder", &c).unwrap();
-        let _wrong = bus.publisher::<HandCommand>(topics::JOINT_STATE).unwrap();
+        let _wrong = bus.publisher(topics::JOINT_STATE).unwrap();
         finish(estimator(&c))
     };
     assert_eq!(code, Some(1), "{err}");
@@ -68,18 +62,18 @@ fn a_node_facing_a_topic_of_another_message_type_exits_naming_both() {
         "{err}"
     );
     assert!(err.contains("refusing to connect"), "{err}");
-    remove(&c);
+    c.remove_files();
 }
 
 #[test]
 fn a_node_refuses_messages_of_another_schema_version_and_reports_why() {
-    let c = isolated("schema");
+    let c = BusConfig::isolated("schema").unwrap();
     let child = estimator(&c);
     let (refusal, estimates) = {
         let bus = Bus::new("old-plant", &c).unwrap();
-        let joints = bus.publisher::<JointState>(topics::JOINT_STATE).unwrap();
-        let health = bus.subscriber::<NodeHealth>(topics::NODE_HEALTH).unwrap();
-        let grasps = bus.subscriber::<GraspState>(topics::GRASP_STATE).unwrap();
+        let joints = bus.publisher(topics::JOINT_STATE).unwrap();
+        let health = bus.subscriber(topics::NODE_HEALTH).unwrap();
+        let grasps = bus.subscriber(topics::GRASP_STATE).unwrap();
         let (mut refusal, mut estimates) = (None, 0);
         let end = Instant::now() + Duration::from_secs(20);
         let mut sequence = 0;
@@ -123,6 +117,6 @@ fn a_node_refuses_messages_of_another_schema_version_and_reports_why() {
     );
     assert_eq!(estimates, 0, "the estimator estimated from refused input");
     assert_eq!(code, Some(0), "SIGTERM stops the node cleanly: {err}");
-    assert!(leftovers(&c).is_empty(), "{:?}", leftovers(&c));
-    remove(&c);
+    assert!(c.leftovers().is_empty(), "{:?}", c.leftovers());
+    c.remove_files();
 }

@@ -14,6 +14,7 @@
 //! | [`paper`] | the paper's four-finger planar hand |
 //! | [`planner`] | rolling, finger switching, the trajectory and its summary |
 //! | [`rendezvous`] | rendezvous regions for a switch: exact (brute force), ICR zone rule, eq. (8) LP |
+//! | [`rolling`] | fingertips rolling on the object's section: the surface, contacts, the rotation from a fingertip's motion |
 
 #![warn(missing_docs)]
 
@@ -22,5 +23,6 @@ pub mod hand;
 pub mod paper;
 pub mod planner;
 pub mod rendezvous;
+pub mod rolling;
 pub mod route;
 pub mod urdf;

@@ -204,18 +204,19 @@ pub enum PlanError {
     Grasp(#[from] GraspError),
 }
 
-/// The phase a trajectory step belongs to.
+/// The phase a trajectory step belongs to. Its codes (`phase as u32`) are the plan-step
+/// message's `PlanPhase` codes (asserted in `icrflow-interfaces`' tests).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Phase {
     /// The initial grasp.
-    Start,
+    Start = 0,
     /// A rolling step.
-    Rolling,
+    Rolling = 1,
     /// A free finger has attached.
-    Attach,
+    Attach = 2,
     /// The finger at its limit has detached.
-    Detach,
+    Detach = 3,
 }
 
 impl Phase {

@@ -7,6 +7,7 @@ use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::WrenchFrame;
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
+use icrflow_plan::rolling::{Surface, SurfaceError};
 
 use crate::config::{Config, ContactSpec, FingerContact};
 
@@ -20,6 +21,26 @@ pub struct Setup {
     pub hand: Hand,
     /// Initial contacts: (finger, candidate, cap angle).
     pub initial: Vec<(u32, usize, Option<Real>)>,
+    /// The object's section as fingertips roll on it in the pipeline (the plant, the
+    /// estimator, the planner node), or why they cannot: see [`Setup::surface`].
+    surface: Result<Surface, SurfaceError>,
+}
+
+/// A config file loaded, with what it builds: what a node of the pipeline starts from.
+pub struct Loaded {
+    /// The config.
+    pub config: Config,
+    /// What it builds.
+    pub setup: Setup,
+}
+
+impl Loaded {
+    /// Loads the config file at `path` and builds its setup.
+    pub fn load(path: &std::path::Path) -> Result<Self> {
+        let config = Config::load(path)?;
+        let setup = Setup::new(&config)?;
+        Ok(Self { config, setup })
+    }
 }
 
 impl Setup {
@@ -74,11 +95,26 @@ impl Setup {
                 hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
             );
         }
+        let surface = Surface::new(
+            &object.section,
+            [object.centre_of_mass.x, object.centre_of_mass.y],
+        );
         Ok(Self {
             object,
             problem,
             hand,
             initial,
+            surface,
+        })
+    }
+
+    /// The object's section as the pipeline's plant and estimator roll fingertips on it, or
+    /// why they cannot (named by its key). Offline planning does not need it.
+    pub fn surface(&self) -> Result<&Surface> {
+        self.surface.as_ref().map_err(|e| {
+            anyhow::anyhow!(
+                "object: the pipeline's plant and estimator cannot roll fingertips on it: {e}"
+            )
         })
     }
 

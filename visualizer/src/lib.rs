@@ -28,9 +28,11 @@ use anyhow::{Context as _, Result, anyhow, bail};
 use iceoryx2::prelude::*;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, JointState, PlanStepHeader, TRACE_STAMPS, topics,
+    CommandMode, GraspState, JointState, PlanStepHeader, TRACE_STAMPS, topics,
 };
-use icrflow_nodes::runtime::{Context, Health};
+use icrflow_runtime::health::Health;
+use icrflow_runtime::node::Context;
+use icrflow_scenario::Loaded;
 use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording, rrd_parts};
 
 use geometry::{P3, p3};
@@ -70,7 +72,7 @@ struct State {
 impl State {
     /// A scene and time-series frame from the newest state, taking the quality and latency
     /// gathered since the last one; none before the first grasp state.
-    fn frame(&mut self, t: f64, ctx: &Context, com: &Vec3, dropped: u64) -> Option<Frame> {
+    fn frame(&mut self, t: f64, ctx: &Context<Loaded>, com: &Vec3, dropped: u64) -> Option<Frame> {
         let g = self.grasp.as_ref()?;
         Some(tick_frame(
             t,
@@ -100,23 +102,21 @@ pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64) -> 
 }
 
 /// Runs the visualizer node.
-pub fn run(ctx: &Context) -> Result<()> {
+pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let (recording, id) = recording_from_env()?;
     let recording = fresh(recording);
     let footer = std::env::var(icrflow_scenario::ENV_RECORDING_FOOTER).as_deref() != Ok("0");
-    let spec = &ctx.config.visualizer;
-    let setup = &ctx.setup;
+    let spec = &ctx.scenario.config.visualizer;
+    let setup = &ctx.scenario.setup;
     let problem = &setup.problem;
-    let alpha = ctx.config.grasp.alpha;
+    let alpha = ctx.scenario.config.grasp.alpha;
     let com = setup.object.centre_of_mass;
     // Subscribed first, and the loop runs while the recording opens (a spawned viewer may take
     // seconds to listen): frames queue meanwhile, so the first plan steps are not missed.
-    let grasps = ctx.bus.subscriber::<GraspState>(topics::GRASP_STATE)?;
-    let joints = ctx.bus.subscriber::<JointState>(topics::JOINT_STATE)?;
-    let commands = ctx.bus.subscriber::<HandCommand>(topics::HAND_COMMAND)?;
-    let plans = ctx
-        .bus
-        .slice_subscriber::<PlanStepHeader, u32>(topics::PLAN_STEP)?;
+    let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
+    let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
+    let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
+    let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
     let statics = statics(setup, &id, alpha);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
@@ -187,7 +187,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     // no hand command is lost to a full subscriber queue (32 at 1 kHz) between two frames:
     // the quality series' minimum is the run's.
     let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _tick = ws.attach_interval(period.min(icrflow_nodes::runtime::RESYNC))?;
+    let _tick = ws.attach_interval(period.min(icrflow_runtime::event::RESYNC))?;
     let mut failure = None;
     // Hands a frame to the recording thread, or drops and counts it; false when that thread
     // has ended.
@@ -416,7 +416,7 @@ fn tick_frame(
     t: f64,
     g: &GraspState,
     joints: Option<&JointState>,
-    ctx: &Context,
+    ctx: &Context<Loaded>,
     com: &Vec3,
     quality: &mut Option<f64>,
     latency: &mut Option<[f64; 7]>,
@@ -435,12 +435,12 @@ fn tick_frame(
                     rotation * Vec3::from(c.normal),
                 )
             }),
-        &ctx.config.grasp,
+        &ctx.scenario.config.grasp,
     );
     let mut fingers = Vec::new();
     if let Some(j) = joints {
         for slot in 0..(j.finger_count as usize).min(j.finger_ids.len()) {
-            let Some(finger) = ctx.setup.hand.finger(j.finger_ids[slot]) else {
+            let Some(finger) = ctx.scenario.setup.hand.finger(j.finger_ids[slot]) else {
                 continue;
             };
             let q = &j.positions[slot][..finger.dof().min(j.positions[slot].len())];

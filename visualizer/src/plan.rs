@@ -102,7 +102,7 @@ fn frames(step: &Step, config: &Config, setup: &Setup) -> Result<[Frame; 2]> {
     let step_frame = crate::step_frame(
         None,
         number,
-        icrflow_nodes::planner::phase(step.phase) as u32,
+        step.phase as u32,
         &fingers,
         rendezvous.as_ref().map(|(f, r)| (*f, r.as_slice())),
         problem,

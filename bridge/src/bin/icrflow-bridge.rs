@@ -2,9 +2,13 @@
 //! enabled (see `icrflow_bridge`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("bridge", icrflow_bridge::run)
+    icrflow_runtime::node::main(
+        "bridge",
+        icrflow_scenario::Config::load,
+        icrflow_bridge::run,
+    )
 }

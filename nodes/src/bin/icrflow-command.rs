@@ -2,9 +2,9 @@
 //! (see `icrflow_nodes::command`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("command", icrflow_nodes::command::run)
+    icrflow_nodes::main("command", icrflow_nodes::command::run)
 }

@@ -2,9 +2,9 @@
 //! (see `icrflow_nodes::estimator`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("estimator", icrflow_nodes::estimator::run)
+    icrflow_nodes::main("estimator", icrflow_nodes::estimator::run)
 }

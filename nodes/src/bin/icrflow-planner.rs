@@ -2,9 +2,9 @@
 //! (see `icrflow_nodes::planner`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("planner", icrflow_nodes::planner::run)
+    icrflow_nodes::main("planner", icrflow_nodes::planner::run)
 }

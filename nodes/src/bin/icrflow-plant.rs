@@ -2,9 +2,9 @@
 //! (see `icrflow_nodes::plant`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("plant", icrflow_nodes::plant::run)
+    icrflow_nodes::main("plant", icrflow_nodes::plant::run)
 }

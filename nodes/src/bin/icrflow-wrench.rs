@@ -2,9 +2,9 @@
 //! (see `icrflow_nodes::wrench`).
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::runtime::main("wrench", icrflow_nodes::wrench::run)
+    icrflow_nodes::main("wrench", icrflow_nodes::wrench::run)
 }

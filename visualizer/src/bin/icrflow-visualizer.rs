@@ -7,8 +7,8 @@ use std::path::Path;
 use std::process::ExitCode;
 
 #[global_allocator]
-static ALLOCATOR: &icrflow_nodes::runtime::CountingAllocator =
-    &icrflow_nodes::runtime::COUNTING_ALLOCATOR;
+static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
+    &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,5 +23,9 @@ fn main() -> ExitCode {
             }
         };
     }
-    icrflow_nodes::runtime::main("visualizer", icrflow_visualizer::run)
+    icrflow_runtime::node::main(
+        "visualizer",
+        icrflow_scenario::Loaded::load,
+        icrflow_visualizer::run,
+    )
 }

@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use icrflow_nodes::bus::BusConfig;
-use icrflow_nodes::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
+use icrflow_runtime::bus::BusConfig;
+use icrflow_runtime::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 
 fn bus(tag: &str) -> BusConfig {
     BusConfig::new(

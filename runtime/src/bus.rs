@@ -1,6 +1,6 @@
 //! The local bus: iceoryx2 publish-subscribe topics, each paired with an event service of the
 //! same name so that a receiving node sleeps on the event's listener until a sender notifies
-//! it (no busy polling; [`crate::runtime::serve`] waits on the listeners' file descriptors).
+//! it (no busy polling; [`crate::event::serve`] waits on the listeners' file descriptors).
 //!
 //! Isolation: every run uses its own iceoryx2 *prefix* (the name prefix of its shared-memory
 //! objects) and *root* directory (its service, node and socket files), so two runs, or a test
@@ -18,7 +18,8 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::publish_subscribe::{
     PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
 };
-use icrflow_interfaces::{Message, topics};
+use icrflow_interfaces::Message;
+use icrflow_interfaces::topics::{self, SliceTopic, Topic};
 
 /// Environment variable carrying the run's iceoryx2 prefix to a node process.
 pub const ENV_PREFIX: &str = "ICRFLOW_IOX_PREFIX";
@@ -153,6 +154,61 @@ impl BusConfig {
     /// The service name of `topic` on this rig.
     pub fn service(&self, topic: &str) -> String {
         topics::service(&self.rig, topic)
+    }
+
+    /// A bus of the calling process alone, for tests and benchmarks: rig `test`, a prefix and
+    /// a root under `/tmp` named by `tag` and the process id.
+    pub fn isolated(tag: &str) -> Result<Self, BusError> {
+        let id = std::process::id();
+        Self::new(
+            "test",
+            &format!("icrt_{tag}_{id}_"),
+            PathBuf::from(format!("/tmp/icrflow-test-{tag}-{id}")),
+        )
+    }
+
+    /// The run's files left in `/dev/shm` (but the one global counter iceoryx2 keeps by
+    /// design) and under its root.
+    pub fn leftovers(&self) -> Vec<String> {
+        fn walk(p: &std::path::Path, out: &mut Vec<String>) {
+            for e in std::fs::read_dir(p).into_iter().flatten().flatten() {
+                let path = e.path();
+                if path.is_dir() {
+                    walk(&path, out);
+                } else {
+                    out.push(path.display().to_string());
+                }
+            }
+        }
+        let mut out: Vec<String> = self
+            .shared_memory()
+            .into_iter()
+            .filter(|p| !p.to_string_lossy().ends_with("global_mgmt"))
+            .map(|p| p.display().to_string())
+            .collect();
+        walk(&self.root, &mut out);
+        out
+    }
+
+    /// Removes what iceoryx2 leaves of a finished run: its root directory and its
+    /// shared-memory objects (the one counter it keeps by design included). Best effort: what
+    /// cannot be removed stays, for [`BusConfig::leftovers`] to show.
+    pub fn remove_files(&self) {
+        let _ = std::fs::remove_dir_all(&self.root);
+        for path in self.shared_memory() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+
+    /// The run's objects in `/dev/shm`.
+    fn shared_memory(&self) -> Vec<PathBuf> {
+        std::fs::read_dir("/dev/shm")
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&self.prefix))
+            .map(|e| e.path())
+            .collect()
     }
 }
 
@@ -304,8 +360,17 @@ impl Bus {
             .map_err(|e| open_error(topic, expected, e))
     }
 
-    /// A publisher on `topic` (a name from [`topics`]).
+    /// A publisher on `topic`.
     pub fn publisher<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: Topic<T>,
+    ) -> Result<Pub<T>, BusError> {
+        self.publisher_named(topic.name())
+    }
+
+    /// A publisher of `T` on a topic outside the pipeline's (a benchmark's, a test's), named
+    /// `topic`: the caller answers for the type (a topic opened with another is refused).
+    pub fn publisher_named<T: Debug + ZeroCopySend + 'static>(
         &self,
         topic: &str,
     ) -> Result<Pub<T>, BusError> {
@@ -351,16 +416,17 @@ impl Bus {
             .map_err(|e| open_error(topic, &expected, e))
     }
 
-    /// A publisher of header `H` plus up to `max_len` items `T` (more are refused) on `topic`.
+    /// A publisher of header `H` plus up to the topic's `max_len` items `T` (more are
+    /// refused) on `topic`.
     pub fn slice_publisher<
         H: Debug + ZeroCopySend + Default + 'static,
         T: Debug + ZeroCopySend + Copy + 'static,
     >(
         &self,
-        topic: &str,
-        max_len: usize,
+        topic: SliceTopic<H, T>,
     ) -> Result<SlicePub<H, T>, BusError> {
-        let full = self.config.service(topic);
+        let max_len = topic.max_len;
+        let full = self.config.service(topic.name());
         let publisher = self
             .slice_service::<H, T>(&full)?
             .publisher_builder()
@@ -381,9 +447,9 @@ impl Bus {
         T: Debug + ZeroCopySend + Copy + 'static,
     >(
         &self,
-        topic: &str,
+        topic: SliceTopic<H, T>,
     ) -> Result<SliceSub<H, T>, BusError> {
-        let full = self.config.service(topic);
+        let full = self.config.service(topic.name());
         let subscriber = self
             .slice_service::<H, T>(&full)?
             .subscriber_builder()
@@ -398,8 +464,17 @@ impl Bus {
         })
     }
 
-    /// A subscriber on `topic` (a name from [`topics`]).
+    /// A subscriber on `topic`.
     pub fn subscriber<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: Topic<T>,
+    ) -> Result<Sub<T>, BusError> {
+        self.subscriber_named(topic.name())
+    }
+
+    /// A subscriber of `T` on a topic outside the pipeline's, named `topic` (see
+    /// [`Bus::publisher_named`]).
+    pub fn subscriber_named<T: Debug + ZeroCopySend + 'static>(
         &self,
         topic: &str,
     ) -> Result<Sub<T>, BusError> {
@@ -454,7 +529,7 @@ impl<T: Debug + ZeroCopySend + Message + 'static> Pub<T> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
-    /// The listener its node sleeps on ([`crate::runtime::serve`]).
+    /// The listener its node sleeps on ([`crate::event::serve`]).
     pub fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }
@@ -525,7 +600,7 @@ impl<
 impl<H: Debug + ZeroCopySend + Copy + 'static, T: Debug + ZeroCopySend + Copy + 'static>
     SliceSub<H, T>
 {
-    /// The listener its node sleeps on ([`crate::runtime::serve`]).
+    /// The listener its node sleeps on ([`crate::event::serve`]).
     pub fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }

@@ -189,10 +189,7 @@ impl Supervisor {
         let mut cmd = Command::new(&spec.program);
         cmd.args(&spec.args)
             .envs(self.bus.env())
-            .env(
-                crate::runtime::ENV_SUPERVISOR,
-                std::process::id().to_string(),
-            )
+            .env(crate::node::ENV_SUPERVISOR, std::process::id().to_string())
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null())
             // A process group of its own: the terminal's signals (Ctrl-C, a hang-up) reach the

@@ -4,22 +4,19 @@
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
-use icrflow_interfaces::{HandCommand, Header, JointState, Kind, SCHEMA_VERSION, topics};
+use icrflow_interfaces::{Header, JointState, Kind, SCHEMA_VERSION, topics};
 use std::path::PathBuf;
 
-use icrflow_nodes::bus::{Bus, BusConfig, BusError};
-
-mod common;
-use common::{isolated, leftovers, remove};
+use icrflow_runtime::bus::{Bus, BusConfig, BusError};
 
 #[test]
 fn a_message_wakes_the_subscriber_and_arrives_intact() {
-    let c = isolated("deliver");
+    let c = BusConfig::isolated("deliver").unwrap();
     {
         let a = Bus::new("sender", &c).unwrap();
         let b = Bus::new("receiver", &c).unwrap();
-        let sub = b.subscriber::<JointState>(topics::JOINT_STATE).unwrap();
-        let publisher = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let sub = b.subscriber(topics::JOINT_STATE).unwrap();
+        let publisher = a.publisher(topics::JOINT_STATE).unwrap();
         let mut m = JointState {
             header: Header::new(Kind::JointState, 1, 0, 0),
             finger_count: 2,
@@ -45,18 +42,18 @@ fn a_message_wakes_the_subscriber_and_arrives_intact() {
         assert_eq!(got, m);
         assert!(got.header.check(Kind::JointState).is_ok());
     }
-    assert_eq!(leftovers(&c), Vec::<String>::new());
-    remove(&c);
+    assert_eq!(c.leftovers(), Vec::<String>::new());
+    c.remove_files();
 }
 
 #[test]
 fn a_mismatched_message_type_is_refused_by_name() {
-    let c = isolated("mismatch");
+    let c = BusConfig::isolated("mismatch").unwrap();
     {
         let a = Bus::new("sender", &c).unwrap();
-        let _p = a.publisher::<JointState>(topics::JOINT_STATE).unwrap();
+        let _p = a.publisher(topics::JOINT_STATE).unwrap();
         let b = Bus::new("wrong", &c).unwrap();
-        let e = match b.subscriber::<HandCommand>(topics::JOINT_STATE) {
+        let e = match b.subscriber(topics::JOINT_STATE) {
             Err(e) => e,
             Ok(_) => panic!("a HandCommand subscriber connected to the joint-state topic"),
         };
@@ -68,7 +65,7 @@ fn a_mismatched_message_type_is_refused_by_name() {
             "{text}"
         );
     }
-    remove(&c);
+    c.remove_files();
 }
 
 #[test]

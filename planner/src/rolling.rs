@@ -15,9 +15,42 @@
 //! `r_o` (the paper's sphere) this is `dtheta = (1 + r_f / r_o) dpsi - (r_f / r_o) dphi`, `psi`
 //! the fingertip centre's world angle, which is what [`Surface::Circle`] computes.
 
-use anyhow::{Result, bail};
 use icrflow_grasp::object::Section;
-use icrflow_plan::hand::{Finger, wrap};
+
+use crate::hand::{Finger, wrap};
+
+/// Why an object's section cannot be rolled on, naming what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SurfaceError {
+    /// Fewer than three samples.
+    #[error(
+        "the object's section in the hand's plane has {0} samples; rolling needs a closed curve"
+    )]
+    TooFewSamples(usize),
+    /// A sample is NaN or infinite.
+    #[error("the object's section has a sample that is not finite")]
+    NotFinite,
+    /// The section passes through the centre.
+    #[error("the object's section passes through its centre: rolling needs a section around it")]
+    ThroughCentre,
+    /// A normal points towards the centre.
+    #[error(
+        "the object's section is not star-shaped about its centre (sample {0}: its normal points inwards)"
+    )]
+    NotStarShaped(usize),
+    /// Two samples at one polar angle.
+    #[error("the object's section has two samples at the same polar angle (sample {0})")]
+    SamePolarAngle(usize),
+    /// The normal turns back.
+    #[error("the object's section is not convex: its normal turns back at sample {0}")]
+    NotConvex(usize),
+    /// The normal does not turn once around.
+    #[error(
+        "the object's section is not one convex loop about its centre (its normal turns {0:.1} degrees)"
+    )]
+    NotOneLoop(f64),
+}
 
 /// Where a fingertip is, seen from the object's centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -105,13 +138,11 @@ impl Surface {
     /// The surface of `section` (its samples relative to `centre`, the object's centre of
     /// mass); an error naming what is wrong if it is not one closed curve around the centre,
     /// convex, with outward normals.
-    pub fn new(section: &Section, centre: [f64; 2]) -> Result<Self> {
+    pub fn new(section: &Section, centre: [f64; 2]) -> Result<Self, SurfaceError> {
         let s = &section.samples;
         let n = s.points.len();
         if n < 3 {
-            bail!(
-                "the object's section in the hand's plane has {n} samples; the plant needs a closed curve"
-            );
+            return Err(SurfaceError::TooFewSamples(n));
         }
         let mut entries: Vec<(f64, f64, f64, usize)> = (0..n)
             .map(|i| {
@@ -124,7 +155,7 @@ impl Surface {
             .iter()
             .any(|e| !(e.0.is_finite() && e.1.is_finite() && e.2.is_finite()))
         {
-            bail!("the object's section has a sample that is not finite");
+            return Err(SurfaceError::NotFinite);
         }
         let (r_min, r_max) = entries
             .iter()
@@ -132,17 +163,12 @@ impl Surface {
                 (lo.min(e.1), hi.max(e.1))
             });
         if r_min <= 0.0 {
-            bail!(
-                "the object's section passes through its centre: the plant needs a section around it"
-            );
+            return Err(SurfaceError::ThroughCentre);
         }
         // Every normal must point away from the centre: the section encloses it.
         for e in &entries {
             if wrap(e.2 - e.0).abs() >= 0.5 * std::f64::consts::PI {
-                bail!(
-                    "the object's section is not star-shaped about its centre (sample {}: its normal points inwards)",
-                    e.3
-                );
+                return Err(SurfaceError::NotStarShaped(e.3));
             }
         }
         if r_max - r_min <= ROUND * r_max && entries.iter().all(|e| wrap(e.2 - e.0).abs() <= ROUND)
@@ -164,16 +190,10 @@ impl Surface {
                 Some(&prev) => prev + wrap(e.2 - prev),
             };
             if k > 0 && a <= angle[k - 1] {
-                bail!(
-                    "the object's section has two samples at the same polar angle (sample {})",
-                    e.3
-                );
+                return Err(SurfaceError::SamePolarAngle(e.3));
             }
             if k > 0 && nu < normal[k - 1] {
-                bail!(
-                    "the object's section is not convex: its normal turns back at sample {}",
-                    e.3
-                );
+                return Err(SurfaceError::NotConvex(e.3));
             }
             angle.push(a);
             radius.push(e.1);
@@ -182,10 +202,7 @@ impl Surface {
         }
         let turn = normal[n - 1] - normal[0] + wrap(normal[0] - normal[n - 1]);
         if (turn - std::f64::consts::TAU).abs() > 1e-6 {
-            bail!(
-                "the object's section is not one convex loop about its centre (its normal turns {:.1} degrees)",
-                turn.to_degrees()
-            );
+            return Err(SurfaceError::NotOneLoop(turn.to_degrees()));
         }
         let point = angle
             .iter()
@@ -507,7 +524,7 @@ mod tests {
         // matches the object's.
         let (o, s) = ellipse();
         let r_f = 0.025;
-        let finger = icrflow_plan::paper::hand().fingers[0].clone();
+        let finger = crate::paper::hand().fingers[0].clone();
         let finger = Finger {
             tip_radius: r_f,
             ..finger

@@ -3,7 +3,7 @@
 //! node.
 //!
 //! ```sh
-//! cargo bench -p icrflow-nodes --bench hop [-- --seconds N]
+//! cargo bench -p icrflow-runtime --bench hop [-- --seconds N]
 //! ```
 //!
 //! The binary is the sender; for every cell of the table it starts itself again (hidden
@@ -48,8 +48,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
-use icrflow_nodes::bus::{Bus, BusConfig, Pub, Sub};
-use icrflow_nodes::runtime::Waiter;
+use icrflow_runtime::bus::{Bus, BusConfig, Pub, Sub};
+use icrflow_runtime::event::Waiter;
 use nix::time::{ClockId, clock_gettime};
 
 /// The message: a send time and a tag in its first bytes, zeros after.
@@ -115,13 +115,17 @@ fn sender_main(args: &[String]) -> Result<()> {
     std::fs::create_dir_all(&cfg.root)
         .with_context(|| format!("creating {}", cfg.root.display()))?;
     let result = run_cells(&cfg, measure);
-    let cleaned = remove_run_files(&cfg);
-    result.and(cleaned)
+    cfg.remove_files();
+    let left = cfg.leftovers();
+    if result.is_ok() && !left.is_empty() {
+        bail!("the run's iceoryx2 files could not all be removed: {left:?}");
+    }
+    result
 }
 
 /// `--seconds N` (measured time per cell); `--bench` is cargo's.
 fn parse_seconds(args: &[String]) -> Result<Duration> {
-    const USAGE: &str = "usage: cargo bench -p icrflow-nodes --bench hop [-- --seconds N]";
+    const USAGE: &str = "usage: cargo bench -p icrflow-runtime --bench hop [-- --seconds N]";
     let mut seconds = None;
     let mut bench = false;
     let mut it = args.iter();
@@ -184,20 +188,6 @@ fn load_average() -> String {
         |e| format!("unknown ({e})"),
         |s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "),
     )
-}
-
-/// Removes the run's iceoryx2 files: its shared-memory objects and its root directory.
-fn remove_run_files(cfg: &BusConfig) -> Result<()> {
-    for entry in std::fs::read_dir("/dev/shm").context("listing /dev/shm")? {
-        let path = entry.context("listing /dev/shm")?.path();
-        let ours = path
-            .file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with(&cfg.prefix));
-        if ours {
-            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
-        }
-    }
-    std::fs::remove_dir_all(&cfg.root).with_context(|| format!("removing {}", cfg.root.display()))
 }
 
 /// One cell's samples in nanoseconds and the number of measured messages sent: starts the
@@ -596,7 +586,7 @@ fn with_bus_link<T>(
     waitset: bool,
     body: impl FnOnce(&mut dyn Link) -> Result<T>,
 ) -> Result<T> {
-    let subscriber = bus.subscriber::<Payload>(inc)?;
+    let subscriber = bus.subscriber_named(inc)?;
     let set = WaitSetBuilder::new().create::<ipc::Service>()?;
     let _attachment = if waitset {
         Some(set.attach_notification(subscriber.listener())?)
@@ -604,7 +594,7 @@ fn with_bus_link<T>(
         None
     };
     body(&mut BusLink {
-        publisher: bus.publisher(out)?,
+        publisher: bus.publisher_named(out)?,
         subscriber: &subscriber,
         sleep: if waitset {
             Sleep::WaitSet(&set)
