@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The pipeline's latency benchmark (issue #4), in one run on this machine:
-#  1. one hop between two processes, every way of waking (nodes/benches/hop.rs);
+#  1. one hop between two processes, every way of waking (runtime/benches/hop.rs);
 #  2. the pipeline for 65 s (`run --live`, stopped by SIGINT): the paper scenario turned three
 #     times (~35-50 s), then holding its last step; measurement-to-command latency end to end
 #     and per stage, the plan-step stream, each node's memory; meanwhile 30 s of the Zenoh
@@ -16,7 +16,7 @@ scripts/setup.sh
 cargo build --release --workspace
 echo "== load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "== one hop between two processes (512 bytes)"
-cargo bench -p icrflow-nodes --bench hop -- --seconds "${1:-3}"
+cargo bench -p icrflow-runtime --bench hop -- --seconds "${1:-3}"
 summary="$CARGO_TARGET_DIR/bench-pipeline.json"
 echo "== the pipeline: config/paper_sphere_3turns.toml"
 timeout --preserve-status -s INT 65 "$CARGO_TARGET_DIR/release/icrflow" run --live config/paper_sphere_3turns.toml \
