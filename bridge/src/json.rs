@@ -50,6 +50,7 @@ impl Envelope {
 /// `joint_state`: the encoders.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointStateJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
     /// Each finger's joint angles.
@@ -59,13 +60,16 @@ pub struct JointStateJson {
 /// One finger's joint angles.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FingerJoints {
+    /// Finger id.
     pub finger: u32,
+    /// Joint angles (rad), base first.
     pub joints: Vec<f64>,
 }
 
 /// `grasp_state`: the estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GraspStateJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
     /// Object rotation about the vertical axis since the start (unwrapped).
@@ -88,22 +92,27 @@ pub struct GraspStateJson {
 /// One finger's estimated contact.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ContactJson {
+    /// Finger id.
     pub finger: u32,
+    /// Whether the fingertip touches the object.
     pub in_contact: bool,
     /// Candidate index of the contact point (meaningful when in contact).
     pub candidate: u32,
     /// Body-frame contact point and outward normal.
     pub point: [f64; 3],
+    /// Body-frame outward normal at the contact point.
     pub normal: [f64; 3],
 }
 
 /// `wrench_space`: the grasp's wrench space (its hull facets are not sent).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WrenchSpaceJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
     /// The grasp state it was computed from.
     pub grasp_sequence: u64,
+    /// Whether the grasp is force closure.
     pub force_closure: bool,
     /// Quality alpha* (0 unless force closure).
     pub quality: f64,
@@ -120,6 +129,7 @@ pub struct WrenchSpaceJson {
 /// `plan_step`: the planner's current target.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PlanStepJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
     /// `start`, `rolling`, `attach`, `detach` or `done`.
@@ -128,6 +138,7 @@ pub struct PlanStepJson {
     pub step: u64,
     /// Target object rotation.
     pub rotation: f64,
+    /// The same in degrees.
     pub rotation_deg: f64,
     /// Quality alpha* of the planned grasp.
     pub quality: f64,
@@ -141,17 +152,24 @@ pub struct PlanStepJson {
 /// The rendezvous region of an attach step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RendezvousJson {
+    /// The finger that attaches.
     pub finger: u32,
+    /// Candidates in its rendezvous region.
     pub size: u32,
 }
 
 /// One finger's target in a plan step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TargetJson {
+    /// Finger id.
     pub finger: u32,
+    /// Whether the finger is in contact in this step.
     pub in_contact: bool,
+    /// Candidate index of its contact point (meaningful when in contact).
     pub candidate: u32,
+    /// Body-frame contact point.
     pub point: [f64; 3],
+    /// Joint targets (rad), base first.
     pub joints: Vec<f64>,
     /// Candidates in this finger's ICR.
     pub icr_size: u32,
@@ -160,6 +178,7 @@ pub struct TargetJson {
 /// `hand_command`: what the hand is told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HandCommandJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
     /// `track` or `hold`.
@@ -177,21 +196,29 @@ pub struct HandCommandJson {
 /// One finger's command.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FingerCommandJson {
+    /// Finger id.
     pub finger: u32,
+    /// Joint targets (rad), base first.
     pub joints: Vec<f64>,
+    /// Fingertip force target (N, hand frame).
     pub force: [f64; 3],
 }
 
 /// `node_health`: a node's periodic report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NodeHealthJson {
+    /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
+    /// The node's name.
     pub node: String,
     /// `starting`, `running`, `degraded` or `stopping`.
     pub state: String,
+    /// Its process id.
     pub pid: u32,
+    /// Messages it has processed.
     pub processed: u64,
+    /// Messages it has refused.
     pub refused: u64,
     /// The last problem (empty if none).
     pub message: String,
@@ -356,7 +383,10 @@ pub enum Refused {
     Malformed(String),
     /// Another [`SCHEMA`].
     #[error("monitoring schema {got}, expected {SCHEMA}")]
-    Schema { got: u32 },
+    Schema {
+        /// The schema the object carries.
+        got: u32,
+    },
 }
 
 /// The envelope of a monitoring object, checked: JSON with the envelope's fields and this

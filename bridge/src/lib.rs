@@ -20,6 +20,8 @@
 //! Zenoh on the monitoring keys; whatever remote message reaches it there (read-only off) is
 //! checked ([`json::envelope`]), logged with the reason, counted as refused, and dropped.
 
+#![warn(missing_docs)]
+
 pub mod json;
 pub mod link;
 

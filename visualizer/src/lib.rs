@@ -14,6 +14,8 @@
 //! ([`icrflow_scenario::ENV_RECORDING`], [`icrflow_scenario::ENV_RECORDING_ID`]): an `.rrd`
 //! file (the default), a viewer it spawns, or a viewer at a URL.
 
+#![warn(missing_docs)]
+
 pub mod geometry;
 pub mod plan;
 pub mod record;
@@ -25,11 +27,11 @@ use std::sync::mpsc::{TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, anyhow, bail};
-use iceoryx2::prelude::*;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
     CommandMode, GraspState, JointState, PlanStepHeader, TRACE_STAMPS, topics,
 };
+use icrflow_runtime::event::serve;
 use icrflow_runtime::health::Health;
 use icrflow_runtime::node::Context;
 use icrflow_scenario::Loaded;
@@ -186,9 +188,6 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     // The subscribers are read every RESYNC (10 ms), more often than frames are made, so that
     // no hand command is lost to a full subscriber queue (32 at 1 kHz) between two frames:
     // the quality series' minimum is the run's.
-    let ws = WaitSetBuilder::new().create::<ipc::Service>()?;
-    let _tick = ws.attach_interval(period.min(icrflow_runtime::event::RESYNC))?;
-    let mut failure = None;
     // Hands a frame to the recording thread, or drops and counts it; false when that thread
     // has ended.
     let send = |frame: Frame, health: &mut Health, dropped: &mut u64| match tx.try_send(frame) {
@@ -203,74 +202,65 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
         }
         Err(TrySendError::Disconnected(_)) => false,
     };
-    let mut on_event = |_| {
-        let mut step = || -> Result<()> {
-            check_opened()?;
-            let t = started.elapsed().as_secs_f64();
-            if let Some(g) = grasps.latest()? {
-                state.grasp = Some(g);
+    // Until SIGTERM or SIGINT (another signal, SIGCONT or SIGWINCH, only interrupts the wait),
+    // or a failure: every tick reads every input (see `icrflow_runtime::event::serve`).
+    let tick = period.min(icrflow_runtime::event::RESYNC);
+    let served = serve(ctx, &[], Some(tick), |_| {
+        check_opened()?;
+        let t = started.elapsed().as_secs_f64();
+        if let Some(g) = grasps.latest()? {
+            state.grasp = Some(g);
+        }
+        if let Some(j) = joints.latest()? {
+            state.joints = Some(j);
+        }
+        commands.drain(|c| {
+            if c.mode != CommandMode::Track as u32 {
+                return;
             }
-            if let Some(j) = joints.latest()? {
-                state.joints = Some(j);
-            }
-            commands.drain(|c| {
-                if c.mode != CommandMode::Track as u32 {
-                    return;
-                }
-                state.quality = Some(state.quality.map_or(c.quality, |q| q.min(c.quality)));
-                let s = c.header.trace.as_slice();
-                if s.len() == TRACE_STAMPS {
-                    let us = |a: u64, b: u64| b.saturating_sub(a) as f64 * 1e-3;
-                    let l = [
-                        us(s[0], s[6]),
-                        us(s[0], s[1]),
-                        us(s[2], s[3]),
-                        us(s[4], s[5]),
-                        us(s[1], s[2]),
-                        us(s[3], s[4]),
-                        us(s[5], s[6]),
-                    ];
-                    let m = state.latency.get_or_insert(l);
-                    for (a, b) in m.iter_mut().zip(l) {
-                        *a = a.max(b);
-                    }
-                }
-            })?;
-            let mut steps = Vec::new();
-            plans.drain(|h, regions| {
-                if state.step.is_none_or(|s| h.step > s) {
-                    state.step = Some(h.step);
-                    steps.push(live_step_frame(t, h, regions, problem));
-                }
-            })?;
-            for f in steps {
-                if !send(f, &mut health, &mut dropped) {
-                    bail!("the recording thread ended");
+            state.quality = Some(state.quality.map_or(c.quality, |q| q.min(c.quality)));
+            let s = c.header.trace.as_slice();
+            if s.len() == TRACE_STAMPS {
+                let us = |a: u64, b: u64| b.saturating_sub(a) as f64 * 1e-3;
+                let l = [
+                    us(s[0], s[6]),
+                    us(s[0], s[1]),
+                    us(s[2], s[3]),
+                    us(s[4], s[5]),
+                    us(s[1], s[2]),
+                    us(s[3], s[4]),
+                    us(s[5], s[6]),
+                ];
+                let m = state.latency.get_or_insert(l);
+                for (a, b) in m.iter_mut().zip(l) {
+                    *a = a.max(b);
                 }
             }
-            let now = Instant::now();
-            if now >= next_frame
-                && let Some(frame) = state.frame(t, ctx, &com, dropped)
-            {
-                next_frame = (next_frame + period).max(now);
-                if !send(frame, &mut health, &mut dropped) {
-                    bail!("the recording thread ended");
-                }
+        })?;
+        let mut steps = Vec::new();
+        plans.drain(|h, regions| {
+            if state.step.is_none_or(|s| h.step > s) {
+                state.step = Some(h.step);
+                steps.push(live_step_frame(t, h, regions, problem));
             }
-            health.tick()?;
-            Ok(())
-        };
-        match step() {
-            Ok(()) => CallbackProgression::Continue,
-            Err(e) => {
-                failure = Some(e);
-                CallbackProgression::Stop
+        })?;
+        for f in steps {
+            if !send(f, &mut health, &mut dropped) {
+                bail!("the recording thread ended");
             }
         }
-    };
-    // Until SIGTERM or SIGINT: another signal (SIGCONT, SIGWINCH, ...) only interrupts the wait.
-    while let iceoryx2::waitset::WaitSetRunResult::Interrupt = ws.wait_and_process(&mut on_event)? {
-    }
+        let now = Instant::now();
+        if now >= next_frame
+            && let Some(frame) = state.frame(t, ctx, &com, dropped)
+        {
+            next_frame = (next_frame + period).max(now);
+            if !send(frame, &mut health, &mut dropped) {
+                bail!("the recording thread ended");
+            }
+        }
+        health.tick()?;
+        Ok(())
+    });
     // Stopped: what came since the last frame goes in a last one; the rest of the queue is
     // written, and the file closed.
     if state.quality.is_some()
@@ -284,7 +274,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
         .map_err(|_| anyhow!("the recording thread panicked"))??;
     health.report(icrflow_interfaces::NodeState::Stopping)?;
     eprintln!("icrflow-visualizer: {logged} frames recorded, {dropped} dropped");
-    failure.map_or(Ok(()), Err)
+    served
 }
 
 /// A plan step's frame from the plan-step message: its payload holds each finger's region,
