@@ -22,6 +22,7 @@
 
 #![warn(missing_docs)]
 
+mod carried;
 pub mod json;
 pub mod link;
 
@@ -29,10 +30,8 @@ pub mod link;
 pub use zenoh;
 
 use anyhow::{Context as _, Result, anyhow};
-use icrflow_interfaces::{
-    Facet, GraspState, HandCommand, JointState, NodeHealth, PlanStepHeader, WrenchSpaceHeader,
-    topics::{self, TopicId},
-};
+use icrflow_interfaces::topics::{self, SliceTopic, Topic, TopicId};
+use icrflow_runtime::bus::{SliceSub, Sub};
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::Health;
 use icrflow_runtime::node::Context;
@@ -41,6 +40,8 @@ use icrflow_scenario::ZenohSpec;
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
+
+use crate::carried::{Sliced, Visit, Whole};
 
 /// The access control of a read-only pipeline session on rig `rig`: every remote peer may
 /// declare a subscriber on any key expression and receives what the session publishes on the
@@ -188,14 +189,58 @@ pub fn open(config: zenoh::Config, what: &str) -> Result<zenoh::Session> {
         .map_err(|e| anyhow!("cannot open the Zenoh session ({what}): {e}"))
 }
 
-/// One monitored topic: its local subscriber and its Zenoh publisher.
-enum Forward {
-    Joints(icrflow_runtime::bus::Sub<JointState>),
-    Grasp(icrflow_runtime::bus::Sub<GraspState>),
-    Wrench(icrflow_runtime::bus::SliceSub<WrenchSpaceHeader, Facet>),
-    Plan(icrflow_runtime::bus::SliceSub<PlanStepHeader, u32>),
-    Command(icrflow_runtime::bus::Sub<HandCommand>),
-    Health(icrflow_runtime::bus::Sub<NodeHealth>),
+/// A monitored topic's local subscriber: its messages drained as monitoring JSON.
+trait Monitored {
+    /// Hands every queued message's JSON (written into the reused `text`), or why it has
+    /// none, to `put`; returns how many.
+    fn drain(
+        &self,
+        rig: &str,
+        text: &mut Vec<u8>,
+        put: &mut dyn FnMut(Result<&[u8]>),
+    ) -> Result<usize>;
+}
+
+impl<M: Whole> Monitored for Sub<M> {
+    fn drain(
+        &self,
+        rig: &str,
+        text: &mut Vec<u8>,
+        put: &mut dyn FnMut(Result<&[u8]>),
+    ) -> Result<usize> {
+        Ok(Sub::drain(self, |m| {
+            put(m.write_json(rig, text).map(|()| text.as_slice()))
+        })?)
+    }
+}
+
+impl<H: Sliced> Monitored for SliceSub<H, H::Item> {
+    fn drain(
+        &self,
+        rig: &str,
+        text: &mut Vec<u8>,
+        put: &mut dyn FnMut(Result<&[u8]>),
+    ) -> Result<usize> {
+        Ok(SliceSub::drain(self, |h, items| {
+            put(h.write_json(items, rig, text).map(|()| text.as_slice()))
+        })?)
+    }
+}
+
+/// Opens a monitored topic's subscriber on a bus.
+struct OpenMonitored<'a>(&'a icrflow_runtime::bus::Bus);
+
+impl Visit for OpenMonitored<'_> {
+    type Out = Result<Box<dyn Monitored>>;
+    fn whole<M: Whole>(self, topic: Topic<M>) -> Self::Out {
+        if !M::MONITORED {
+            anyhow::bail!("zenoh.monitor: topic {:?} is not monitored", topic.name());
+        }
+        Ok(Box::new(self.0.subscriber(topic)?))
+    }
+    fn sliced<H: Sliced>(self, topic: SliceTopic<H, H::Item>) -> Self::Out {
+        Ok(Box::new(self.0.slice_subscriber(topic)?))
+    }
 }
 
 /// Runs the bridge node.
@@ -230,18 +275,9 @@ pub fn run(ctx: &Context<Config>) -> Result<()> {
     }
     let mut forwards = Vec::with_capacity(z.monitor.len());
     for topic in &z.monitor {
-        let bus = &ctx.bus;
-        let forward = match TopicId::from_name(topic) {
-            Some(TopicId::JointState) => Forward::Joints(bus.subscriber(topics::JOINT_STATE)?),
-            Some(TopicId::GraspState) => Forward::Grasp(bus.subscriber(topics::GRASP_STATE)?),
-            Some(TopicId::WrenchSpace) => {
-                Forward::Wrench(bus.slice_subscriber(topics::WRENCH_SPACE)?)
-            }
-            Some(TopicId::PlanStep) => Forward::Plan(bus.slice_subscriber(topics::PLAN_STEP)?),
-            Some(TopicId::HandCommand) => Forward::Command(bus.subscriber(topics::HAND_COMMAND)?),
-            Some(TopicId::NodeHealth) => Forward::Health(bus.subscriber(topics::NODE_HEALTH)?),
-            _ => anyhow::bail!("zenoh.monitor: no such topic {topic:?}"),
-        };
+        let forward = TopicId::from_name(topic)
+            .and_then(|id| carried::visit(id, OpenMonitored(&ctx.bus)))
+            .ok_or_else(|| anyhow!("zenoh.monitor: no such topic {topic:?}"))??;
         let publisher = session
             .declare_publisher(topics::service(rig, topic))
             .congestion_control(CongestionControl::Drop)
@@ -304,30 +340,14 @@ pub fn run(ctx: &Context<Config>) -> Result<()> {
                     failed.get_or_insert(e);
                 }
             };
-            let n = match forward {
-                Forward::Joints(s) => {
-                    s.drain(|m| keep(put(publisher, &mut text, &json::joint_state(rig, m))))?
-                }
-                Forward::Grasp(s) => {
-                    s.drain(|m| keep(put(publisher, &mut text, &json::grasp_state(rig, m))))?
-                }
-                Forward::Wrench(s) => s.drain(|h, facets| {
-                    keep(put(
-                        publisher,
-                        &mut text,
-                        &json::wrench_space(rig, h, facets.len()),
-                    ))
-                })?,
-                Forward::Plan(s) => {
-                    s.drain(|h, _| keep(put(publisher, &mut text, &json::plan_step(rig, h))))?
-                }
-                Forward::Command(s) => {
-                    s.drain(|m| keep(put(publisher, &mut text, &json::hand_command(rig, m))))?
-                }
-                Forward::Health(s) => {
-                    s.drain(|m| keep(put(publisher, &mut text, &json::node_health(rig, m))))?
-                }
-            };
+            let n = forward.drain(rig, &mut text, &mut |json| {
+                keep(json.and_then(|bytes| {
+                    publisher
+                        .put(bytes)
+                        .wait()
+                        .map_err(|e| anyhow!("zenoh put: {e}"))
+                }))
+            })?;
             health.processed += n as u64;
             if let Some(e) = failed {
                 // A put that fails (the session closing) is counted, never fatal: monitoring
@@ -340,18 +360,4 @@ pub fn run(ctx: &Context<Config>) -> Result<()> {
     .context("bridge loop");
     let stopped = importer.map_or(Ok(()), link::Importer::stop);
     stopped.and(served)
-}
-
-/// Publishes `value` as JSON, written into the reused buffer `text`.
-fn put(
-    publisher: &zenoh::pubsub::Publisher<'_>,
-    text: &mut Vec<u8>,
-    value: &impl serde::Serialize,
-) -> Result<()> {
-    text.clear();
-    serde_json::to_writer(&mut *text, value)?;
-    publisher
-        .put(text.as_slice())
-        .wait()
-        .map_err(|e| anyhow!("zenoh put: {e}"))
 }

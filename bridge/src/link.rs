@@ -18,44 +18,77 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use anyhow::{Result, anyhow};
-use icrflow_interfaces::topics::{self, TopicId};
-use icrflow_interfaces::{
-    Facet, GraspState, HandCommand, JointState, MAX_FACETS, MAX_REGION_POINTS, Message, ObjectPose,
-    PlanStepHeader, WrenchSpaceHeader, wire,
-};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::prelude::ipc;
+use icrflow_interfaces::topics::{self, SliceTopic, Topic, TopicId};
+use icrflow_interfaces::wire;
 use icrflow_runtime::bus::{Bus, BusConfig, Pub, SlicePub, SliceSub, Sub};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 
-/// A loop topic's local subscriber, for export.
-enum Source {
-    Joints(Sub<JointState>),
-    Pose(Sub<ObjectPose>),
-    Grasp(Sub<GraspState>),
-    Wrench(SliceSub<WrenchSpaceHeader, Facet>),
-    Plan(SliceSub<PlanStepHeader, u32>),
-    Command(Sub<HandCommand>),
+use crate::carried::{self, Sliced, Visit, Whole};
+
+/// A loop topic's local subscriber, for export: its messages drained as wire bytes.
+trait Source {
+    /// The listener that wakes the bridge when the topic is published.
+    fn listener(&self) -> &Listener<ipc::Service>;
+    /// Hands every queued message, as bytes written into the reused `buf`, to `put`;
+    /// returns how many.
+    fn drain(&self, buf: &mut Vec<u8>, put: &mut dyn FnMut(&[u8])) -> Result<usize>;
+}
+
+impl<M: Whole> Source for Sub<M> {
+    fn listener(&self) -> &Listener<ipc::Service> {
+        Sub::listener(self)
+    }
+
+    fn drain(&self, buf: &mut Vec<u8>, put: &mut dyn FnMut(&[u8])) -> Result<usize> {
+        let none: &[u8] = &[];
+        Ok(Sub::drain(self, |m| {
+            wire::encode(m, none, buf);
+            put(buf)
+        })?)
+    }
+}
+
+impl<H: Sliced> Source for SliceSub<H, H::Item> {
+    fn listener(&self) -> &Listener<ipc::Service> {
+        SliceSub::listener(self)
+    }
+
+    fn drain(&self, buf: &mut Vec<u8>, put: &mut dyn FnMut(&[u8])) -> Result<usize> {
+        Ok(SliceSub::drain(self, |h, items| {
+            wire::encode(h, items, buf);
+            put(buf)
+        })?)
+    }
+}
+
+/// Opens a topic's [`Source`] on a bus.
+struct OpenSource<'a>(&'a Bus);
+
+impl Visit for OpenSource<'_> {
+    type Out = Result<Box<dyn Source>>;
+    fn whole<M: Whole>(self, topic: Topic<M>) -> Self::Out {
+        Ok(Box::new(self.0.subscriber(topic)?))
+    }
+    fn sliced<H: Sliced>(self, topic: SliceTopic<H, H::Item>) -> Self::Out {
+        Ok(Box::new(self.0.slice_subscriber(topic)?))
+    }
 }
 
 /// A topic published here and read on another host: its local subscriber and Zenoh publisher.
 pub struct Export {
-    source: Source,
+    source: Box<dyn Source>,
     publisher: zenoh::pubsub::Publisher<'static>,
 }
 
 impl Export {
     /// The export of `topic` (a loop topic) from `bus` through `session`.
     pub fn new(bus: &Bus, session: &zenoh::Session, topic: TopicId) -> Result<Self> {
-        let source = match topic {
-            TopicId::JointState => Source::Joints(bus.subscriber(topics::JOINT_STATE)?),
-            TopicId::ObjectPose => Source::Pose(bus.subscriber(topics::OBJECT_POSE)?),
-            TopicId::GraspState => Source::Grasp(bus.subscriber(topics::GRASP_STATE)?),
-            TopicId::WrenchSpace => Source::Wrench(bus.slice_subscriber(topics::WRENCH_SPACE)?),
-            TopicId::PlanStep => Source::Plan(bus.slice_subscriber(topics::PLAN_STEP)?),
-            TopicId::HandCommand => Source::Command(bus.subscriber(topics::HAND_COMMAND)?),
-            other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
-        };
+        let source = carried::visit(topic, OpenSource(bus))
+            .ok_or_else(|| anyhow!("no loop topic {topic:?} to carry between hosts"))??;
         let key = topics::link(&bus.config().rig, topic);
         let publisher = session
             .declare_publisher(key.clone())
@@ -68,15 +101,8 @@ impl Export {
     }
 
     /// The listener that wakes the bridge when the topic is published.
-    pub fn listener(&self) -> &iceoryx2::port::listener::Listener<iceoryx2::prelude::ipc::Service> {
-        match &self.source {
-            Source::Joints(s) => s.listener(),
-            Source::Pose(s) => s.listener(),
-            Source::Grasp(s) => s.listener(),
-            Source::Wrench(s) => s.listener(),
-            Source::Plan(s) => s.listener(),
-            Source::Command(s) => s.listener(),
-        }
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        self.source.listener()
     }
 
     /// Puts every queued message on Zenoh (bytes written into the reused `buf`); returns how
@@ -89,105 +115,63 @@ impl Export {
                 failed.get_or_insert_with(|| anyhow!("zenoh put on {}: {e}", publisher.key_expr()));
             }
         };
-        let none: &[u8] = &[];
-        let n = match &self.source {
-            Source::Joints(s) => s.drain(|m| {
-                wire::encode(m, none, buf);
-                put(buf)
-            })?,
-            Source::Pose(s) => s.drain(|m| {
-                wire::encode(m, none, buf);
-                put(buf)
-            })?,
-            Source::Grasp(s) => s.drain(|m| {
-                wire::encode(m, none, buf);
-                put(buf)
-            })?,
-            Source::Wrench(s) => s.drain(|h, facets| {
-                wire::encode(h, facets, buf);
-                put(buf)
-            })?,
-            Source::Plan(s) => s.drain(|h, regions| {
-                wire::encode(h, regions, buf);
-                put(buf)
-            })?,
-            Source::Command(s) => s.drain(|m| {
-                wire::encode(m, none, buf);
-                put(buf)
-            })?,
-        };
+        let n = self.source.drain(buf, &mut put)?;
         failed.map_or(Ok(n), Err)
     }
 }
 
-/// A loop topic's local publisher, for import.
-enum Sink {
-    Joints(Pub<JointState>),
-    Pose(Pub<ObjectPose>),
-    Grasp(Pub<GraspState>),
-    Wrench(SlicePub<WrenchSpaceHeader, Facet>, Vec<Facet>),
-    Plan(SlicePub<PlanStepHeader, u32>, Vec<u32>),
-    Command(Pub<HandCommand>),
+/// A loop topic's local publisher, for import: publishes what the bytes hold, checked.
+trait Sink {
+    /// Checks `bytes` and publishes the message they hold, unchanged.
+    fn import(&mut self, bytes: &[u8]) -> Result<()>;
 }
 
-impl Sink {
-    fn new(bus: &Bus, topic: TopicId) -> Result<Self> {
-        Ok(match topic {
-            TopicId::JointState => Self::Joints(bus.publisher(topics::JOINT_STATE)?),
-            TopicId::ObjectPose => Self::Pose(bus.publisher(topics::OBJECT_POSE)?),
-            TopicId::GraspState => Self::Grasp(bus.publisher(topics::GRASP_STATE)?),
-            TopicId::WrenchSpace => Self::Wrench(
-                bus.slice_publisher(topics::WRENCH_SPACE)?,
-                Vec::with_capacity(MAX_FACETS),
-            ),
-            TopicId::PlanStep => Self::Plan(
-                bus.slice_publisher(topics::PLAN_STEP)?,
-                Vec::with_capacity(MAX_REGION_POINTS),
-            ),
-            TopicId::HandCommand => Self::Command(bus.publisher(topics::HAND_COMMAND)?),
-            other => anyhow::bail!("no loop topic {other:?} to carry between hosts"),
-        })
+impl<M: Whole> Sink for Pub<M> {
+    fn import(&mut self, bytes: &[u8]) -> Result<()> {
+        let m: M = wire::decode(bytes, 0, &mut Vec::<u8>::new())?;
+        m.header().check(M::KIND)?;
+        self.send(m)?;
+        Ok(())
     }
+}
 
-    /// Checks `bytes` and publishes the message they hold, unchanged.
-    fn publish(&mut self, bytes: &[u8]) -> Result<()> {
-        fn one<M>(p: &Pub<M>, bytes: &[u8]) -> Result<()>
-        where
-            M: Message + zerocopy::FromBytes + iceoryx2::prelude::ZeroCopySend + std::fmt::Debug,
-        {
-            let m: M = wire::decode(bytes, 0, &mut Vec::<u8>::new())?;
-            m.header().check(M::KIND)?;
-            p.send(m)?;
-            Ok(())
-        }
-        fn sliced<H, T>(
-            p: &SlicePub<H, T>,
-            items: &mut Vec<T>,
-            max: usize,
-            bytes: &[u8],
-        ) -> Result<()>
-        where
-            H: Message
-                + zerocopy::FromBytes
-                + iceoryx2::prelude::ZeroCopySend
-                + std::fmt::Debug
-                + Default,
-            T: zerocopy::FromBytes + iceoryx2::prelude::ZeroCopySend + std::fmt::Debug + Copy,
-        {
-            let h: H = wire::decode(bytes, max, items)?;
-            h.header().check(H::KIND)?;
-            p.send(h, items)?;
-            Ok(())
-        }
-        match self {
-            Self::Joints(p) => one(p, bytes),
-            Self::Pose(p) => one(p, bytes),
-            Self::Grasp(p) => one(p, bytes),
-            Self::Wrench(p, items) => sliced(p, items, MAX_FACETS, bytes),
-            Self::Plan(p, items) => sliced(p, items, MAX_REGION_POINTS, bytes),
-            Self::Command(p) => one(p, bytes),
-        }
+/// A sliced topic's publisher with the buffer its items are decoded into.
+struct SliceSink<H: Sliced> {
+    publisher: SlicePub<H, H::Item>,
+    items: Vec<H::Item>,
+    max: usize,
+}
+
+impl<H: Sliced> Sink for SliceSink<H> {
+    fn import(&mut self, bytes: &[u8]) -> Result<()> {
+        let h: H = wire::decode(bytes, self.max, &mut self.items)?;
+        h.header().check(H::KIND)?;
+        self.publisher.send(h, &self.items)?;
+        Ok(())
     }
+}
+
+/// Opens a topic's [`Sink`] on a bus.
+struct OpenSink<'a>(&'a Bus);
+
+impl Visit for OpenSink<'_> {
+    type Out = Result<Box<dyn Sink>>;
+    fn whole<M: Whole>(self, topic: Topic<M>) -> Self::Out {
+        Ok(Box::new(self.0.publisher(topic)?))
+    }
+    fn sliced<H: Sliced>(self, topic: SliceTopic<H, H::Item>) -> Self::Out {
+        Ok(Box::new(SliceSink::<H> {
+            publisher: self.0.slice_publisher(topic)?,
+            items: Vec::with_capacity(topic.max_len),
+            max: topic.max_len,
+        }))
+    }
+}
+
+/// The sink of `topic` on `bus`.
+fn sink(bus: &Bus, topic: TopicId) -> Result<Box<dyn Sink>> {
+    carried::visit(topic, OpenSink(bus))
+        .ok_or_else(|| anyhow!("no loop topic {topic:?} to carry between hosts"))?
 }
 
 /// How long the import thread waits for a message before it checks whether to stop.
@@ -232,7 +216,7 @@ impl Importer {
                     let bus = Bus::new("bridge-link", &config)?;
                     let mut sinks = Vec::new();
                     for &t in &imports {
-                        sinks.push((topics::link(&rig, t), Sink::new(&bus, t)?));
+                        sinks.push((topics::link(&rig, t), sink(&bus, t)?));
                     }
                     Ok((bus, sinks))
                 };
@@ -255,7 +239,7 @@ impl Importer {
                     };
                     let key = sample.key_expr().as_str();
                     let result = match sinks.iter_mut().find(|(k, _)| k == key) {
-                        Some((_, sink)) => sink.publish(&sample.payload().to_bytes()),
+                        Some((_, sink)) => sink.import(&sample.payload().to_bytes()),
                         None => Err(anyhow!("this host does not take that topic from others")),
                     };
                     match result {

@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
-use icrflow_interfaces::{Header, JointState, Kind, SCHEMA_VERSION, topics};
+use icrflow_interfaces::{HandCommand, Header, JointState, Kind, SCHEMA_VERSION, topics};
 use std::path::PathBuf;
 
 use icrflow_runtime::bus::{Bus, BusConfig, BusError};
@@ -53,7 +53,7 @@ fn a_mismatched_message_type_is_refused_by_name() {
         let a = Bus::new("sender", &c).unwrap();
         let _p = a.publisher(topics::JOINT_STATE).unwrap();
         let b = Bus::new("wrong", &c).unwrap();
-        let e = match b.subscriber(topics::JOINT_STATE) {
+        let e = match b.subscriber_named::<HandCommand>(topics::JOINT_STATE.name()) {
             Err(e) => e,
             Ok(_) => panic!("a HandCommand subscriber connected to the joint-state topic"),
         };
