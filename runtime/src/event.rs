@@ -30,7 +30,9 @@ pub const RESYNC: Duration = Duration::from_millis(10);
 /// are quiet again): iceoryx2 0.10's listener can lose a wake-up for good when a notifier
 /// sends while the listener is draining (the datagram is consumed, the shared state stays
 /// "notified", and later notifiers skip sending; see [`crate::bus`]). So the loop also wakes
-/// every [`RESYNC`], which bounds such a stall to that period.
+/// when [`RESYNC`] has passed since its last wake-up, which bounds such a stall to that
+/// period; a loop that ticks more often (the plant) wakes for its ticks only. A termination
+/// signal that came while `handle` ran is seen within [`RESYNC`].
 pub fn serve<S>(
     ctx: &Context<S>,
     listeners: &[&Listener<ipc::Service>],
@@ -50,6 +52,7 @@ pub fn serve<S>(
     let start = Instant::now();
     let mut next_tick = tick.map(|t| start + t);
     let mut next_resync = start + RESYNC;
+    let mut next_check = next_resync;
     loop {
         let deadline = next_tick.map_or(next_resync, |t| t.min(next_resync));
         let woken = waiter
@@ -60,8 +63,8 @@ pub fn serve<S>(
             return Ok(());
         }
         let now = Instant::now();
-        if now >= next_resync {
-            next_resync = now + RESYNC;
+        if now >= next_check {
+            next_check = now + RESYNC;
             // A termination request that came while `handle` ran is seen here at the latest.
             if terminated() {
                 return Ok(());
@@ -76,6 +79,9 @@ pub fn serve<S>(
             }
             _ => false,
         };
+        // Every wake-up reads every input, so the resync is due RESYNC after the last one: a
+        // loop that ticks more often than that (the plant at 1 kHz) never wakes for it.
+        next_resync = now + RESYNC;
         handle(ticked)?;
     }
 }
