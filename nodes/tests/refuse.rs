@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use icrflow_interfaces::{Header, JointState, Kind, SCHEMA_VERSION, read_text, topics};
+use icrflow_interfaces::{
+    HandCommand, Header, JointState, Kind, SCHEMA_VERSION, read_text, topics,
+};
 use icrflow_runtime::bus::{Bus, BusConfig};
 
 /// The paper scenario's config.
@@ -51,7 +53,9 @@ fn a_node_facing_a_topic_of_another_message_type_exits_naming_both() {
     let (code, err) = {
         // Another program made the joint-state topic with hand commands on it.
         let bus = Bus::new("intruder", &c).unwrap();
-        let _wrong = bus.publisher(topics::JOINT_STATE).unwrap();
+        let _wrong = bus
+            .publisher_named::<HandCommand>(topics::JOINT_STATE.name())
+            .unwrap();
         finish(estimator(&c))
     };
     assert_eq!(code, Some(1), "{err}");
