@@ -232,7 +232,8 @@ impl<'a> Plant<'a> {
             target: None,
             ticks: 0,
             last_tick: now_ns,
-            events: Vec::with_capacity(2 * n + 1),
+            // At most three a finger (inside, link through, contact) and the slip.
+            events: Vec::with_capacity(3 * n + 1),
         }
     }
 
