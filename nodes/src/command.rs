@@ -23,17 +23,22 @@
 //! the exact friction cones with the configured minimum normal force
 //! ([`icrflow_plan::forces::ForceSolver`], kept across commands so a new contact set costs no
 //! allocation; infeasible holds).
+//!
+//! [`Commander`] is the pure step (the inputs and the time in, the command to publish out);
+//! [`run`] is the node around it (the bus, the timer, health).
 
 use std::collections::VecDeque;
+use std::fmt::Write as _;
 use std::time::Duration;
 
 use anyhow::Result;
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
-    topics, write_text,
+    WrenchSpaceHeader, topics, write_text,
 };
-use icrflow_plan::forces::{ForceContact, ForceSolver, Load};
+use icrflow_plan::forces::{ForceContact, ForceError, ForceSolver, Load};
+use icrflow_scenario::{Config, Setup};
 
 use crate::Context;
 use crate::safety::{EstimateBounds, Gate, Hold};
@@ -45,40 +50,171 @@ pub const WATCHDOG_PERIODS: f64 = 3.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
+/// A command to publish ([`Commander::on_wrench`], [`Commander::on_tick`]), its sequence
+/// number still 0.
+#[derive(Debug, Clone, Copy)]
+pub struct Command<'s> {
+    /// The command: tracking, or holding the last tracking command.
+    pub command: HandCommand,
+    /// Why it holds (also in the command's `reason`); `None` when it tracks.
+    pub hold: Option<&'s str>,
+}
+
+/// The hand command step: the safety gate, the grasp states a wrench space may refer to, and
+/// the tracking; no I/O, no clock.
+pub struct Commander<'a> {
+    gate: Gate,
+    recent: VecDeque<GraspState>,
+    tracker: Tracker<'a>,
+    watchdog_ns: u64,
+    /// When the last command was made.
+    last_sent: u64,
+    /// Why the last hold holds (kept: no allocation once grown).
+    reason: String,
+}
+
+impl<'a> Commander<'a> {
+    /// The hand command step of `setup` under `config`'s pipeline settings, at time `now`
+    /// (ns; the watchdog counts from it until the first command).
+    pub fn new(config: &'a Config, setup: &'a Setup, now: u64) -> Self {
+        let p = &config.pipeline;
+        let bounds = EstimateBounds {
+            pose_innovation: p.max_pose_innovation,
+            contact_residual: p.max_contact_residual,
+        };
+        Self {
+            gate: Gate::new((p.max_input_age * 1e9) as u64, config.grasp.alpha, bounds),
+            recent: VecDeque::with_capacity(RECENT),
+            tracker: Tracker {
+                config,
+                setup,
+                contacts: Vec::with_capacity(MAX_FINGERS),
+                solver: ForceSolver::new(),
+                solved_for: None,
+                forces: Vec::with_capacity(MAX_FINGERS),
+                last: None,
+            },
+            watchdog_ns: (WATCHDOG_PERIODS * (1.0 / p.rate_hz) * 1e9) as u64,
+            last_sent: now,
+            reason: String::with_capacity(256),
+        }
+    }
+
+    /// The safety gate.
+    pub fn gate(&self) -> &Gate {
+        &self.gate
+    }
+
+    /// Offers plan step `m` to the gate at `now`; why it was refused, if it was.
+    pub fn on_plan(&mut self, m: &PlanStepHeader, now: u64) -> Result<(), Hold> {
+        self.gate.offer_plan(m, now)
+    }
+
+    /// Keeps grasp state `g` for the wrench spaces to come (the last [`RECENT`]).
+    pub fn on_grasp(&mut self, g: &GraspState) {
+        if self.recent.len() == RECENT {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(*g);
+    }
+
+    /// The answer to wrench space `w` at `now`: it and the grasp state it was computed from
+    /// are offered to the gate; if the gate then allows it, the command that tracks the plan
+    /// step; otherwise a hold, with the reason.
+    pub fn on_wrench(&mut self, w: &WrenchSpaceHeader, now: u64) -> Command<'_> {
+        self.reason.clear();
+        let behind = self
+            .recent
+            .iter()
+            .rev()
+            .find(|g| g.header.sequence == w.header.input_sequence);
+        let accepted = match behind {
+            None => {
+                let _ = write!(
+                    self.reason,
+                    "wrench space {}: its grasp state {} was not received",
+                    w.header.sequence, w.header.input_sequence
+                );
+                false
+            }
+            Some(g) => match self
+                .gate
+                .offer_grasp(g, now)
+                .and_then(|()| self.gate.offer_wrench(w, now))
+            {
+                Ok(()) => true,
+                Err(why) => {
+                    let _ = write!(self.reason, "{why}");
+                    false
+                }
+            },
+        };
+        if accepted {
+            let mut header = Header::after(Kind::HandCommand, 0, &w.header, now);
+            header.source_time_ns = now;
+            match self.gate.decide(now) {
+                Ok(plan) => match self.tracker.track(plan, &self.gate, header, now) {
+                    Ok(c) => {
+                        self.last_sent = now;
+                        return Command {
+                            command: c,
+                            hold: None,
+                        };
+                    }
+                    Err(e) => {
+                        let _ = write!(self.reason, "forces: {e}");
+                    }
+                },
+                Err(hold) => {
+                    let _ = write!(self.reason, "{hold}");
+                }
+            }
+        }
+        self.hold(now)
+    }
+
+    /// The watchdog, on the node's timer at `now`: a hold when no command has been made for
+    /// [`WATCHDOG_PERIODS`] periods (why the gate holds, or that no wrench space came).
+    pub fn on_tick(&mut self, now: u64) -> Option<Command<'_>> {
+        let quiet_ns = now.saturating_sub(self.last_sent);
+        if quiet_ns <= self.watchdog_ns {
+            return None;
+        }
+        let quiet = Hold::Quiet {
+            ms: quiet_ns as f64 * 1e-6,
+        };
+        let hold = self.gate.decide(now).err().unwrap_or(quiet);
+        self.reason.clear();
+        let _ = write!(self.reason, "{hold}");
+        Some(self.hold(now))
+    }
+
+    /// A hold at `now` for the reason in `reason`.
+    fn hold(&mut self, now: u64) -> Command<'_> {
+        self.last_sent = now;
+        let mut c = self.tracker.hold(&self.reason);
+        c.header.source_time_ns = now;
+        Command {
+            command: c,
+            hold: Some(&self.reason),
+        }
+    }
+}
+
 /// Runs the hand command node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let p = &ctx.scenario.config.pipeline;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
     let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
     let wrenches = ctx.bus.slice_subscriber(topics::WRENCH_SPACE)?;
     let out = ctx.bus.publisher(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
-    let bounds = EstimateBounds {
-        pose_innovation: p.max_pose_innovation,
-        contact_residual: p.max_contact_residual,
-    };
-    let mut gate = Gate::new(
-        (p.max_input_age * 1e9) as u64,
-        ctx.scenario.config.grasp.alpha,
-        bounds,
-    );
-    let mut regions = Vec::with_capacity(4096);
-    let mut facets = Vec::with_capacity(4096);
-    let mut recent: VecDeque<GraspState> = VecDeque::with_capacity(RECENT);
-    let mut tracker = Tracker {
-        ctx,
-        contacts: Vec::with_capacity(MAX_FINGERS),
-        solver: ForceSolver::new(),
-        solved_for: None,
-        forces: Vec::with_capacity(MAX_FINGERS),
-        last: None,
-    };
-    let period = 1.0 / p.rate_hz;
-    let watchdog_ns = (WATCHDOG_PERIODS * period * 1e9) as u64;
-    let mut last_sent = now();
+    let (mut regions, mut facets) = (Vec::with_capacity(4096), Vec::with_capacity(4096));
+    let mut step = Commander::new(&ctx.scenario.config, &ctx.scenario.setup, now());
+    let tick = Some(Duration::from_secs_f64(
+        1.0 / ctx.scenario.config.pipeline.rate_hz,
+    ));
 
-    let tick = Some(Duration::from_secs_f64(period));
     serve(
         ctx,
         &[plans.listener(), wrenches.listener()],
@@ -88,76 +224,33 @@ pub fn run(ctx: &Context) -> Result<()> {
             let plan = plans.latest(&mut regions)?;
             let wrench = wrenches.latest(&mut facets)?;
             if wrench.is_some() {
-                grasps.drain(|g| {
-                    if recent.len() == RECENT {
-                        recent.pop_front();
-                    }
-                    recent.push_back(*g);
-                })?;
+                grasps.drain(|g| step.on_grasp(g))?;
             }
             // The clock is read after the inputs, so that every input's age is measured at the
             // decision: one published between a clock reading and the reads would count as 0 old.
             let t = now();
             if let Some(m) = plan {
                 health.processed += 1;
-                if let Err(e) = gate.offer_plan(&m, t) {
+                if let Err(e) = step.on_plan(&m, t) {
                     health.refuse(e);
                 }
             }
-            // The answer to a wrench space: the header of the command it causes (None: hold).
-            let mut answer: Option<Option<Header>> = None;
-            if let Some(w) = wrench {
-                health.processed += 1;
-                let behind = recent
-                    .iter()
-                    .rev()
-                    .find(|g| g.header.sequence == w.header.input_sequence);
-                let accepted = match behind {
-                    None => Err(format!(
-                        "wrench space {}: its grasp state {} was not received",
-                        w.header.sequence, w.header.input_sequence
-                    )),
-                    Some(g) => gate
-                        .offer_grasp(g, t)
-                        .and_then(|()| gate.offer_wrench(&w, t))
-                        .map_err(|e| e.to_string()),
-                };
-                answer = Some(match accepted {
-                    Ok(()) => Some(Header::after(Kind::HandCommand, 0, &w.header, t)),
-                    Err(why) => {
-                        health.refuse(why);
-                        None
-                    }
-                });
-            }
-            let command = match answer {
-                Some(Some(header)) => match gate.decide(t) {
-                    Ok(plan) => match tracker.track(plan, &gate, header, t) {
-                        Ok(c) => Some(c),
-                        Err(why) => {
-                            health.refuse(why);
-                            None
-                        }
-                    },
-                    Err(hold) => {
-                        health.refuse(&hold);
-                        None
-                    }
-                },
-                Some(None) => None,
-                None if ticked && t.saturating_sub(last_sent) > watchdog_ns => {
-                    let quiet = Hold::Quiet {
-                        ms: t.saturating_sub(last_sent) as f64 * 1e-6,
-                    };
-                    health.refuse(gate.decide(t).err().unwrap_or(quiet));
-                    None
+            let command = match wrench {
+                Some(w) => {
+                    health.processed += 1;
+                    Some(step.on_wrench(&w, t))
                 }
-                None => return Ok(()),
+                None if ticked => step.on_tick(t),
+                None => None,
             };
-            let mut c = command.unwrap_or_else(|| tracker.hold(&health.last_problem));
-            c.header.sequence = seq.advance();
-            out.publish(c)?;
-            last_sent = t;
+            let Some(Command { mut command, hold }) = command else {
+                return Ok(());
+            };
+            if let Some(why) = hold {
+                health.refuse(why);
+            }
+            command.header.sequence = seq.advance();
+            out.publish(command)?;
             Ok(())
         },
     )
@@ -166,7 +259,8 @@ pub fn run(ctx: &Context) -> Result<()> {
 /// Tracking commands: the plan step's joint targets within limits and speed, and balancing
 /// fingertip forces.
 struct Tracker<'a> {
-    ctx: &'a Context,
+    config: &'a Config,
+    setup: &'a Setup,
     contacts: Vec<ForceContact>,
     solver: ForceSolver,
     /// The contact set `forces` balance (candidates in slot order, padded with MAX).
@@ -186,11 +280,11 @@ impl Tracker<'_> {
         gate: &Gate,
         header: Header,
         t: u64,
-    ) -> Result<HandCommand, String> {
-        let ctx = self.ctx;
-        let p = &ctx.scenario.config.pipeline;
-        let hand = &ctx.scenario.setup.hand;
-        let cands = ctx.scenario.setup.problem.candidates();
+    ) -> Result<HandCommand, ForceError> {
+        let (config, setup) = (self.config, self.setup);
+        let p = &config.pipeline;
+        let hand = &setup.hand;
+        let cands = setup.problem.candidates();
         let theta = gate.grasp().map_or(0.0, |g| g.rotation);
         let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
         let n = (plan.finger_count as usize).min(MAX_FINGERS);
@@ -212,19 +306,17 @@ impl Tracker<'_> {
             self.contacts.clear();
             for &c in set.iter().take(count) {
                 self.contacts.push(ForceContact {
-                    point: cands.points[c as usize] - ctx.scenario.setup.object.centre_of_mass,
+                    point: cands.points[c as usize] - setup.object.centre_of_mass,
                     normal: cands.normals[c as usize],
                 });
             }
-            self.solver
-                .solve(
-                    &self.contacts,
-                    &Load::none(),
-                    ctx.scenario.config.grasp.model.mu(),
-                    p.min_normal_force,
-                    &mut self.forces,
-                )
-                .map_err(|e| format!("forces: {e}"))?;
+            self.solver.solve(
+                &self.contacts,
+                &Load::none(),
+                config.grasp.model.mu(),
+                p.min_normal_force,
+                &mut self.forces,
+            )?;
             self.solved_for = Some(set);
         }
         let forces = &self.forces;
@@ -306,5 +398,270 @@ impl Tracker<'_> {
         c.quality = 0.0;
         write_text(&mut c.reason, why);
         c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use icrflow_interfaces::{FingerContact, FingerTarget, PlanPhase, read_text};
+
+    fn paper() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
+
+    /// A start time (ns).
+    const T0: u64 = 1_000_000_000_000;
+
+    fn header(kind: Kind, sequence: u64, input: u64, at: u64) -> Header {
+        let mut h = Header::new(kind, sequence, input, at);
+        h.source_time_ns = at;
+        h
+    }
+
+    /// The inputs of the paper's initial grasp at time `at`: the plan step (its targets the
+    /// grasp's joints, plus `ahead` rad on every joint), grasp state `seq` and its wrench space
+    /// (force closure, quality twice the margin).
+    struct Inputs {
+        plan: PlanStepHeader,
+        grasp: GraspState,
+        wrench: WrenchSpaceHeader,
+    }
+
+    fn inputs(config: &Config, setup: &Setup, seq: u64, at: u64, ahead: f64) -> Inputs {
+        let (start, _) = setup.scenario(config).start().unwrap();
+        let cands = setup.problem.candidates();
+        let n = setup.hand.fingers.len();
+        let mut plan = PlanStepHeader {
+            header: header(Kind::PlanStep, seq, 0, at),
+            phase: PlanPhase::Rolling as u32,
+            finger_count: n as u32,
+            ..Default::default()
+        };
+        let mut grasp = GraspState {
+            header: header(Kind::GraspState, seq, seq, at),
+            orientation: [1.0, 0.0, 0.0, 0.0],
+            finger_count: n as u32,
+            ..Default::default()
+        };
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            let contact = start.iter().find(|c| c.finger == f.id);
+            let q = contact.map_or(&f.home, |c| &c.q);
+            let mut target = FingerTarget {
+                finger: f.id,
+                joint_count: f.dof() as u32,
+                ..Default::default()
+            };
+            let mut finger = FingerContact {
+                finger: f.id,
+                ..Default::default()
+            };
+            if let Some(c) = contact {
+                let p = cands.points[c.candidate];
+                target.in_contact = 1;
+                target.candidate = c.candidate as u32;
+                target.point = [p.x, p.y, p.z];
+                finger.in_contact = 1;
+                finger.candidate = c.candidate as u32;
+                finger.point = target.point;
+            }
+            for (j, a) in q.iter().enumerate() {
+                target.joints[j] = a + ahead;
+                grasp.joints[slot][j] = *a;
+            }
+            plan.targets[slot] = target;
+            grasp.fingers[slot] = finger;
+        }
+        let wrench = WrenchSpaceHeader {
+            header: header(Kind::WrenchSpace, seq, seq, at),
+            force_closure: 1,
+            dim: 3,
+            quality: 2.0 * config.grasp.alpha,
+            epsilon: 0.1,
+            alpha: config.grasp.alpha,
+        };
+        Inputs {
+            plan,
+            grasp,
+            wrench,
+        }
+    }
+
+    /// Offers `i` (plan step, grasp state, wrench space) at `at`: the command.
+    fn offer(c: &mut Commander<'_>, i: &Inputs, at: u64) -> (HandCommand, Option<String>) {
+        c.on_plan(&i.plan, at).unwrap();
+        c.on_grasp(&i.grasp);
+        let out = c.on_wrench(&i.wrench, at);
+        (out.command, out.hold.map(str::to_string))
+    }
+
+    #[test]
+    fn good_inputs_are_tracked_at_the_joint_speed_with_balancing_forces() {
+        let (config, setup) = paper();
+        let p = &config.pipeline;
+        let dt_ns = (1e9 / p.rate_hz) as u64;
+        let max_step = p.joint_speed / p.rate_hz;
+        let mut c = Commander::new(&config, &setup, T0);
+        // The plan 20 steps ahead of the hand on every joint.
+        let ahead = 20.0 * max_step;
+        let first = inputs(&config, &setup, 1, T0, ahead);
+        let (cmd, hold) = offer(&mut c, &first, T0);
+        assert_eq!(hold, None);
+        assert_eq!(cmd.mode, CommandMode::Track as u32);
+        assert_eq!(cmd.quality, first.wrench.quality);
+        assert_eq!(cmd.header.input_sequence, first.wrench.header.sequence);
+        assert_eq!(read_text(&cmd.reason), "");
+        let mut force = Vec3::zeros();
+        let mut pressing = 0;
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            assert_eq!(cmd.finger_ids[slot], f.id);
+            let target = &first.plan.targets[slot];
+            // One period's motion from where the hand is, every joint alike (none at a limit
+            // in the initial grasp).
+            for j in 0..f.dof() {
+                let moved = cmd.joint_targets[slot][j] - first.grasp.joints[slot][j];
+                let goal = target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
+                if goal == target.joints[j] {
+                    assert!((moved - max_step).abs() < 1e-12, "finger {}: {moved}", f.id);
+                }
+            }
+            let [x, y, z] = cmd.forces[slot];
+            let v = Vec3::new(x, y, z);
+            if target.in_contact == 1 {
+                assert!(v.norm() >= p.min_normal_force * (1.0 - 1e-6), "{v}");
+                pressing += 1;
+            } else {
+                assert_eq!(v.norm(), 0.0);
+            }
+            force += v;
+        }
+        assert_eq!(pressing, 3);
+        assert!(
+            force.norm() < 1e-5 * p.min_normal_force,
+            "net force {force}"
+        );
+        // The next period: one more step, from the last command.
+        let at = T0 + dt_ns;
+        let next = inputs(&config, &setup, 2, at, ahead);
+        let (again, hold) = offer(&mut c, &next, at);
+        assert_eq!(hold, None);
+        let mut largest = 0.0_f64;
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            for j in 0..f.dof() {
+                let moved = again.joint_targets[slot][j] - cmd.joint_targets[slot][j];
+                assert!(moved >= 0.0 && moved <= max_step + 1e-12, "{moved}");
+                largest = largest.max(moved);
+            }
+        }
+        assert!((largest - max_step).abs() < 1e-12, "{largest}");
+        // The watchdog is quiet while commands come.
+        assert!(c.on_tick(at + dt_ns).is_none());
+    }
+
+    #[test]
+    fn every_bad_input_holds_with_its_reason_and_good_ones_track_again() {
+        let (config, setup) = paper();
+        let p = &config.pipeline;
+        let max_age = (p.max_input_age * 1e9) as u64;
+        let dt_ns = (1e9 / p.rate_hz) as u64;
+        // No plan step: held, with nothing to hold but stillness.
+        let mut c = Commander::new(&config, &setup, T0);
+        let i = inputs(&config, &setup, 1, T0, 0.0);
+        c.on_grasp(&i.grasp);
+        let out = c.on_wrench(&i.wrench, T0);
+        assert_eq!(out.hold, Some("no plan step yet"));
+        assert_eq!(out.command.mode, CommandMode::Hold as u32);
+        assert_eq!(read_text(&out.command.reason), "no plan step yet");
+        assert_eq!(out.command.joint_targets, [[0.0; MAX_JOINTS]; MAX_FINGERS]);
+        // Then tracking; each bad input after it holds the last tracking command.
+        let (tracked, hold) = offer(&mut c, &inputs(&config, &setup, 2, T0, 0.0), T0);
+        assert_eq!(hold, None);
+        type Spoil = fn(&mut Inputs, &Config, u64);
+        let cases: [(&str, Spoil); 9] = [
+            ("was not received", |i, _, _| {
+                i.wrench.header.input_sequence += 100
+            }),
+            ("wrench space: stale", |i, config, at| {
+                i.wrench.header.source_time_ns =
+                    at - 2 * (config.pipeline.max_input_age * 1e9) as u64
+            }),
+            ("grasp state: stale", |i, config, at| {
+                i.grasp.header.source_time_ns =
+                    at - 2 * (config.pipeline.max_input_age * 1e9) as u64
+            }),
+            (
+                "joint measurement behind the grasp state is stale",
+                |i, config, at| {
+                    i.grasp.header.origin_time_ns =
+                        at - 2 * (config.pipeline.max_input_age * 1e9) as u64
+                },
+            ),
+            ("the estimate is off: pose innovation", |i, config, _| {
+                i.grasp.pose_innovation = 2.0 * config.pipeline.max_pose_innovation
+            }),
+            ("the estimate is off: contact residual", |i, config, _| {
+                i.grasp.residual = 2.0 * config.pipeline.max_contact_residual
+            }),
+            ("below the margin", |i, config, _| {
+                i.wrench.quality = 0.5 * config.grasp.alpha
+            }),
+            ("not force closure", |i, _, _| i.wrench.force_closure = 0),
+            (
+                "grasp state: invalid object pose (not finite)",
+                |i, _, _| i.grasp.rotation = f64::NAN,
+            ),
+        ];
+        let mut seq = 3;
+        let mut at = T0;
+        for (reason, spoil) in cases {
+            at += dt_ns;
+            let mut bad = inputs(&config, &setup, seq, at, 0.0);
+            spoil(&mut bad, &config, at);
+            let (held, hold) = offer(&mut c, &bad, at);
+            let hold = hold.unwrap_or_else(|| panic!("{reason}: tracked"));
+            assert!(hold.contains(reason), "{reason}: {hold}");
+            assert_eq!(read_text(&held.reason), hold);
+            assert_eq!(held.mode, CommandMode::Hold as u32, "{reason}");
+            assert_eq!(held.joint_targets, tracked.joint_targets, "{reason}");
+            assert_eq!(held.forces, tracked.forces, "{reason}");
+            assert_eq!(held.quality, 0.0);
+            // Good inputs after it are tracked again.
+            at += dt_ns;
+            let good = inputs(&config, &setup, seq + 1, at, 0.0);
+            let (_, hold) = offer(&mut c, &good, at);
+            assert_eq!(hold, None, "after {reason}");
+            seq += 2;
+        }
+        // A plan step refused (not finite) is said, and the last good one is still followed.
+        let mut nan = inputs(&config, &setup, seq, at, 0.0);
+        nan.plan.rotation = f64::NAN;
+        assert!(matches!(
+            c.on_plan(&nan.plan, at),
+            Err(Hold::Invalid { .. })
+        ));
+        c.on_grasp(&nan.grasp);
+        assert_eq!(c.on_wrench(&nan.wrench, at).hold, None);
+        // No wrench space for longer than the watchdog's periods: held on the timer, and the
+        // plan step gone stale says so.
+        let quiet = at + (WATCHDOG_PERIODS as u64 + 1) * dt_ns;
+        let out = c.on_tick(quiet).unwrap();
+        assert!(
+            out.hold.unwrap().starts_with("no wrench space for"),
+            "{:?}",
+            out.hold
+        );
+        assert!(
+            c.on_tick(quiet + dt_ns).is_none(),
+            "a hold a period, not more"
+        );
+        let late = c.on_tick(at + 2 * max_age).unwrap();
+        assert!(
+            late.hold.unwrap().starts_with("plan step is stale"),
+            "{:?}",
+            late.hold
+        );
     }
 }

@@ -25,33 +25,41 @@
 //! The plant stands for the physical hand and object, whose state outlives any process: it
 //! keeps its state in `plant.state` in the run's bus directory, and a restarted plant resumes
 //! from it instead of from the initial grasp.
+//!
+//! [`Plant`] is the pure step (the time and the newest command in, the measurements out);
+//! [`run`] is the node around it (the timer, the bus, health, the checkpoint).
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{
     CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose,
     PlantTruth, topics,
 };
+use icrflow_plan::hand::Hand;
+use icrflow_plan::planner::Contact;
+use icrflow_plan::rolling::{Surface, tip};
+use icrflow_scenario::PipelineSpec;
 
 use crate::Context;
 use crate::noise::Noise;
-use icrflow_plan::rolling::tip;
 use icrflow_runtime::checkpoint::Checkpoint;
+use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence, now};
 
 /// Distance within which a pressing fingertip comes into contact (m).
 const TOUCH: f64 = 5e-4;
 /// The truth ([`PlantTruth`]) is published every this many ticks.
 const TRUTH_EVERY: u64 = 10;
+/// The plant's state is checkpointed every this many ticks.
+const SAVE_EVERY: u64 = 10;
+/// Rotations kept to measure the pose of the past from (one per tick).
+const HISTORY: usize = 4000;
 
 /// Every finger's joints in the initial grasp `contacts` (a free finger at its home pose).
-pub fn initial_joints(
-    hand: &icrflow_plan::hand::Hand,
-    contacts: &[icrflow_plan::planner::Contact],
-) -> Vec<Vec<f64>> {
+pub fn initial_joints(hand: &Hand, contacts: &[Contact]) -> Vec<Vec<f64>> {
     hand.fingers
         .iter()
         .map(|f| {
@@ -63,10 +71,407 @@ pub fn initial_joints(
         .collect()
 }
 
+/// Something the plant has to say (the node writes it on stderr).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Event {
+    /// A fingertip went inside the object without being in contact (said on entering).
+    Inside {
+        /// The finger.
+        finger: u32,
+        /// How deep (m).
+        depth: f64,
+    },
+    /// A finger's link went through the object (said on entering).
+    LinkThrough {
+        /// The finger.
+        finger: u32,
+        /// The link.
+        link: usize,
+        /// How deep (m).
+        depth: f64,
+    },
+    /// A finger came into contact (pressing on the object) or left it.
+    Contact {
+        /// The finger.
+        finger: u32,
+        /// In contact now.
+        on: bool,
+    },
+    /// The configured slip happened.
+    Slipped {
+        /// By how much (rad).
+        by: f64,
+        /// The rotation after it (rad).
+        to: f64,
+    },
+}
+
+impl std::fmt::Display for Event {
+    fn fmt(&self, out: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::Inside { finger, depth } => write!(
+                out,
+                "finger {finger} is inside the object ({:.2} mm deep): a real hand would hit it \
+                 here",
+                depth * 1e3
+            ),
+            Self::LinkThrough {
+                finger,
+                link,
+                depth,
+            } => write!(
+                out,
+                "finger {finger}'s link {link} passes through the object ({:.2} mm deep): a real \
+                 hand would hit it here",
+                depth * 1e3
+            ),
+            Self::Contact { finger, on } => write!(
+                out,
+                "finger {finger} {} the object",
+                if on { "presses on" } else { "leaves" }
+            ),
+            Self::Slipped { by, to } => write!(
+                out,
+                "the object slips by {:+.1} deg under the fingertips (pipeline.slip_deg), to \
+                 {:.1} deg",
+                by.to_degrees(),
+                to.to_degrees()
+            ),
+        }
+    }
+}
+
+/// What a tick measured (their headers to be made by the node).
+#[derive(Debug, Clone, Copy)]
+pub struct Output {
+    /// The encoders, every tick.
+    pub joints: JointState,
+    /// The truth, every [`TRUTH_EVERY`] ticks.
+    pub truth: Option<PlantTruth>,
+    /// The pose measurement of the scene `pipeline.pose_latency_ms` ago, every
+    /// `1 / pipeline.pose_rate_hz` s (its `captured_time_ns` set).
+    pub pose: Option<ObjectPose>,
+}
+
+/// The simulated hand and object: their state and the step; no I/O, no clock.
+#[derive(Debug)]
+pub struct Plant<'a> {
+    hand: &'a Hand,
+    surface: &'a Surface,
+    /// Joint speed (rad/s), joint and pose noise (rad), slip (rad).
+    joint_speed: f64,
+    joint_noise: f64,
+    pose_noise: f64,
+    slip: f64,
+    /// The period (s).
+    dt: f64,
+    max_age_ns: u64,
+    latency_ns: u64,
+    pose_every: u64,
+    /// When the slip is due (ns).
+    slip_at_ns: u64,
+    /// The joints (rad).
+    q: Vec<Vec<f64>>,
+    /// In contact: pressed on the object (a force is commanded) since it touched it. A finger
+    /// in contact rolls the object; it leaves contact when no force is commanded.
+    contact: Vec<bool>,
+    /// Fingers whose fingertip is inside the object without being in contact.
+    intruding: Vec<bool>,
+    link_intruding: Vec<bool>,
+    /// The object's rotation (rad).
+    theta: f64,
+    /// Whether the configured slip has happened (never, without one).
+    slipped: bool,
+    /// Per tick: its time and the rotation then.
+    history: VecDeque<(u64, f64)>,
+    noise: Noise,
+    /// The command followed (None: holding still).
+    target: Option<HandCommand>,
+    ticks: u64,
+    /// When the last tick was (ns).
+    last_tick: u64,
+    events: Vec<Event>,
+}
+
+impl<'a> Plant<'a> {
+    /// The plant of `hand` holding an object of section `surface` in the initial grasp
+    /// `contacts`, under `pipeline`'s rates, noise and slip, started at `now_ns`.
+    pub fn new(
+        hand: &'a Hand,
+        surface: &'a Surface,
+        contacts: &[Contact],
+        p: &PipelineSpec,
+        now_ns: u64,
+    ) -> Self {
+        let n = hand.fingers.len();
+        Self {
+            hand,
+            surface,
+            joint_speed: p.joint_speed,
+            joint_noise: p.joint_noise,
+            pose_noise: p.pose_noise,
+            slip: p.slip,
+            dt: 1.0 / p.rate_hz,
+            max_age_ns: (p.max_input_age * 1e9) as u64,
+            latency_ns: (p.pose_latency * 1e9) as u64,
+            pose_every: (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64,
+            slip_at_ns: now_ns.saturating_add(Duration::from_secs_f64(p.slip_at).as_nanos() as u64),
+            q: initial_joints(hand, contacts),
+            contact: hand
+                .fingers
+                .iter()
+                .map(|f| contacts.iter().any(|c| c.finger == f.id))
+                .collect(),
+            intruding: vec![false; n],
+            link_intruding: vec![false; n],
+            theta: 0.0,
+            slipped: p.slip == 0.0,
+            history: VecDeque::with_capacity(HISTORY + 1),
+            noise: Noise::new(p.seed),
+            target: None,
+            ticks: 0,
+            last_tick: now_ns,
+            // At most three a finger (inside, link through, contact) and the slip.
+            events: Vec::with_capacity(3 * n + 1),
+        }
+    }
+
+    /// The object's rotation (rad).
+    pub fn rotation(&self) -> f64 {
+        self.theta
+    }
+
+    /// Every finger's joints (rad).
+    pub fn joints(&self) -> &[Vec<f64>] {
+        &self.q
+    }
+
+    /// Which fingers are in contact.
+    pub fn contacts(&self) -> &[bool] {
+        &self.contact
+    }
+
+    /// The ticks so far.
+    pub fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
+    /// What the last tick has to say.
+    pub fn events(&self) -> &[Event] {
+        &self.events
+    }
+
+    /// The state as the checkpoint keeps it: the rotation, per finger its contact (and a
+    /// spare 0) and its joints, whether the slip happened.
+    pub fn save(&self, text: &mut String) {
+        let _ = write!(text, "{:e}", self.theta);
+        for (slot, joints) in self.q.iter().enumerate() {
+            text.push_str(if self.contact[slot] { " 1 0" } else { " 0 0" });
+            for a in joints {
+                let _ = write!(text, " {a:e}");
+            }
+        }
+        text.push_str(if self.slipped { " 1" } else { " 0" });
+    }
+
+    /// Resumes from a state [`Plant::save`] wrote; `false` (nothing changed) if `text` is not
+    /// one of this hand's.
+    pub fn restore(&mut self, text: &str) -> bool {
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .filter_map(|v| v.parse().ok())
+            .collect();
+        let needed = 2 + self.q.len() * 2 + self.q.iter().map(Vec::len).sum::<usize>();
+        if values.len() != needed {
+            return false;
+        }
+        self.theta = values[0];
+        self.slipped |= values[needed - 1] != 0.0;
+        let mut at = 1;
+        for (slot, joints) in self.q.iter_mut().enumerate() {
+            self.contact[slot] = values[at] != 0.0;
+            at += 2;
+            for a in joints.iter_mut() {
+                *a = values[at];
+                at += 1;
+            }
+        }
+        true
+    }
+
+    /// One tick at `now_ns`, with the newest `command` if one came since the last tick (a
+    /// hold stops the hand; a tracking command is followed until it is older than
+    /// `pipeline.max_input_age_ms`): the joints move toward the command for the time since
+    /// the last tick (one to ten periods), the fingers pressing on the object roll it, the
+    /// slip happens when due; then the measurements.
+    pub fn tick(&mut self, now_ns: u64, command: Option<&HandCommand>) -> Output {
+        self.events.clear();
+        if let Some(c) = command {
+            self.target = (c.mode == CommandMode::Track as u32).then_some(*c);
+        }
+        self.ticks += 1;
+        let t = now_ns;
+        // The joints move for the time since the last tick (more than a period when the
+        // process was late), as a physical hand's would.
+        let elapsed = t.saturating_sub(self.last_tick) as f64 * 1e-9;
+        let max_step = self.joint_speed * elapsed.clamp(self.dt, 10.0 * self.dt);
+        self.last_tick = t;
+        if self
+            .target
+            .as_ref()
+            .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > self.max_age_ns)
+        {
+            // A stale command is not followed: hold still.
+            self.target = None;
+        }
+        self.roll(max_step);
+        if !self.slipped && t >= self.slip_at_ns {
+            self.slipped = true;
+            self.theta += self.slip;
+            self.events.push(Event::Slipped {
+                by: self.slip,
+                to: self.theta,
+            });
+        }
+        if self.history.len() == HISTORY {
+            self.history.pop_front();
+        }
+        self.history.push_back((t, self.theta));
+        self.measure(t)
+    }
+
+    /// Moves the joints by at most `max_step` toward the target; rolls the object with the
+    /// fingers that press on it.
+    fn roll(&mut self, max_step: f64) {
+        let (hand, surface, theta) = (self.hand, self.surface, self.theta);
+        let Some(c) = &self.target else {
+            return;
+        };
+        let mut turn = 0.0;
+        let mut rolling = 0;
+        for (slot, f) in hand.fingers.iter().enumerate() {
+            let q = &mut self.q[slot];
+            let before = tip(f, q);
+            let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id) else {
+                continue;
+            };
+            // Along the straight line to the command in joint space, every joint scaled
+            // alike (a servo following a stream of set points along the same line).
+            let mut goal = [0.0; MAX_JOINTS];
+            let mut largest = 0.0_f64;
+            for (j, a) in q.iter().enumerate().take(MAX_JOINTS) {
+                goal[j] = c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
+                largest = largest.max((goal[j] - a).abs());
+            }
+            let arrived = largest <= max_step;
+            let scale = if arrived { 1.0 } else { max_step / largest };
+            for (j, a) in q.iter_mut().enumerate().take(MAX_JOINTS) {
+                *a += scale * (goal[j] - *a);
+            }
+            let pressing = c.forces[k].iter().any(|x| *x != 0.0);
+            let after = tip(f, q);
+            // The simulation lets a fingertip pass through the object; a real one would
+            // hit it. Said on entering, always: it is a planning or tracking fault.
+            // The fingertip's gap to the object (the object turns after every finger moved).
+            let gap = surface.contact_of(&after, f, theta).gap;
+            let depth = -gap;
+            let inside = !self.contact[slot] && depth > TOUCH;
+            if inside && !self.intruding[slot] {
+                self.events.push(Event::Inside {
+                    finger: f.id,
+                    depth,
+                });
+            }
+            self.intruding[slot] = inside;
+            // The same for the links (the planner keeps them off the object).
+            let (link_gap, link) = surface.link_gap(f, q, theta);
+            let through = link_gap < -TOUCH;
+            if through && !self.link_intruding[slot] {
+                self.events.push(Event::LinkThrough {
+                    finger: f.id,
+                    link,
+                    depth: -link_gap,
+                });
+            }
+            self.link_intruding[slot] = through;
+            if self.contact[slot] && pressing {
+                turn += surface.rotation(&before, &after, f, theta);
+                rolling += 1;
+            }
+            // A pressing finger comes into contact where its motion ends on the surface.
+            let was = self.contact[slot];
+            self.contact[slot] = pressing && (was || (arrived && gap.abs() <= TOUCH));
+            if self.contact[slot] != was {
+                self.events.push(Event::Contact {
+                    finger: f.id,
+                    on: self.contact[slot],
+                });
+            }
+        }
+        if rolling > 0 {
+            self.theta += turn / rolling as f64;
+        }
+    }
+
+    /// The measurements of tick `t`: the encoders with noise, the truth when due, the pose
+    /// of `latency` ago with noise when due.
+    fn measure(&mut self, t: u64) -> Output {
+        let hand = self.hand;
+        let mut joints = JointState {
+            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+            ..Default::default()
+        };
+        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+            joints.finger_ids[slot] = f.id;
+            joints.joint_counts[slot] = f.dof().min(MAX_JOINTS) as u32;
+            for (j, a) in self.q[slot].iter().enumerate().take(MAX_JOINTS) {
+                joints.positions[slot][j] = a + self.noise.gauss(self.joint_noise);
+            }
+        }
+        let truth = self.ticks.is_multiple_of(TRUTH_EVERY).then(|| {
+            let half = 0.5 * self.theta;
+            let mut truth = PlantTruth {
+                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                rotation: self.theta,
+                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
+                ..Default::default()
+            };
+            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+                truth.finger_ids[slot] = f.id;
+                truth.in_contact[slot] = u32::from(self.contact[slot]);
+            }
+            truth
+        });
+        let pose = self.ticks.is_multiple_of(self.pose_every).then(|| {
+            let captured = t.saturating_sub(self.latency_ns);
+            let past = self
+                .history
+                .iter()
+                .rev()
+                .find(|(when, _)| *when <= captured)
+                .or(self.history.front())
+                .map_or(self.theta, |(_, th)| *th);
+            let measured = past + self.noise.gauss(self.pose_noise);
+            let half = 0.5 * measured;
+            ObjectPose {
+                captured_time_ns: captured,
+                position: [0.0; 3],
+                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                ..Default::default()
+            }
+        });
+        Output {
+            joints,
+            truth,
+            pose,
+        }
+    }
+}
+
 /// Runs the plant.
 pub fn run(ctx: &Context) -> Result<()> {
     let p = &ctx.scenario.config.pipeline;
-    let hand = &ctx.scenario.setup.hand;
     let surface = ctx.scenario.setup.surface()?;
     // The true state starts in the initial grasp, as the planner computes it.
     let (contacts, _) = ctx
@@ -75,259 +480,286 @@ pub fn run(ctx: &Context) -> Result<()> {
         .scenario(&ctx.scenario.config)
         .start()
         .context("the initial grasp")?;
-    let mut q = initial_joints(hand, &contacts);
-    // In contact: pressed on the object (a force is commanded) since it touched it. A finger
-    // in contact rolls the object; it leaves contact when no force is commanded.
-    let mut contact: Vec<bool> = hand
-        .fingers
-        .iter()
-        .map(|f| contacts.iter().any(|c| c.finger == f.id))
-        .collect();
-    // Fingers whose fingertip is inside the object without being in contact.
-    let mut intruding = vec![false; hand.fingers.len()];
-    let mut link_intruding = vec![false; hand.fingers.len()];
-    let mut theta = 0.0;
-    // Whether the configured slip has happened (never, without one).
-    let mut slipped = p.slip == 0.0;
-    let state_file = ctx.bus.config().root.join("plant.state");
-    if let Ok(text) = std::fs::read_to_string(&state_file) {
-        let values: Vec<f64> = text
-            .split_whitespace()
-            .filter_map(|v| v.parse().ok())
-            .collect();
-        let needed = 2 + hand.fingers.len() * 2 + q.iter().map(Vec::len).sum::<usize>();
-        if values.len() == needed {
-            theta = values[0];
-            slipped |= values[needed - 1] != 0.0;
-            let mut at = 1;
-            for (slot, joints) in q.iter_mut().enumerate() {
-                contact[slot] = values[at] != 0.0;
-                at += 2;
-                for a in joints.iter_mut() {
-                    *a = values[at];
-                    at += 1;
-                }
-            }
-        }
-    }
-    let max_age_ns = (p.max_input_age * 1e9) as u64;
-    let mut history: VecDeque<(u64, f64)> = VecDeque::with_capacity(4096);
-    let mut noise = Noise::new(p.seed);
-    let mut target: Option<HandCommand> = None;
     let joints = ctx.bus.publisher(topics::JOINT_STATE)?;
     let poses = ctx.bus.publisher(topics::OBJECT_POSE)?;
     let truths = ctx.bus.publisher(topics::PLANT_TRUTH)?;
-    let mut truth_seq = Sequence::default();
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let mut health = Health::new(ctx)?;
     let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
-    let dt = 1.0 / p.rate_hz;
-    let pose_every = (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64;
-    let latency_ns = (p.pose_latency * 1e9) as u64;
-
-    let mut ticks: u64 = 0;
+    let mut truth_seq = Sequence::default();
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let state_file = ctx.bus.config().root.join("plant.state");
+    let mut plant = Plant::new(&ctx.scenario.setup.hand, surface, &contacts, p, now());
+    if let Ok(text) = std::fs::read_to_string(&state_file) {
+        plant.restore(&text);
+    }
+    // Its thread stays at normal priority (`serve` promotes this one).
     let saved = Checkpoint::new(state_file)?;
-    // Its thread (started above) stays at normal priority.
-    icrflow_runtime::node::promote(ctx.name);
+
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
-    // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
-    // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it (another
-    // signal only cuts the sleep short, and it sleeps on).
-    let period = Duration::from_secs_f64(dt);
-    let slip_at = Instant::now() + Duration::from_secs_f64(p.slip_at);
-    let mut next = Instant::now();
-    let mut last_tick = next;
-    loop {
+    // absolute schedule, taking the newest command at each tick.
+    let period = Some(Duration::from_secs_f64(1.0 / p.rate_hz));
+    serve(ctx, &[], period, |ticked| {
         health.tick()?;
-        next += period;
-        let early = next.saturating_duration_since(Instant::now());
-        if early > Duration::ZERO {
-            if icrflow_runtime::event::sleep_until(ctx.bus.node(), next) {
-                return Ok(());
-            }
-        } else if Instant::now().duration_since(next) > period {
-            // A whole period late (the process was not scheduled in time): the missed ticks
-            // are skipped, not sent in a burst.
-            next = Instant::now();
+        if !ticked {
+            return Ok(());
         }
-        if let Some(c) = commands.latest()? {
+        let command = commands.latest()?;
+        if let Some(c) = &command {
             health.processed += 1;
             if c.header.check(Kind::HandCommand).is_err() {
                 health.refuse("hand command of another schema or kind");
-            } else if c.mode == CommandMode::Track as u32 {
-                target = Some(c);
-            } else {
-                // Hold: stay where we are.
-                target = None;
             }
         }
-        ticks += 1;
-        let t = now();
-        // The joints move for the time since the last tick (more than a period when this
-        // process was late), as a physical hand's would.
-        let at = Instant::now();
-        let max_step = p.joint_speed
-            * at.duration_since(last_tick)
-                .as_secs_f64()
-                .clamp(dt, 10.0 * dt);
-        last_tick = at;
-        if target
-            .as_ref()
-            .is_some_and(|c| t.saturating_sub(c.header.source_time_ns) > max_age_ns)
-        {
-            // A stale command is not followed: hold still.
-            target = None;
-        }
-        // Move the joints; roll the object with the fingers that press on it.
-        let mut turn = 0.0;
-        let mut rolling = 0;
-        for (slot, f) in hand.fingers.iter().enumerate() {
-            let before = tip(f, &q[slot]);
-            if let Some(c) = &target {
-                let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id)
-                else {
-                    continue;
-                };
-                // Along the straight line to the command in joint space, every joint scaled
-                // alike (a servo following a stream of set points along the same line).
-                let mut goal = [0.0; MAX_JOINTS];
-                let mut largest = 0.0_f64;
-                for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
-                    goal[j] = c.joint_targets[k][j].clamp(f.joints[j].lower, f.joints[j].upper);
-                    largest = largest.max((goal[j] - a).abs());
-                }
-                let arrived = largest <= max_step;
-                let scale = if arrived { 1.0 } else { max_step / largest };
-                for (j, a) in q[slot].iter_mut().enumerate().take(MAX_JOINTS) {
-                    *a += scale * (goal[j] - *a);
-                }
-                let pressing = c.forces[k].iter().any(|x| *x != 0.0);
-                let after = tip(f, &q[slot]);
-                // The simulation lets a fingertip pass through the object; a real one would
-                // hit it. Said on entering, always: it is a planning or tracking fault.
-                // The fingertip's gap to the object (the object turns after every finger moved).
-                let gap = surface.contact_of(&after, f, theta).gap;
-                let depth = -gap;
-                let inside = !contact[slot] && depth > TOUCH;
-                if inside && !intruding[slot] {
-                    eprintln!(
-                        "icrflow-plant: finger {} is inside the object ({:.2} mm deep): a real \
-                         hand would hit it here",
-                        f.id,
-                        depth * 1e3
-                    );
-                }
-                intruding[slot] = inside;
-                // The same for the links (the planner keeps them off the object).
-                let (link_gap, link) = surface.link_gap(f, &q[slot], theta);
-                let through = link_gap < -TOUCH;
-                if through && !link_intruding[slot] {
-                    eprintln!(
-                        "icrflow-plant: finger {}'s link {link} passes through the object \
-                         ({:.2} mm deep): a real hand would hit it here",
-                        f.id,
-                        -link_gap * 1e3
-                    );
-                }
-                link_intruding[slot] = through;
-                if contact[slot] && pressing {
-                    turn += surface.rotation(&before, &after, f, theta);
-                    rolling += 1;
-                }
-                // A pressing finger comes into contact where its motion ends on the surface.
-                let was = contact[slot];
-                contact[slot] = pressing && (contact[slot] || (arrived && gap.abs() <= TOUCH));
-                if contact[slot] != was && log_contacts {
-                    eprintln!(
-                        "icrflow-plant: finger {} {} the object",
-                        f.id,
-                        if contact[slot] {
-                            "presses on"
-                        } else {
-                            "leaves"
-                        }
-                    );
-                }
+        let command = command.filter(|c| c.header.check(Kind::HandCommand).is_ok());
+        let out = plant.tick(now(), command.as_ref());
+        for e in plant.events() {
+            if log_contacts || !matches!(e, Event::Contact { .. }) {
+                eprintln!("icrflow-plant: {e}");
             }
         }
-        if rolling > 0 {
-            theta += turn / rolling as f64;
+        if plant.ticks().is_multiple_of(SAVE_EVERY) {
+            saved.store(|text| plant.save(text));
         }
-        if !slipped && at >= slip_at {
-            slipped = true;
-            theta += p.slip;
-            eprintln!(
-                "icrflow-plant: the object slips by {:+.1} deg under the fingertips \
-                 (pipeline.slip_deg), to {:.1} deg",
-                p.slip.to_degrees(),
-                theta.to_degrees()
-            );
-        }
-        if ticks.is_multiple_of(10) {
-            saved.store(|text| {
-                let _ = write!(text, "{theta:e}");
-                for (slot, joints) in q.iter().enumerate() {
-                    text.push_str(if contact[slot] { " 1 0" } else { " 0 0" });
-                    for a in joints {
-                        let _ = write!(text, " {a:e}");
-                    }
-                }
-                text.push_str(if slipped { " 1" } else { " 0" });
-            });
-        }
-        history.push_back((t, theta));
-        while history.len() > 4000 {
-            history.pop_front();
-        }
-        // Encoders.
-        let seq = joint_seq.advance();
-        let mut m = JointState {
-            header: Header::new(Kind::JointState, seq, 0, 0),
-            finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
-            ..Default::default()
-        };
-        for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-            m.finger_ids[slot] = f.id;
-            m.joint_counts[slot] = f.dof().min(MAX_JOINTS) as u32;
-            for (j, a) in q[slot].iter().enumerate().take(MAX_JOINTS) {
-                m.positions[slot][j] = a + noise.gauss(p.joint_noise);
-            }
-        }
+        let mut m = out.joints;
+        m.header = Header::new(Kind::JointState, joint_seq.advance(), 0, 0);
         joints.publish(m)?;
-        // The truth, every TRUTH_EVERY ticks (the run samples it at 100 Hz).
-        if ticks.is_multiple_of(TRUTH_EVERY) {
-            let half = 0.5 * theta;
-            let mut truth = PlantTruth {
-                header: Header::new(Kind::PlantTruth, truth_seq.advance(), 0, 0),
-                orientation: [half.cos(), 0.0, 0.0, half.sin()],
-                rotation: theta,
-                finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
-                ..Default::default()
-            };
-            for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-                truth.finger_ids[slot] = f.id;
-                truth.in_contact[slot] = u32::from(contact[slot]);
-            }
+        if let Some(mut truth) = out.truth {
+            truth.header = Header::new(Kind::PlantTruth, truth_seq.advance(), 0, 0);
             truths.publish(truth)?;
         }
-        // Pose measurement of the scene `latency` ago.
-        if ticks.is_multiple_of(pose_every) {
-            let captured = t.saturating_sub(latency_ns);
-            let past = history
-                .iter()
-                .rev()
-                .find(|(when, _)| *when <= captured)
-                .or(history.front())
-                .map_or(theta, |(_, th)| *th);
-            let measured = past + noise.gauss(p.pose_noise);
-            let half = 0.5 * measured;
-            poses.publish(ObjectPose {
-                header: Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured),
-                captured_time_ns: captured,
-                position: [0.0; 3],
-                orientation: [half.cos(), 0.0, 0.0, half.sin()],
-            })?;
+        if let Some(mut pose) = out.pose {
+            let captured = pose.captured_time_ns;
+            pose.header = Header::new(Kind::ObjectPose, pose_seq.advance(), 0, captured);
+            poses.publish(pose)?;
         }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use icrflow_scenario::{Config, Setup};
+
+    fn paper() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
+
+    /// A start time (ns).
+    const T0: u64 = 1_000_000_000_000;
+
+    /// A tracking command made at `at` of `joints` for the fingers `fingers` (slots), pressing
+    /// on the object where `pressing`.
+    fn command(
+        setup: &Setup,
+        fingers: &[usize],
+        joints: &[Vec<f64>],
+        pressing: bool,
+        at: u64,
+    ) -> HandCommand {
+        let mut c = HandCommand {
+            header: Header::new(Kind::HandCommand, 1, 0, 0),
+            mode: CommandMode::Track as u32,
+            finger_count: fingers.len() as u32,
+            ..Default::default()
+        };
+        c.header.source_time_ns = at;
+        for (k, &slot) in fingers.iter().enumerate() {
+            c.finger_ids[k] = setup.hand.fingers[slot].id;
+            c.joint_targets[k][..joints[slot].len()].copy_from_slice(&joints[slot]);
+            if pressing {
+                c.forces[k] = [0.0, 1.0, 0.0];
+            }
+        }
+        c
+    }
+
+    /// The paper's plant without noise, its initial grasp, and the slots of the fingers in
+    /// contact and of those free.
+    fn still(config: &mut Config, setup: &Setup) -> (Vec<Contact>, Vec<usize>, Vec<usize>) {
+        config.pipeline.joint_noise = 0.0;
+        config.pipeline.pose_noise = 0.0;
+        let (contacts, _) = setup.scenario(config).start().unwrap();
+        let (touching, free): (Vec<usize>, Vec<usize>) =
+            (0..setup.hand.fingers.len()).partition(|&s| {
+                contacts
+                    .iter()
+                    .any(|c| c.finger == setup.hand.fingers[s].id)
+            });
+        (contacts, touching, free)
+    }
+
+    #[test]
+    fn a_commanded_finger_in_contact_rolls_the_object_as_the_rolling_kinematics_say() {
+        let (mut config, setup) = paper();
+        let (contacts, touching, _) = still(&mut config, &setup);
+        let surface = setup.surface().unwrap();
+        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let slot = touching[0];
+        let f = &setup.hand.fingers[slot];
+        // A small motion of one finger in contact (within a tick's reach), pressing.
+        let from = plant.joints().to_vec();
+        let mut to = from.clone();
+        for a in to[slot].iter_mut() {
+            *a += 0.05_f64.to_radians();
+        }
+        let c = command(&setup, &[slot], &to, true, T0);
+        let out = plant.tick(T0 + dt, Some(&c));
+        assert_eq!(plant.joints()[slot], to[slot]);
+        let turn = surface.rotation(&tip(f, &from[slot]), &tip(f, &to[slot]), f, 0.0);
+        assert!(turn.abs() > 1e-5, "the motion rolls: {turn}");
+        assert!(
+            (plant.rotation() - turn).abs() < 1e-15,
+            "{} vs {turn}",
+            plant.rotation()
+        );
+        // The encoders say where the hand is; the fingers in contact stay so.
+        for (s, q) in plant.joints().iter().enumerate() {
+            assert_eq!(&out.joints.positions[s][..q.len()], &q[..]);
+            assert_eq!(out.joints.finger_ids[s], setup.hand.fingers[s].id);
+        }
+        // The truth (every tenth tick) reports the rotation and the contacts.
+        let mut truth = out.truth;
+        for k in 2..=TRUTH_EVERY {
+            truth = plant.tick(T0 + k * dt, None).truth;
+            assert_eq!(truth.is_some(), k == TRUTH_EVERY);
+        }
+        let truth = truth.unwrap();
+        assert_eq!(
+            truth.rotation,
+            plant.rotation(),
+            "a kept command reached moves no more"
+        );
+        for (s, f) in setup.hand.fingers.iter().enumerate() {
+            assert_eq!(truth.finger_ids[s], f.id);
+            assert_eq!(truth.in_contact[s], u32::from(touching.contains(&s)));
+        }
+        assert!(plant.events().is_empty(), "{:?}", plant.events());
+    }
+
+    #[test]
+    fn a_finger_off_the_object_does_not_turn_it() {
+        let (mut config, setup) = paper();
+        let (contacts, touching, free) = still(&mut config, &setup);
+        assert!(!free.is_empty(), "the paper's hand has a free finger");
+        let surface = setup.surface().unwrap();
+        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let mut to = plant.joints().to_vec();
+        for slot in [free[0], touching[0]] {
+            for a in to[slot].iter_mut() {
+                *a += 0.05_f64.to_radians();
+            }
+        }
+        // The free finger pressing in the air, and a finger in contact commanded without a
+        // force: it leaves the object, which neither turns.
+        let mut c = command(&setup, &[free[0], touching[0]], &to, true, T0);
+        c.forces[1] = [0.0; 3];
+        plant.tick(T0 + dt, Some(&c));
+        assert_eq!(plant.joints()[free[0]], to[free[0]]);
+        assert_eq!(plant.joints()[touching[0]], to[touching[0]]);
+        assert_eq!(plant.rotation(), 0.0);
+        assert_eq!(
+            plant.events(),
+            &[Event::Contact {
+                finger: setup.hand.fingers[touching[0]].id,
+                on: false
+            }]
+        );
+        assert!(!plant.contacts()[free[0]] && !plant.contacts()[touching[0]]);
+        // A command older than the input age limit is not followed.
+        let before = plant.joints().to_vec();
+        let mut moved = before.clone();
+        moved[touching[1]][0] += 0.05_f64.to_radians();
+        let stale = command(&setup, &[touching[1]], &moved, true, T0);
+        let later = T0 + (config.pipeline.max_input_age * 1e9) as u64 + 2 * dt;
+        plant.tick(later, Some(&stale));
+        assert_eq!(plant.joints(), &before[..]);
+        assert_eq!(plant.rotation(), 0.0);
+    }
+
+    #[test]
+    fn the_pose_measurement_comes_after_the_delay_with_the_noise() {
+        let (mut config, setup) = paper();
+        let (contacts, _, _) = still(&mut config, &setup);
+        let p = &mut config.pipeline;
+        p.pose_latency = 0.1;
+        p.slip = 10f64.to_radians();
+        p.slip_at = 0.5;
+        let surface = setup.surface().unwrap();
+        let dt = (1e9 / p.rate_hz) as u64;
+        let every = (p.rate_hz / p.pose_rate_hz).round() as u64;
+        let latency = (p.pose_latency * 1e9) as u64;
+        let slip_at = T0 + (p.slip_at * 1e9) as u64;
+        // Without noise: the rotation of `latency` ago, every `every` ticks.
+        let mut plant = Plant::new(&setup.hand, surface, &contacts, p, T0);
+        let mut poses = 0;
+        for k in 1..=1000 {
+            let t = T0 + k * dt;
+            let out = plant.tick(t, None);
+            assert_eq!(out.pose.is_some(), k % every == 0, "tick {k}");
+            if t >= slip_at && t < slip_at + dt {
+                assert_eq!(
+                    plant.events(),
+                    &[Event::Slipped {
+                        by: p.slip,
+                        to: p.slip
+                    }]
+                );
+            }
+            let Some(pose) = out.pose else { continue };
+            poses += 1;
+            assert_eq!(pose.captured_time_ns, t - latency);
+            let [w, _, _, z] = pose.orientation;
+            let measured = 2.0 * z.atan2(w);
+            let then = if t - latency >= slip_at { p.slip } else { 0.0 };
+            assert!(
+                (measured - then).abs() < 1e-12,
+                "tick {k}: {measured} vs {then}"
+            );
+        }
+        assert_eq!(poses, 1000 / every);
+        // With noise: measurements of the still object spread by the configured deviation.
+        let sigma = 0.5_f64.to_radians();
+        p.pose_noise = sigma;
+        p.slip = 0.0;
+        let mut plant = Plant::new(&setup.hand, surface, &contacts, p, T0);
+        let errors: Vec<f64> = (1..=30_000)
+            .filter_map(|k| plant.tick(T0 + k * dt, None).pose)
+            .map(|pose| 2.0 * pose.orientation[3].atan2(pose.orientation[0]))
+            .collect();
+        let n = errors.len() as f64;
+        let mean = errors.iter().sum::<f64>() / n;
+        let sd = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+        assert!(errors.len() >= 900, "{}", errors.len());
+        assert!(mean.abs() < 4.0 * sigma / n.sqrt(), "mean {mean}");
+        assert!((sd / sigma - 1.0).abs() < 0.1, "deviation {sd} for {sigma}");
+    }
+
+    #[test]
+    fn a_saved_state_is_resumed() {
+        let (mut config, setup) = paper();
+        let (contacts, touching, _) = still(&mut config, &setup);
+        let surface = setup.surface().unwrap();
+        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let mut to = plant.joints().to_vec();
+        to[touching[0]][0] += 0.05_f64.to_radians();
+        let c = command(&setup, &[touching[0]], &to, true, T0);
+        plant.tick(T0 + 1_000_000, Some(&c));
+        let mut text = String::new();
+        plant.save(&mut text);
+        let mut resumed = Plant::new(&setup.hand, surface, &[], &config.pipeline, T0);
+        assert!(resumed.restore(&text));
+        assert_eq!(resumed.rotation(), plant.rotation());
+        assert_eq!(resumed.joints(), plant.joints());
+        assert_eq!(resumed.contacts(), plant.contacts());
+        // Another hand's state changes nothing.
+        assert!(!resumed.restore("0.5 1 0 0.1"));
+        assert_eq!(resumed.rotation(), plant.rotation());
     }
 }

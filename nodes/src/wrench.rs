@@ -8,33 +8,140 @@
 //! evaluation, so that the critical path (measurement to hand command) pays the hull only
 //! when a contact moves to another candidate. The evaluations are made in buffers kept for the
 //! next (`GraspProblem::evaluate_in`), so a new contact set allocates nothing either.
+//!
+//! [`WrenchSpace`] is the pure step (a grasp state in, the wrench space out); [`run`] is the
+//! node around it (the bus, health).
 
 use anyhow::Result;
-use icrflow_grasp::quality::{Evaluation, EvaluationScratch};
-use icrflow_interfaces::{Facet, Header, Kind, MAX_FACETS, MAX_FINGERS, WrenchSpaceHeader, topics};
+use icrflow_grasp::quality::{Evaluation, EvaluationScratch, GraspError, GraspProblem};
+use icrflow_interfaces::{
+    Facet, GraspState, Header, Kind, MAX_FACETS, MAX_FINGERS, WrenchSpaceHeader, topics,
+};
 
 use crate::Context;
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence};
 
+/// The wrench-space step's state: the last contact set's evaluation and its buffers; no I/O,
+/// no clock.
+pub struct WrenchSpace<'a> {
+    problem: &'a GraspProblem,
+    alpha: f64,
+    /// The candidates in contact of the last grasp state.
+    contacts: Vec<usize>,
+    /// The hull's facets of the contact set `evaluated` holds.
+    facets: Vec<Facet>,
+    /// The contact set of `facets` and the header fields evaluated for it.
+    evaluated: Option<(Vec<usize>, WrenchSpaceHeader)>,
+    e: Evaluation,
+    scratch: EvaluationScratch,
+}
+
+/// The wrench space of a grasp state ([`WrenchSpace::on_grasp`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Output<'s> {
+    /// The summary: force closure, alpha*, epsilon, with the header given.
+    pub header: WrenchSpaceHeader,
+    /// The hull's facets (at most [`MAX_FACETS`]).
+    pub facets: &'s [Facet],
+    /// The candidates in contact (slot order): the contact set evaluated.
+    pub contacts: &'s [usize],
+    /// Whether the contact set was new (evaluated now rather than answered from the last
+    /// evaluation).
+    pub evaluated: bool,
+}
+
+impl<'a> WrenchSpace<'a> {
+    /// The wrench-space step of `problem`, with margin `alpha` (carried in every summary).
+    pub fn new(problem: &'a GraspProblem, alpha: f64) -> Self {
+        Self {
+            problem,
+            alpha,
+            contacts: Vec::with_capacity(MAX_FINGERS),
+            facets: Vec::with_capacity(MAX_FACETS),
+            evaluated: None,
+            e: Evaluation::default(),
+            scratch: EvaluationScratch::default(),
+        }
+    }
+
+    /// The wrench space of the fingers in contact in `g` (those whose candidate is one of the
+    /// problem's), with `header`: evaluated when the contact set differs from the last one,
+    /// in the kept buffers (no allocation once they have grown), otherwise the last
+    /// evaluation's.
+    pub fn on_grasp(&mut self, g: &GraspState, header: Header) -> Result<Output<'_>, GraspError> {
+        let n = self.problem.candidates().points.len();
+        self.contacts.clear();
+        for f in g
+            .fingers
+            .iter()
+            .take((g.finger_count as usize).min(MAX_FINGERS))
+        {
+            if f.in_contact == 1 && (f.candidate as usize) < n {
+                self.contacts.push(f.candidate as usize);
+            }
+        }
+        let cached = self
+            .evaluated
+            .as_ref()
+            .filter(|(set, _)| *set == self.contacts);
+        let (mut summary, evaluated) = match cached {
+            Some((_, h)) => (*h, false),
+            None => (self.evaluate()?, true),
+        };
+        summary.header = header;
+        Ok(Output {
+            header: summary,
+            facets: &self.facets,
+            contacts: &self.contacts,
+            evaluated,
+        })
+    }
+
+    /// Evaluates the contact set `contacts` into `facets` and `evaluated`.
+    fn evaluate(&mut self) -> Result<WrenchSpaceHeader, GraspError> {
+        let dim = self.problem.dim();
+        let mut h = WrenchSpaceHeader {
+            dim: dim as u32,
+            alpha: self.alpha,
+            ..Default::default()
+        };
+        self.facets.clear();
+        if !self.contacts.is_empty() {
+            let e = &mut self.e;
+            self.problem
+                .evaluate_in(&self.contacts, e, &mut self.scratch)?;
+            h.force_closure = u32::from(e.force_closure());
+            h.quality = if e.force_closure() { e.quality } else { 0.0 };
+            h.epsilon = e.epsilon;
+            if let Some(hull) = &e.hull {
+                for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
+                    let mut normal = [0.0; 6];
+                    normal[..dim].copy_from_slice(hull.normal(f));
+                    self.facets.push(Facet { normal, offset: *b });
+                }
+            }
+        }
+        match &mut self.evaluated {
+            Some((set, old)) => {
+                set.clone_from(&self.contacts);
+                *old = h;
+            }
+            None => self.evaluated = Some((self.contacts.clone(), h)),
+        }
+        Ok(h)
+    }
+}
+
 /// Runs the wrench-space node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let problem = &ctx.scenario.setup.problem;
-    let alpha = ctx.scenario.config.grasp.alpha;
-    let dim = problem.dim();
     let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
     let out = ctx.bus.slice_publisher(topics::WRENCH_SPACE)?;
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last = 0;
-    let mut contacts = Vec::with_capacity(MAX_FINGERS);
-    let mut facets: Vec<Facet> = Vec::with_capacity(MAX_FACETS);
-    // The contact set of `facets` and the header fields evaluated for it.
-    let mut evaluated: Option<(Vec<usize>, WrenchSpaceHeader)> = None;
-    let mut e = Evaluation::default();
-    let mut scratch = EvaluationScratch::default();
+    let mut step = WrenchSpace::new(&ctx.scenario.setup.problem, ctx.scenario.config.grasp.alpha);
     let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
-    let n = problem.candidates().points.len();
 
     serve(ctx, &[grasps.listener()], None, |_| {
         health.tick()?;
@@ -45,58 +152,126 @@ pub fn run(ctx: &Context) -> Result<()> {
         if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last) {
             return Ok(());
         }
-        contacts.clear();
-        for f in g
-            .fingers
-            .iter()
-            .take((g.finger_count as usize).min(MAX_FINGERS))
-        {
-            if f.in_contact == 1 && (f.candidate as usize) < n {
-                contacts.push(f.candidate as usize);
-            }
+        let header = Header::after(Kind::WrenchSpace, seq.advance(), &g.header, received);
+        let w = step.on_grasp(&g, header)?;
+        if log_contacts && w.evaluated {
+            eprintln!(
+                "icrflow-wrench: candidates {:?}: force closure {}, alpha* {:.4}",
+                w.contacts, w.header.force_closure, w.header.quality
+            );
         }
-        let cached = evaluated.as_ref().filter(|(set, _)| *set == contacts);
-        let mut header = match cached {
-            Some((_, h)) => *h,
-            None => {
-                let mut h = WrenchSpaceHeader {
-                    dim: dim as u32,
-                    alpha,
-                    ..Default::default()
-                };
-                facets.clear();
-                if !contacts.is_empty() {
-                    problem.evaluate_in(&contacts, &mut e, &mut scratch)?;
-                    h.force_closure = u32::from(e.force_closure());
-                    h.quality = if e.force_closure() { e.quality } else { 0.0 };
-                    h.epsilon = e.epsilon;
-                    if let Some(hull) = &e.hull {
-                        for (f, b) in hull.offsets().iter().enumerate().take(MAX_FACETS) {
-                            let mut normal = [0.0; 6];
-                            normal[..dim].copy_from_slice(hull.normal(f));
-                            facets.push(Facet { normal, offset: *b });
-                        }
-                    }
-                }
-                if log_contacts {
-                    eprintln!(
-                        "icrflow-wrench: candidates {contacts:?}: force closure {}, alpha* {:.4}",
-                        h.force_closure, h.quality
-                    );
-                }
-                match &mut evaluated {
-                    Some((set, old)) => {
-                        set.clone_from(&contacts);
-                        *old = h;
-                    }
-                    None => evaluated = Some((contacts.clone(), h)),
-                }
-                h
-            }
-        };
-        header.header = Header::after(Kind::WrenchSpace, seq.advance(), &g.header, received);
-        out.publish(header, &facets)?;
+        out.publish(w.header, w.facets)?;
         health.processed += 1;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use icrflow_interfaces::FingerContact;
+    use icrflow_scenario::{Config, Setup};
+
+    fn paper() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
+
+    /// A grasp state whose fingers touch `candidates` (finger 1 to n); `free` more fingers out
+    /// of contact.
+    fn grasp(candidates: &[usize], free: usize) -> GraspState {
+        let mut g = GraspState {
+            finger_count: (candidates.len() + free) as u32,
+            ..Default::default()
+        };
+        for (slot, c) in candidates.iter().enumerate() {
+            g.fingers[slot] = FingerContact {
+                finger: slot as u32 + 1,
+                in_contact: 1,
+                candidate: *c as u32,
+                ..Default::default()
+            };
+        }
+        for slot in candidates.len()..candidates.len() + free {
+            g.fingers[slot].finger = slot as u32 + 1;
+            g.fingers[slot].candidate = 0;
+        }
+        g
+    }
+
+    #[test]
+    fn the_wrench_space_is_that_of_grasp_problem_evaluate() {
+        let (config, setup) = paper();
+        let problem = &setup.problem;
+        let alpha = config.grasp.alpha;
+        let (start, _) = setup.scenario(&config).start().unwrap();
+        let initial: Vec<usize> = start.iter().map(|c| c.candidate).collect();
+        let n = problem.candidates().points.len();
+        let mut step = WrenchSpace::new(problem, alpha);
+        // The paper's initial grasp (force closure), a set of two contacts (not force
+        // closure), the initial grasp again after another set, and three contacts elsewhere.
+        let two = vec![initial[0], initial[1]];
+        let other: Vec<usize> = initial.iter().map(|c| (c + n / 7) % n).collect();
+        let mut closures = 0;
+        for (k, set) in [&initial, &two, &initial, &other].into_iter().enumerate() {
+            let header = Header::new(Kind::WrenchSpace, 10 + k as u64, 3 + k as u64, 0);
+            let w = step.on_grasp(&grasp(set, 1), header).unwrap();
+            let e = problem.evaluate(set).unwrap();
+            assert!(w.evaluated, "set {set:?}: a new set is evaluated");
+            assert_eq!(w.contacts, &set[..]);
+            assert_eq!(w.header.header, header);
+            assert_eq!(w.header.dim as usize, problem.dim());
+            assert_eq!(w.header.alpha, alpha);
+            assert_eq!(w.header.force_closure, u32::from(e.force_closure()));
+            let quality = if e.force_closure() { e.quality } else { 0.0 };
+            assert_eq!(w.header.quality, quality, "set {set:?}");
+            assert_eq!(w.header.epsilon, e.epsilon, "set {set:?}");
+            let hull = e.hull.as_ref();
+            assert_eq!(w.facets.len(), hull.map_or(0, |h| h.facet_count()));
+            for (f, facet) in w.facets.iter().enumerate() {
+                let hull = hull.unwrap();
+                assert_eq!(facet.offset, hull.offsets()[f]);
+                assert_eq!(&facet.normal[..problem.dim()], hull.normal(f));
+            }
+            closures += usize::from(e.force_closure());
+        }
+        assert_eq!(
+            closures, 3,
+            "the initial grasp twice and the other set are closed"
+        );
+    }
+
+    #[test]
+    fn the_same_contact_set_is_answered_from_the_last_evaluation() {
+        let (config, setup) = paper();
+        let (start, _) = setup.scenario(&config).start().unwrap();
+        let initial: Vec<usize> = start.iter().map(|c| c.candidate).collect();
+        let mut step = WrenchSpace::new(&setup.problem, config.grasp.alpha);
+        let first = step
+            .on_grasp(&grasp(&initial, 0), Header::new(Kind::WrenchSpace, 1, 1, 0))
+            .unwrap();
+        let (summary, facets) = (first.header, first.facets.to_vec());
+        assert!(first.evaluated && summary.force_closure == 1);
+        // A free finger more and a contact on no candidate change nothing.
+        let mut g = grasp(&initial, 1);
+        g.fingers[3].in_contact = 1;
+        g.fingers[3].candidate = u32::MAX;
+        let header = Header::new(Kind::WrenchSpace, 2, 2, 0);
+        let again = step.on_grasp(&g, header).unwrap();
+        assert!(!again.evaluated);
+        assert_eq!(again.header.header, header);
+        assert_eq!(
+            (again.header.quality, again.header.epsilon),
+            (summary.quality, summary.epsilon)
+        );
+        assert_eq!(again.facets, &facets[..]);
+        // No finger in contact: no wrench space at all.
+        let none = step
+            .on_grasp(&grasp(&[], 3), Header::new(Kind::WrenchSpace, 3, 3, 0))
+            .unwrap();
+        assert!(none.evaluated && none.facets.is_empty());
+        assert_eq!((none.header.force_closure, none.header.quality), (0, 0.0));
+    }
 }

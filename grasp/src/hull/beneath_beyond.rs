@@ -86,6 +86,98 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-10;
 /// Most input points accepted (point sets are `u128` bit sets).
 pub const MAX_POINTS: usize = 128;
 
+/// Why the construction gave up (the caller then falls back to Qhull): an input it does not
+/// take, or an inconsistency that a near-degenerate input caused at the scale of the tolerance.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BeneathBeyondError {
+    /// The dimension is not one the construction is compiled for.
+    #[error("dimension {dim} is not in 2..=8")]
+    Dimension {
+        /// The dimension asked for.
+        dim: usize,
+    },
+    /// The coordinate buffer is not a whole number of points.
+    #[error("{len} coordinates are not a whole number of {dim}-dimensional points")]
+    Ragged {
+        /// Number of coordinates.
+        len: usize,
+        /// Dimension.
+        dim: usize,
+    },
+    /// Fewer points than a simplex of the space has vertices.
+    #[error("{count} points cannot span R^{dim}")]
+    TooFewPoints {
+        /// Number of points.
+        count: usize,
+        /// Dimension.
+        dim: usize,
+    },
+    /// More points than the point sets hold ([`MAX_POINTS`]).
+    #[error("{count} points: more than {max}", max = MAX_POINTS)]
+    TooManyPoints {
+        /// Number of points.
+        count: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("point {index} has a non-finite coordinate")]
+    NonFinite {
+        /// Index of the point.
+        index: usize,
+    },
+    /// More facets were created than the guard allows.
+    #[error("too many facets")]
+    TooManyFacets,
+    /// A facet to be made has fewer points than a hyperplane needs.
+    #[error("a facet has too few points")]
+    FacetTooFewPoints,
+    /// A facet's points do not span a hyperplane.
+    #[error("degenerate facet (its points do not span a hyperplane)")]
+    DegenerateFacet,
+    /// A facet's normal has no length.
+    #[error("degenerate facet normal")]
+    DegenerateNormal,
+    /// A facet's hyperplane passes through the interior reference point.
+    #[error("a facet passes through the interior reference point")]
+    ThroughInterior,
+    /// No initial simplex: the points do not span the space.
+    #[error("the points do not span the space")]
+    NotSpanning,
+    /// A point's conflict facet is no longer visible from it.
+    #[error("conflict list out of date")]
+    StaleConflictList,
+    /// A horizon ridge's facets are not neighbours.
+    #[error("inconsistent adjacency")]
+    InconsistentAdjacency,
+    /// A ridge has fewer points than it needs.
+    #[error("a ridge with too few points")]
+    RidgeTooFewPoints,
+    /// A ridge has fewer facets than it needs.
+    #[error("a ridge with too few facets")]
+    RidgeTooFewFacets,
+    /// A ridge is shared by more than two facets.
+    #[error("a ridge on more than two facets")]
+    RidgeOnMoreThanTwoFacets,
+    /// A sub-ridge of the new facets was seen once or three times.
+    #[error("the horizon is not closed (near-degenerate input)")]
+    HorizonNotClosed,
+    /// The final check found an input point above a facet.
+    #[error("an input point is above a facet (tolerance {tol:e})")]
+    PointAboveFacet {
+        /// The tolerance it is beyond.
+        tol: f64,
+    },
+    /// The final check found a facet without all of its points.
+    #[error("a facet lost its points in the final check")]
+    FacetLostPoints,
+    /// A facet's normal is not of unit length or its offset not finite.
+    #[error("a facet hyperplane is not finite")]
+    FacetNotFinite,
+    /// Fewer facets than a simplex has.
+    #[error("too few facets")]
+    TooFewFacets,
+}
+
 /// Most facets created over a whole construction before giving up (a guard, not a limit
 /// reached by the hulls this is meant for).
 const MAX_FACETS_CREATED: usize = 1 << 20;
@@ -110,7 +202,7 @@ pub fn hull(
         Vec<f64>,      /*offsets*/
         Vec<Vec<u32>>, /*facet vertex lists*/
     ),
-    String,
+    BeneathBeyondError,
 > {
     let c = hull_compressed(points, dim)?;
     let lists = c
@@ -132,7 +224,10 @@ pub(crate) struct Compressed {
 }
 
 /// [`hull`] with the facet lists in compressed form.
-pub(crate) fn hull_compressed(points: &[f64], dim: usize) -> Result<Compressed, String> {
+pub(crate) fn hull_compressed(
+    points: &[f64],
+    dim: usize,
+) -> Result<Compressed, BeneathBeyondError> {
     let mut out = Compressed::default();
     hull_compressed_in(points, dim, &mut Scratch::default(), &mut out)?;
     Ok(out)
@@ -160,25 +255,25 @@ pub(crate) fn hull_compressed_in(
     dim: usize,
     scratch: &mut Scratch,
     out: &mut Compressed,
-) -> Result<(), String> {
+) -> Result<(), BeneathBeyondError> {
     if !(2..=8).contains(&dim) {
-        return Err(format!("dimension {dim} is not in 2..=8"));
+        return Err(BeneathBeyondError::Dimension { dim });
     }
     if !points.len().is_multiple_of(dim) {
-        return Err(format!(
-            "{} coordinates are not a whole number of {dim}-dimensional points",
-            points.len()
-        ));
+        return Err(BeneathBeyondError::Ragged {
+            len: points.len(),
+            dim,
+        });
     }
     let n = points.len() / dim;
     if n < dim + 1 {
-        return Err(format!("{n} points cannot span R^{dim}"));
+        return Err(BeneathBeyondError::TooFewPoints { count: n, dim });
     }
     if n > MAX_POINTS {
-        return Err(format!("{n} points: more than {MAX_POINTS}"));
+        return Err(BeneathBeyondError::TooManyPoints { count: n });
     }
     if let Some(i) = points.iter().position(|x| !x.is_finite()) {
-        return Err(format!("point {} has a non-finite coordinate", i / dim));
+        return Err(BeneathBeyondError::NonFinite { index: i / dim });
     }
     if n > 64 {
         let mut sets = Vec::new();
@@ -432,7 +527,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         points: &[f64],
         out: &mut Compressed,
         sets: &mut Vec<S>,
-    ) -> Result<(), String> {
+    ) -> Result<(), BeneathBeyondError> {
         self.reset(points);
         self.initial_simplex()?;
         while let Some(p) = self.next_point() {
@@ -556,10 +651,10 @@ impl<const D: usize, S: Set> Builder<D, S> {
         offset: f64,
         err: f64,
         verts: S,
-    ) -> Result<usize, String> {
+    ) -> Result<usize, BeneathBeyondError> {
         self.created += 1;
         if self.created > MAX_FACETS_CREATED {
-            return Err("too many facets".into());
+            return Err(BeneathBeyondError::TooManyFacets);
         }
         let (nb_start, nb_cap, slot) = match self.free.pop() {
             Some(f) => {
@@ -612,7 +707,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
     /// Unit outward normal, offset and residual bound of the hyperplane through point `o` and
     /// the points of `set` (which must span a `(D - 1)`-flat with `o`), oriented away from
     /// the interior point.
-    fn plane(&mut self, o: usize, set: S) -> Result<([f64; D], f64, f64), String> {
+    fn plane(&mut self, o: usize, set: S) -> Result<([f64; D], f64, f64), BeneathBeyondError> {
         let x0 = self.pts[o];
         let mut m = 0;
         for i in Members(set) {
@@ -622,7 +717,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             }
         }
         if m + 1 < D {
-            return Err("a facet has too few points".into());
+            return Err(BeneathBeyondError::FacetTooFewPoints);
         }
         let mat = &mut self.mat[..m];
         let mut perm = [0usize; D];
@@ -640,7 +735,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
                 }
             }
             if best <= self.tol {
-                return Err("degenerate facet (its points do not span a hyperplane)".into());
+                return Err(BeneathBeyondError::DegenerateFacet);
             }
             mat.swap(k, bi);
             if bj != k {
@@ -674,7 +769,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         }
         let norm = dot(&a, &a).sqrt();
         if !(norm.is_finite() && norm > 0.0) {
-            return Err("degenerate facet normal".into());
+            return Err(BeneathBeyondError::DegenerateNormal);
         }
         for v in a.iter_mut() {
             *v /= norm;
@@ -688,7 +783,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             b = -b;
         }
         if depth.abs() <= self.tol {
-            return Err("a facet passes through the interior reference point".into());
+            return Err(BeneathBeyondError::ThroughInterior);
         }
         let mut err: f64 = 0.0;
         for i in Members(set) {
@@ -699,7 +794,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     // ---- construction ----------------------------------------------------------------------
 
-    fn initial_simplex(&mut self) -> Result<(), String> {
+    fn initial_simplex(&mut self) -> Result<(), BeneathBeyondError> {
         let n = self.pts.len();
         let mut centroid = [0.0; D];
         for x in &self.pts {
@@ -732,7 +827,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
                 }
             }
             if bi == usize::MAX || best.sqrt() <= self.tol {
-                return Err("the points do not span the space".into());
+                return Err(BeneathBeyondError::NotSpanning);
             }
             *c = bi;
             used = used | S::bit(bi);
@@ -795,7 +890,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         best
     }
 
-    fn insert(&mut self, p: usize) -> Result<(), String> {
+    fn insert(&mut self, p: usize) -> Result<(), BeneathBeyondError> {
         let x = self.pts[p];
         let start = self.owner[p];
         self.owner[p] = NONE;
@@ -819,7 +914,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             let fc = &mut facets[start as usize];
             let s = dot(&fc.normal, &x) - fc.offset;
             if s <= tol {
-                return Err("conflict list out of date".into());
+                return Err(BeneathBeyondError::StaleConflictList);
             }
             fc.dist = s;
             state[start as usize] = tag(step, VISIBLE);
@@ -874,7 +969,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
                         let (lo, hi) = (gc.nb_start as usize, (gc.nb_start + gc.nb_len) as usize);
                         let Some(at_g) = self.arena[lo..hi].iter().position(|&e| e == f as u32)
                         else {
-                            return Err("inconsistent adjacency".into());
+                            return Err(BeneathBeyondError::InconsistentAdjacency);
                         };
                         let (a, b, err) = self.rotate(f, g, ridge, p)?;
                         let h = self.add_facet(a, b, err, ridge | pbit)?;
@@ -922,7 +1017,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     /// Updates the neighbour lists after an insertion (the new facets' lists were filled
     /// while matching sub-ridges).
-    fn link(&mut self, step: u32) -> Result<(), String> {
+    fn link(&mut self, step: u32) -> Result<(), BeneathBeyondError> {
         for &(h, at) in &self.fresh {
             self.arena[at as usize] = h;
         }
@@ -1016,7 +1111,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         g: usize,
         ridge: S,
         p: usize,
-    ) -> Result<([f64; D], f64, f64), String> {
+    ) -> Result<([f64; D], f64, f64), BeneathBeyondError> {
         let (ff, gg) = (&self.facets[f], &self.facets[g]);
         let (wf, wg) = (-gg.dist, ff.dist);
         let mut a = [0.0; D];
@@ -1052,10 +1147,16 @@ impl<const D: usize, S: Set> Builder<D, S> {
     /// a facet of the ridge: for a simplex ridge, the ridge minus one point; otherwise the
     /// inclusion-maximal intersections of the ridge with the other neighbours of `f` (or of
     /// `g`): each facet of the ridge is `f`'s ridge with one of them.
-    fn sub_ridges(&mut self, f: usize, g: usize, owner: u32, slots: bool) -> Result<(), String> {
+    fn sub_ridges(
+        &mut self,
+        f: usize,
+        g: usize,
+        owner: u32,
+        slots: bool,
+    ) -> Result<(), BeneathBeyondError> {
         let ridge = self.facets[f].verts & self.facets[g].verts;
         if !ridge.at_least(D - 1) {
-            return Err("a ridge with too few points".into());
+            return Err(BeneathBeyondError::RidgeTooFewPoints);
         }
         let first = self.keys.len();
         let slot = |i: usize| if slots { (i - first + 1) as u32 } else { NONE };
@@ -1106,7 +1207,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             subs.push(s);
         }
         if subs.len() + 1 < D {
-            return Err("a ridge with too few facets".into());
+            return Err(BeneathBeyondError::RidgeTooFewFacets);
         }
         for i in 0..self.subs.len() {
             let k = Key {
@@ -1121,7 +1222,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
 
     /// Pairs equal keys: each pair is a ridge through p shared by its two owners. Writes the
     /// new facets' reserved neighbour slots; grown facets' new neighbours go to `pending`.
-    fn match_keys(&mut self) -> Result<(), String> {
+    fn match_keys(&mut self) -> Result<(), BeneathBeyondError> {
         self.pending.clear();
         let want = (2 * self.keys.len()).next_power_of_two().max(16);
         if self.table.len() < want {
@@ -1169,7 +1270,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             }
             let (x, sx) = (e.owner, e.slot);
             if sx == MATCHED {
-                return Err("a ridge on more than two facets".into());
+                return Err(BeneathBeyondError::RidgeOnMoreThanTwoFacets);
             }
             e.slot = MATCHED;
             matched += 1;
@@ -1186,7 +1287,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             }
         }
         if 2 * matched != keys.len() {
-            return Err("the horizon is not closed (near-degenerate input)".into());
+            return Err(BeneathBeyondError::HorizonNotClosed);
         }
         Ok(())
     }
@@ -1198,7 +1299,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
         normals: &mut Vec<f64>,
         offsets: &mut Vec<f64>,
         sets: &mut Vec<S>,
-    ) -> Result<(), String> {
+    ) -> Result<(), BeneathBeyondError> {
         let live = self.facets.iter().filter(|f| f.alive).count();
         normals.clear();
         offsets.clear();
@@ -1234,18 +1335,16 @@ impl<const D: usize, S: Set> Builder<D, S> {
             for (j, fc) in block.iter().enumerate() {
                 let Some(fc) = fc else { break };
                 if above[j] != 0 {
-                    return Err(format!(
-                        "an input point is above a facet (tolerance {tol:e})"
-                    ));
+                    return Err(BeneathBeyondError::PointAboveFacet { tol });
                 }
                 let set = S::from_words(lo[j], hi[j]);
                 if set & fc.verts != fc.verts || !set.at_least(D) {
-                    return Err("a facet lost its points in the final check".into());
+                    return Err(BeneathBeyondError::FacetLostPoints);
                 }
                 let norm = dot(&fc.normal, &fc.normal).sqrt();
                 let offset = fc.offset * self.unscale;
                 if !((norm - 1.0).abs() <= 1e-9 && offset.is_finite()) {
-                    return Err("a facet hyperplane is not finite".into());
+                    return Err(BeneathBeyondError::FacetNotFinite);
                 }
                 normals.extend_from_slice(&fc.normal);
                 offsets.push(offset);
@@ -1253,7 +1352,7 @@ impl<const D: usize, S: Set> Builder<D, S> {
             }
         }
         if sets.len() < D + 1 {
-            return Err("too few facets".into());
+            return Err(BeneathBeyondError::TooFewFacets);
         }
         Ok(())
     }
@@ -1340,12 +1439,17 @@ mod tests {
         assert_eq!(offsets.len(), 6);
         assert!(lists.iter().all(|l| l.len() == 25));
         pts.extend([0.0; 12]);
-        assert!(hull(&pts, 3).is_err(), "129 points");
+        let refused = hull(&pts, 3).unwrap_err();
+        assert_eq!(refused, BeneathBeyondError::TooManyPoints { count: 129 });
+        assert_eq!(refused.to_string(), "129 points: more than 128");
     }
 
     #[test]
     fn bad_input_is_an_error() {
-        assert!(hull(&[0.0; 5], 3).is_err());
+        assert_eq!(
+            hull(&[0.0; 5], 3).unwrap_err(),
+            BeneathBeyondError::Ragged { len: 5, dim: 3 }
+        );
         let nan = [
             0.0,
             0.0,
@@ -1360,11 +1464,25 @@ mod tests {
             0.0,
             1.0,
         ];
-        assert!(hull(&nan, 3).is_err());
+        assert_eq!(
+            hull(&nan, 3).unwrap_err(),
+            BeneathBeyondError::NonFinite { index: 0 }
+        );
         // Flat: four points in a plane of R^3.
-        assert!(hull(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.], 3).is_err());
-        assert!(hull(&[], 3).is_err());
-        assert!(hull(&cube(3), 1).is_err());
-        assert!(hull(&cube(3), 9).is_err());
+        assert_eq!(
+            hull(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.], 3).unwrap_err(),
+            BeneathBeyondError::NotSpanning
+        );
+        assert_eq!(
+            hull(&[], 3).unwrap_err(),
+            BeneathBeyondError::TooFewPoints { count: 0, dim: 3 }
+        );
+        assert_eq!(
+            hull(&cube(3), 1).unwrap_err(),
+            BeneathBeyondError::Dimension { dim: 1 }
+        );
+        let nine = hull(&cube(3), 9).unwrap_err();
+        assert_eq!(nine, BeneathBeyondError::Dimension { dim: 9 });
+        assert_eq!(nine.to_string(), "dimension 9 is not in 2..=8");
     }
 }
