@@ -532,59 +532,13 @@ pub fn replan(
     if touching.is_empty() {
         return Err(ReplanError::NoContact);
     }
-    // The offset `delta` that puts every contact nearest to a candidate together (the worst
-    // one's distance the least), tried from each contact's two nearest candidates: the
-    // estimator snaps each contact on its own, and contacts halfway between two candidates
-    // would be snapped to either side.
     let angles: Vec<Real> = normals.iter().map(|n| n.y.atan2(n.x)).collect();
-    let nearest = |a: Real| -> (usize, Real) {
-        angles
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (i, wrap(a - c).abs()))
-            .min_by(|x, y| x.1.total_cmp(&y.1))
-            .unwrap_or((0, f64::INFINITY))
-    };
-    let mut trials = Vec::with_capacity(2 * touching.len());
-    for (_, _, normal) in &touching {
-        // The nearest candidate and the nearer of its neighbours (the section's samples go
-        // round in order).
-        let (i, _) = nearest(*normal);
-        let off = |j: usize| wrap(normal - angles[j]);
-        let (after, before) = (
-            (i + 1) % angles.len(),
-            (i + angles.len() - 1) % angles.len(),
-        );
-        let next = if off(after).abs() < off(before).abs() {
-            after
-        } else {
-            before
-        };
-        trials.push(off(i));
-        trials.push(off(next));
-    }
-    let worst = |delta: Real| {
-        touching
-            .iter()
-            .map(|(_, _, normal)| nearest(normal - delta).1)
-            .fold(0.0, f64::max)
-    };
-    let delta = trials
-        .into_iter()
-        .min_by(|&a, &b| {
-            // Equally near (to rounding): the smaller turn.
-            let (wa, wb) = (worst(a), worst(b));
-            if (wa - wb).abs() > 1e-9 {
-                wa.total_cmp(&wb)
-            } else {
-                a.abs().total_cmp(&b.abs())
-            }
-        })
-        .unwrap_or(0.0);
+    let contact_angles: Vec<Real> = touching.iter().map(|(_, _, normal)| *normal).collect();
+    let delta = offset(&contact_angles, &angles);
     let contacts: Vec<_> = touching
         .into_iter()
         .map(|(f, q, normal)| {
-            let (candidate, _) = nearest(normal - delta);
+            let (candidate, _) = nearest(&angles, normal - delta);
             (f, candidate, q, wrap(normal - delta - angles[candidate]))
         })
         .collect();
@@ -636,6 +590,59 @@ pub fn replan(
         delta,
         notes,
     })
+}
+
+/// The candidate nearest to the body angle `a` (rad) among the candidates' normal angles
+/// `angles`, and how far it is (rad).
+fn nearest(angles: &[Real], a: Real) -> (usize, Real) {
+    angles
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (i, wrap(a - c).abs()))
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+        .unwrap_or((0, f64::INFINITY))
+}
+
+/// The offset `delta` (rad) that puts the contacts, at the normal angles `normals`, nearest to
+/// candidates (at `angles`, in order round the section) together: the worst one's distance
+/// the least, tried from each contact's two nearest candidates (the estimator snaps each
+/// contact on its own, and contacts halfway between two candidates would be snapped to
+/// either side); equally near (to rounding), the smaller turn.
+fn offset(normals: &[Real], angles: &[Real]) -> Real {
+    let mut trials = Vec::with_capacity(2 * normals.len());
+    for normal in normals {
+        // The nearest candidate and the nearer of its neighbours.
+        let (i, _) = nearest(angles, *normal);
+        let off = |j: usize| wrap(normal - angles[j]);
+        let (after, before) = (
+            (i + 1) % angles.len(),
+            (i + angles.len() - 1) % angles.len(),
+        );
+        let next = if off(after).abs() < off(before).abs() {
+            after
+        } else {
+            before
+        };
+        trials.push(off(i));
+        trials.push(off(next));
+    }
+    let worst = |delta: Real| {
+        normals
+            .iter()
+            .map(|normal| nearest(angles, normal - delta).1)
+            .fold(0.0, f64::max)
+    };
+    trials
+        .into_iter()
+        .min_by(|&a, &b| {
+            let (wa, wb) = (worst(a), worst(b));
+            if (wa - wb).abs() > 1e-9 {
+                wa.total_cmp(&wb)
+            } else {
+                a.abs().total_cmp(&b.abs())
+            }
+        })
+        .unwrap_or(0.0)
 }
 
 /// The contacts a plan was made again from, for a message: each finger, its candidate's angle,
