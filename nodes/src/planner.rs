@@ -9,7 +9,7 @@
 //! numbered on from the last one, its first step a `Start`.
 //!
 //! [`run`] is the adapter: the grasp state into an [`Estimate`], the follower's step, the
-//! plan-step messages (each with its grasp's ICRs, computed with the plan: [`Regions`]),
+//! plan-step messages (each with its grasp's ICRs, computed with the plan: `Regions`),
 //! health. The geometry and the step are the planner crate's ([`icrflow_plan::follow`]).
 
 use std::time::Duration;
@@ -124,7 +124,7 @@ fn regions(
     (distinct, of_target)
 }
 
-/// The plan-step message of target `at` (`done`: after the last one) with its `regions`.
+/// The plan-step message of `target` (`done`: the plan is done, after it) with its `regions`.
 fn message(target: &Target, done: bool, regions: &Regions, header: Header) -> PlanStepHeader {
     let step = &target.step;
     let mut h = PlanStepHeader {
