@@ -8,6 +8,7 @@
 //!
 //! | module | what |
 //! |---|---|
+//! | [`follow`] | following a plan closed loop: its targets (sub-targets, stand-offs, way points around the object), the [`follow::Follower`] step, re-planning from an estimate |
 //! | [`forces`] | fingertip forces balancing the grasp inside the exact friction cones (SOCP, clarabel) |
 //! | [`hand`] | fingers as revolute chains: forward kinematics, closed-form planar and damped-least-squares inverse kinematics, limits, manipulability |
 //! | [`urdf`] | hands from URDF files |
@@ -18,6 +19,7 @@
 
 #![warn(missing_docs)]
 
+pub mod follow;
 pub mod forces;
 pub mod hand;
 pub mod paper;

@@ -93,6 +93,7 @@ pub struct Settings {
 }
 
 /// The problem the planner solves.
+#[derive(Clone)]
 pub struct Scenario<'a> {
     /// Grasp problem whose candidates are the object's section in the hand's plane.
     pub problem: &'a GraspProblem,

@@ -1,0 +1,497 @@
+//! The planner node's follower ([`icrflow_plan::follow`]) on the shipped configs, without IPC:
+//! the targets it leads the hand through keep the fingers off the object, it advances through
+//! the paper's plan as the estimate reaches each target, settles, and plans again from an
+//! estimate off the plan.
+
+use icrflow_nodes::estimator::RELEASE;
+use icrflow_nodes::planner::CLEARANCE;
+use icrflow_plan::follow::{
+    Estimate, EstimatedFinger, Event, Follower, REPLAN_NS, SETTLED_NS, STANDOFFS, Target,
+    Tolerances, replan, targets,
+};
+use icrflow_plan::planner::{Phase, Plan, Step};
+use icrflow_plan::rolling::{Surface, tip};
+use icrflow_plan::route::{self, Keepout};
+use icrflow_scenario::{Config, Setup};
+
+/// The config `config/NAME`.
+fn config(name: &str) -> Config {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    Config::load(&dir.join("../config").join(name)).unwrap()
+}
+
+/// The scenario of `config/NAME`, its plan and its targets.
+fn planned(name: &str) -> (Config, Setup, Plan, Vec<Target>) {
+    let config = config(name);
+    let setup = Setup::new(&config).unwrap();
+    let plan = setup.scenario(&config).plan(&mut |_| {}).unwrap();
+    let surface = setup.surface().unwrap();
+    let list = targets(&plan.steps, &setup.hand, surface, CLEARANCE, &mut |_| {});
+    (config, setup, plan, list)
+}
+
+/// Joint angles in radians from a plan's degrees.
+fn radians(deg: &[f64]) -> Vec<f64> {
+    deg.iter().map(|d| d.to_radians()).collect()
+}
+
+/// One approach (a finger coming into contact from a stand-off) before every attach and one
+/// retreat before every detach of `plan`.
+fn one_approach_and_retreat_per_switch(approaches: usize, retreats: usize, plan: &Plan) {
+    assert_eq!(
+        approaches, plan.summary.switches,
+        "an approach before every attach"
+    );
+    assert_eq!(
+        retreats, plan.summary.switches,
+        "a retreat before every detach"
+    );
+}
+
+/// Every finger reaches its contact from, and leaves it to, a stand-off pose straight out
+/// from the object; every move of a finger that is not rolling starts from a contact or a
+/// way point (where the follower waits for it) and stays outside the object.
+#[test]
+fn fingers_approach_and_leave_along_the_normal() {
+    let (_, setup, plan, list) = planned("paper_sphere.toml");
+    let hand = &setup.hand;
+    let r = setup.object.max_radius();
+    let (mut approaches, mut retreats, mut free_moves) = (0, 0, 0);
+    for w in list.windows(2) {
+        let (a, b) = (&w[0].step, &w[1].step);
+        for slot in 0..a.fingers.len() {
+            let f = hand.finger(a.fingers[slot].finger).unwrap();
+            let (qa, qb) = (
+                radians(&a.fingers[slot].joints_deg),
+                radians(&b.fingers[slot].joints_deg),
+            );
+            let touching = |t: &Step| t.fingers[slot].contact.is_some();
+            if qa != qb && !(touching(a) && touching(b)) {
+                // Off the surface by the stand-off leg's tolerance next to a contact, beyond
+                // the release distance everywhere else.
+                let margin = if touching(a) || touching(b) {
+                    -2e-4
+                } else {
+                    CLEARANCE - 1e-9
+                };
+                assert!(
+                    route::clear(f, &qa, &qb, Keepout::new(r + f.tip_radius + margin, r)),
+                    "steps {} -> {} ({:?} -> {:?}): finger {} comes within {margin} m of the \
+                     object, from {:?} to {:?}",
+                    a.step,
+                    b.step,
+                    a.phase,
+                    b.phase,
+                    f.id,
+                    a.fingers[slot].joints_deg,
+                    b.fingers[slot].joints_deg,
+                );
+                assert!(
+                    touching(a) || w[0].way_point,
+                    "steps {} -> {}: finger {} sets off from a pose it may not be at",
+                    a.step,
+                    b.step,
+                    f.id
+                );
+                free_moves += 1;
+            }
+            let gap = |q: &[f64]| tip(f, q).distance - r - f.tip_radius;
+            let standoff = |q: &[f64]| STANDOFFS.iter().any(|d| (gap(q) - d).abs() < 1e-6);
+            if b.phase == Phase::Attach
+                && a.fingers[slot].contact.is_none()
+                && b.fingers[slot].contact.is_some()
+            {
+                assert!(standoff(&qa), "step {}: approach gap {}", b.step, gap(&qa));
+                approaches += 1;
+            }
+            if b.phase == Phase::Detach
+                && a.fingers[slot].contact.is_some()
+                && b.fingers[slot].contact.is_none()
+            {
+                assert!(standoff(&qb), "step {}: retreat gap {}", b.step, gap(&qb));
+                retreats += 1;
+            }
+        }
+    }
+    // At least: out to the stand-off and away from it, to it and in, per switch.
+    assert!(
+        free_moves >= 4 * plan.summary.switches,
+        "{free_moves} free moves"
+    );
+    one_approach_and_retreat_per_switch(approaches, retreats, &plan);
+}
+
+/// On a non-circular section (the ellipsoid mesh of `config/ellipsoid_spatial.toml`): every
+/// move of a finger that is not rolling keeps its fingertip off the section (turned as in the
+/// move's targets) by the stand-off legs' tolerance next to a contact and by the estimator's
+/// release distance elsewhere, and every switch has its stand-offs.
+#[test]
+fn free_fingers_keep_off_a_non_circular_object() {
+    let (_, setup, plan, list) = planned("ellipsoid_spatial.toml");
+    let surface = setup.surface().unwrap();
+    let hand = &setup.hand;
+    assert!(matches!(surface, Surface::Curve(_)));
+    let (mut approaches, mut retreats) = (0, 0);
+    for w in list.windows(2) {
+        let (a, b) = (&w[0].step, &w[1].step);
+        for slot in 0..a.fingers.len() {
+            let f = hand.finger(a.fingers[slot].finger).unwrap();
+            let (qa, qb) = (
+                radians(&a.fingers[slot].joints_deg),
+                radians(&b.fingers[slot].joints_deg),
+            );
+            let touching = |t: &Step| t.fingers[slot].contact.is_some();
+            if qa == qb || (touching(a) && touching(b)) {
+                continue;
+            }
+            let margin = if touching(a) || touching(b) {
+                -2e-4
+            } else {
+                RELEASE
+            };
+            for theta in [a.rotation_deg, b.rotation_deg].map(f64::to_radians) {
+                let (mut lowest, mut links) = (f64::INFINITY, f64::INFINITY);
+                route::along(&qa, &qb, |q| {
+                    lowest = lowest.min(surface.contact_of(&tip(f, q), f, theta).gap);
+                    links = links.min(surface.link_gap(f, q, theta).0);
+                    true
+                });
+                assert!(
+                    links >= route::LINK_MARGIN - 1e-9,
+                    "steps {} -> {}: finger {}'s links come {:.2} mm from the object",
+                    a.step,
+                    b.step,
+                    f.id,
+                    links * 1e3
+                );
+                assert!(
+                    lowest >= margin,
+                    "steps {} -> {} ({:?} -> {:?}): finger {} comes {:.2} mm from the object \
+                     (at least {:.2} mm wanted)",
+                    a.step,
+                    b.step,
+                    a.phase,
+                    b.phase,
+                    f.id,
+                    lowest * 1e3,
+                    margin * 1e3
+                );
+            }
+            approaches += usize::from(!touching(a) && touching(b));
+            retreats += usize::from(touching(a) && !touching(b));
+        }
+    }
+    one_approach_and_retreat_per_switch(approaches, retreats, &plan);
+}
+
+/// An estimate with the hand exactly at `step`'s joints (and its fingers in contact), the
+/// object at `rotation_deg`.
+fn at_joints_of(step: &Step, rotation_deg: f64) -> Estimate {
+    Estimate {
+        rotation: rotation_deg.to_radians(),
+        fingers: step
+            .fingers
+            .iter()
+            .map(|f| EstimatedFinger {
+                finger: f.finger,
+                in_contact: f.contact.is_some(),
+                joints: radians(&f.joints_deg),
+            })
+            .collect(),
+    }
+}
+
+/// A rolling sub-target counts as reached when the hand is at its joints and the object
+/// within SETTLED_TOLERANCE of its rotation, without waiting for the object to settle (after a
+/// re-plan the object stayed a degree short of every sub-target, and the run crawled on at
+/// SETTLED_NS per sub-target); being at one sub-target's joints is never being at the next
+/// one's, so the follower does not run ahead of the hand.
+#[test]
+fn the_hand_at_a_rolling_targets_joints_reaches_it() {
+    let (config, _, _, list) = planned("paper_sphere.toml");
+    let tol = Tolerances::new(config.pipeline.joint_noise);
+    let rolling: Vec<usize> = (0..list.len() - 1)
+        .filter(|&k| list[k].step.phase == Phase::Rolling && !list[k].way_point)
+        .collect();
+    assert!(rolling.len() > 100, "{}", rolling.len());
+    let mut closest = f64::INFINITY;
+    for &k in &rolling {
+        let step = &list[k].step;
+        let e = at_joints_of(step, step.rotation_deg - 1.0);
+        assert!(list[k].hand_at(&e, tol.hand), "target {k}");
+        // A degree short, not settled: reached only as the hand is there.
+        assert!(!list[k].reached(&e, false, tol.joint), "target {k}");
+        assert!(list[k].reached(&e, true, tol.joint), "target {k}");
+        let next = &list[k + 1];
+        if next.step.phase == Phase::Rolling && e.same_contacts(&next.step) {
+            closest = closest.min(e.joint_error(&next.step, true));
+        }
+    }
+    println!(
+        "closest consecutive rolling targets: {:.3} deg in joints",
+        closest.to_degrees()
+    );
+    assert!(
+        closest > 2.0 * tol.hand,
+        "consecutive rolling targets {:.3} deg apart in joints",
+        closest.to_degrees()
+    );
+}
+
+/// After the object slipped by 12 deg under the fingertips during a rolling step of the
+/// paper's plan (off the 5 deg candidate grid), a plan made again from that state starts with
+/// the hand where it is and the object where it is, and turns it to the goal.
+#[test]
+fn a_plan_made_again_after_a_slip_starts_where_the_hand_and_object_are() {
+    let (config, setup, plan, _) = planned("paper_sphere.toml");
+    let surface = setup.surface().unwrap();
+    let step = plan
+        .steps
+        .iter()
+        .find(|s| s.phase == Phase::Rolling && s.rotation_deg >= 100.0)
+        .unwrap();
+    let slip = 12.0;
+    let mut e = at_joints_of(step, step.rotation_deg + slip);
+    let scenario = setup.scenario(&config);
+    let again = replan(&scenario, &e, surface, 40, CLEARANCE, &mut || {}).unwrap();
+    let (list, delta) = (&again.targets, again.delta);
+    let again = &again.plan;
+    assert!(again.summary.completed, "{:?}", again.summary.stop_reason);
+    // The contacts were 12 deg off the grid: 2 deg short of a candidate.
+    assert!(
+        (delta.to_degrees() + 2.0).abs() < 1e-6,
+        "{}",
+        delta.to_degrees()
+    );
+    let first = &again.steps[0];
+    assert_eq!((first.step, first.phase), (40, Phase::Start));
+    assert!((first.rotation_deg - step.rotation_deg - slip).abs() < 1e-9);
+    for (a, b) in step.fingers.iter().zip(&first.fingers) {
+        assert_eq!(a.contact.is_some(), b.contact.is_some());
+        for (x, y) in a.joints_deg.iter().zip(&b.joints_deg) {
+            assert!((x - y).abs() < 1e-6, "finger {}: {x} vs {y} deg", a.finger);
+        }
+    }
+    let last = again.steps.last().unwrap();
+    assert!(
+        (last.rotation_deg - 360.0).abs() < 1e-9,
+        "{}",
+        last.rotation_deg
+    );
+    assert!(again.summary.min_quality >= config.grasp.alpha * (1.0 - 1e-9));
+    assert_eq!(list.first().map(|t| t.step.step), Some(40));
+    // An estimate with no finger in contact is refused by what is wrong.
+    for f in &mut e.fingers {
+        f.in_contact = false;
+    }
+    let err = replan(&scenario, &e, surface, 40, CLEARANCE, &mut || {}).unwrap_err();
+    assert!(err.to_string().contains("no finger in contact"), "{err}");
+}
+
+/// 10 ms, the period of the estimate in these tests (ns).
+const TICK: u64 = 10_000_000;
+
+/// A follower of `config/NAME`'s plan, and the config.
+fn follower<'a>(config: &Config, setup: &'a Setup) -> Follower<'a> {
+    let tol = Tolerances::new(config.pipeline.joint_noise);
+    let surface = setup.surface().unwrap();
+    Follower::new(setup.scenario(config), surface, CLEARANCE, tol, &mut |_| {}).unwrap()
+}
+
+/// Leads `f` through its targets up to `to` with estimates exactly at each, from `now` (ns)
+/// on, one per [`TICK`]: each one reaches its target and moves on to the next. The time after.
+fn follow_to(f: &mut Follower<'_>, to: usize, mut now: u64) -> u64 {
+    while f.current().is_none_or(|k| k < to) {
+        let k = f.current().unwrap_or(0);
+        let e = at_joints_of(&f.targets()[k].step, f.targets()[k].step.rotation_deg);
+        let out = f.on_estimate(&e, now, &mut || {});
+        assert_eq!(out.resumed, (k == 0 && now == 0).then_some(0), "target {k}");
+        assert!(
+            matches!(out.event, Some(Event::Advanced(n)) if n == k + 1),
+            "target {k}: {:?}",
+            out.event
+        );
+        now += TICK;
+    }
+    now
+}
+
+/// An estimate at each target in turn (the paper's plan: rolling sub-targets, way points of
+/// the switching fingers, the goal) moves the follower on by one each time, to `Done` after
+/// the last; an estimate at the goal then changes nothing.
+#[test]
+fn the_follower_advances_through_the_papers_plan_as_the_estimate_reaches_each_target() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let mut f = follower(&config, &setup);
+    let n = f.targets().len();
+    assert!(f.targets().iter().any(|t| t.way_point));
+    let now = follow_to(&mut f, n, 0);
+    assert_eq!(f.current(), Some(n));
+    let last = &f.targets()[n - 1].step;
+    let out = f.on_estimate(&at_joints_of(last, last.rotation_deg), now, &mut || {});
+    assert!(out.event.is_none() && out.resumed.is_none(), "{out:?}");
+    assert_eq!(out.commands().count(), 0);
+    assert_eq!(f.replans(), 0);
+}
+
+/// A follower started on an estimate in the middle of the plan (a restarted node) resumes at
+/// the target nearest to it, not at the start.
+#[test]
+fn a_follower_resumes_at_the_target_nearest_to_the_first_estimate() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let mut f = follower(&config, &setup);
+    let k = (f.targets().len() / 2..f.targets().len())
+        .find(|&k| f.targets()[k].step.phase == Phase::Rolling && !f.targets()[k].way_point)
+        .unwrap();
+    let step = f.targets()[k].step.clone();
+    // Half a sub-target short of it: nearer to it than to the one before.
+    let e = at_joints_of(&step, step.rotation_deg - 0.2);
+    let out = f.on_estimate(&e, 0, &mut || {});
+    assert_eq!(out.resumed, Some(k));
+}
+
+/// The object a degree short of a rolling target, the hand not at its joints: the follower
+/// holds the target until the object has stood still for SETTLED_NS, then moves on.
+#[test]
+fn a_rolling_target_short_of_which_the_object_settles_is_reached_as_it_settles() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let mut f = follower(&config, &setup);
+    let k = (1..f.targets().len() - 1)
+        .find(|&k| f.targets()[k].step.phase == Phase::Rolling && !f.targets()[k].way_point)
+        .unwrap();
+    let mut now = follow_to(&mut f, k, 0);
+    let step = f.targets()[k].step.clone();
+    let mut e = at_joints_of(&step, step.rotation_deg - 1.0);
+    // The fingers in contact half a degree off the target's joints.
+    for ef in e.fingers.iter_mut().filter(|ef| ef.in_contact) {
+        ef.joints[0] += 0.5_f64.to_radians();
+    }
+    let start = now;
+    loop {
+        let out = f.on_estimate(&e, now, &mut || {});
+        if now - start < SETTLED_NS {
+            assert!(
+                out.event.is_none(),
+                "after {} ns: {:?}",
+                now - start,
+                out.event
+            );
+        } else {
+            assert!(
+                matches!(out.event, Some(Event::Advanced(n)) if n == k + 1),
+                "{:?}",
+                out.event
+            );
+            break;
+        }
+        now += TICK;
+    }
+    assert_eq!(f.replans(), 0);
+}
+
+/// The object slipped 12 deg ahead of a rolling target, the hand at the target: the follower
+/// holds the target until the object has stood still for REPLAN_NS, then plans again from the
+/// estimate, numbers the new plan's steps on from the target's, and follows it.
+#[test]
+fn the_follower_plans_again_when_the_object_stands_still_off_the_plan() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let mut f = follower(&config, &setup);
+    let k = (0..f.targets().len())
+        .find(|&k| {
+            let t = &f.targets()[k];
+            t.step.phase == Phase::Rolling && !t.way_point && t.step.rotation_deg >= 100.0
+        })
+        .unwrap();
+    let mut now = follow_to(&mut f, k, 0);
+    let step = f.targets()[k].step.clone();
+    let e = at_joints_of(&step, step.rotation_deg + 12.0);
+    let (start, mut beats) = (now, 0);
+    let replanned = loop {
+        let out = f.on_estimate(&e, now, &mut || beats += 1);
+        if now - start < REPLAN_NS {
+            assert!(
+                out.event.is_none(),
+                "after {} ns: {:?}",
+                now - start,
+                out.event
+            );
+        } else {
+            break out;
+        }
+        now += TICK;
+    };
+    let Some(Event::Replanned(r)) = &replanned.event else {
+        panic!("{:?}", replanned.event);
+    };
+    assert_eq!(replanned.commands().collect::<Vec<_>>(), vec![0]);
+    assert!(r.plan.summary.completed, "{:?}", r.plan.summary.stop_reason);
+    assert!(beats > 0, "no heartbeat while planning");
+    assert!(
+        r.to_string().contains("planned again from the estimate"),
+        "{r}"
+    );
+    assert_eq!((f.replans(), f.current()), (1, Some(0)));
+    let first = &f.targets()[0].step;
+    assert_eq!((first.step, first.phase), (step.step + 1, Phase::Start));
+    assert!((first.rotation_deg - step.rotation_deg - 12.0).abs() < 1e-9);
+    let last = &f.targets().last().unwrap().step;
+    assert!((last.rotation_deg - 360.0).abs() < 1e-9);
+    // And follows the new plan on.
+    follow_to(&mut f, 3, now + TICK);
+    assert_eq!(f.current(), Some(3));
+}
+
+/// FNV-1a of the targets (step, phase, way point, rotation and each finger's contact and
+/// joints, to 1e-6 deg): their fingerprint.
+fn fingerprint(list: &[Target]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for t in list {
+        let mut line = format!(
+            "{} {:?} {} {:.6}",
+            t.step.step, t.step.phase, t.way_point, t.step.rotation_deg
+        );
+        for f in &t.step.fingers {
+            line += &format!(" {} {:?}", f.finger, f.contact);
+            for q in &f.joints_deg {
+                line += &format!(" {q:.6}");
+            }
+        }
+        line.push('\n');
+        for b in line.bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// The targets of the paper's and the ellipsoid's plans are those the planner node made
+/// before the follower moved to the planner crate (issue #19): their number and fingerprint
+/// as that code gave them (nodes/src/planner.rs at 11e0ef5).
+#[test]
+fn the_targets_are_those_of_the_node_before_the_move() {
+    for (name, count, print) in [
+        ("paper_sphere.toml", PAPER_COUNT, PAPER_PRINT),
+        ("ellipsoid_spatial.toml", ELLIPSOID_COUNT, ELLIPSOID_PRINT),
+    ] {
+        let (_, _, _, list) = planned(name);
+        assert_eq!(
+            (list.len(), fingerprint(&list)),
+            (count, print),
+            "{name}: {} targets, fingerprint {:#018x}",
+            list.len(),
+            fingerprint(&list)
+        );
+    }
+}
+
+/// What `the_targets_are_those_of_the_node_before_the_move` compares with: printed by the
+/// same fingerprint from the node's own `targets` at 11e0ef5.
+const PAPER_COUNT: usize = 816;
+const PAPER_PRINT: u64 = 0xf18c_b88f_8488_0efd;
+const ELLIPSOID_COUNT: usize = 822;
+const ELLIPSOID_PRINT: u64 = 0x706f_08cd_82b0_a4cf;
