@@ -253,7 +253,8 @@ fn slipped_run(dir: &std::path::Path, extra: &str) -> (std::process::Output, ser
 }
 
 /// A slip 2.6 s into the paper's run, during a finger switch: the plan made again from the
-/// estimate either turns the object to the goal or ends short of it (no free finger can take
+/// estimate either turns the object to the goal (or settles it past)
+/// or ends short of it (no free finger can take
 /// over from finger 3; about one run in three), and then the run says where the plan ended
 /// and gives up. Before session 12 such runs crawled on at a degree a second (every rolling
 /// sub-target reached only by settling, the object a degree off the plan) and, at the plan's
@@ -275,7 +276,13 @@ fn a_slip_during_a_switch_ends_at_the_goal_or_where_the_new_plan_ends() {
     );
     if s["completed"] == true {
         assert!(o.status.success(), "{err}");
-        turned_to_the_goal_above_the_margin(&s);
+        // At the goal, or settled past it: after the re-plan the rolling can end a degree or
+        // two beyond the plan's last rotation, and the hand cannot turn the object back.
+        let rotation = s["rotation_deg"].as_f64().unwrap();
+        assert!(
+            (359.0..362.0).contains(&rotation),
+            "rotation {rotation}: {s}"
+        );
     } else {
         assert_eq!(o.status.code(), Some(2), "{err}");
         let reason = s["reason"].as_str().unwrap();

@@ -59,8 +59,8 @@ pub const INNOVATION_WEIGHT: f64 = 0.2;
 pub const TOUCH: f64 = 0.6e-3;
 /// ... for this many consecutive samples (a fingertip passing by on its way is not a contact) ...
 pub const SETTLE: u32 = 10;
-/// ... and leaves contact beyond this (m): hysteresis against noise.
-pub const RELEASE: f64 = 2e-3;
+/// ... and leaves contact beyond [`RELEASE`] (m): hysteresis against noise.
+pub use icrflow_plan::rolling::RELEASE;
 /// A fingertip in contact counts for the rolling only if its distance from the object's surface
 /// changed less than this between two samples (m): one arriving or leaving does not roll it.
 pub const RADIAL: f64 = 0.2e-3;

@@ -34,7 +34,7 @@ pub const REPUBLISH: f64 = 0.01;
 /// How far beyond the contact distance a free finger's fingertip stays on its way between a
 /// stand-off and its free pose (m): farther than the estimator's release distance, so that
 /// no passing finger is taken for a contact.
-pub const CLEARANCE: f64 = crate::estimator::RELEASE + 0.5e-3;
+pub const CLEARANCE: f64 = icrflow_plan::rolling::RELEASE + 0.5e-3;
 
 /// The grasp state `g` as the follower's estimate, into `e` (its buffers kept, so that this
 /// allocates nothing once they have grown): the fingers in use, each with as many joints as

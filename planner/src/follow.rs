@@ -821,6 +821,17 @@ pub struct Follower<'a> {
 }
 
 impl<'a> Follower<'a> {
+    /// Whether the estimated object has turned past the last target's rotation, in the
+    /// direction the plan turns it.
+    fn past_goal(&self, e: &Estimate) -> bool {
+        let (Some(first), Some(last)) = (self.targets.first(), self.targets.last()) else {
+            return false;
+        };
+        let goal = last.step.rotation_deg.to_radians();
+        let direction = (goal - first.step.rotation_deg.to_radians()).signum();
+        direction != 0.0 && (e.rotation - goal) * direction > 0.0
+    }
+
     /// Plans `scenario` and follows the plan's [`targets`] on `surface` (`clearance` and
     /// `note` as there).
     pub fn new(
@@ -916,10 +927,19 @@ impl<'a> Follower<'a> {
         // plan's rotation (the contacts are not where the plan has them); waiting SETTLED_NS
         // for each sub-target then crawled at 1 deg/s.
         let hand_there = k < n && self.targets[k].hand_at(e, tol.hand);
-        // The last target, when it is the goal, is reached within ROTATION_TOLERANCE only. A
-        // plan that ends short of it ends as it settles.
-        let settled = (stopped_ns >= SETTLED_NS || hand_there) && (k + 1 < n || !self.ends_at_goal);
-        let at_target = k < n && self.targets[k].reached(e, settled, tol.joint);
+        // The last target, when it is the goal, is reached within ROTATION_TOLERANCE, or,
+        // settled, anywhere past it (the hand cannot turn the object back; after a re-plan the
+        // object can end a degree beyond the plan's rotation). A plan that ends short of it
+        // ends as it settles.
+        let settling = stopped_ns >= SETTLED_NS || hand_there;
+        let goal = k + 1 == n && self.ends_at_goal;
+        let settled = settling && !goal;
+        let at_target = k < n
+            && (self.targets[k].reached(e, settled, tol.joint)
+                || (goal
+                    && settling
+                    && self.past_goal(e)
+                    && e.same_contacts(&self.targets[k].step)));
         if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint) {
             // Stuck short of the target: plan again from the estimate.
             let target = self.targets[k].step.rotation_deg.to_radians();

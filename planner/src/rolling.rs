@@ -52,6 +52,11 @@ pub enum SurfaceError {
     NotOneLoop(f64),
 }
 
+/// How far from the object's surface a fingertip in contact is taken to have left it (m): the
+/// estimator's hysteresis against encoder noise, and what a free finger passing by keeps
+/// clear of (the planner node's clearance is beyond it).
+pub const RELEASE: f64 = 2e-3;
+
 /// Where a fingertip is, seen from the object's centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tip {
