@@ -253,10 +253,9 @@ fn slipped_run(dir: &std::path::Path, extra: &str) -> (std::process::Output, ser
 }
 
 /// A slip 2.6 s into the paper's run, during a finger switch: the plan made again from the
-/// estimate either turns the object to the goal (or settles it past)
-/// or ends short of it (no free finger can take
-/// over from finger 3; about one run in three), and then the run says where the plan ended
-/// and gives up. Before session 12 such runs crawled on at a degree a second (every rolling
+/// estimate either turns the object to the goal (or settles it a little past) or ends short of
+/// it (no free finger can take over from finger 3; about one run in three), and then the run
+/// says where the plan ended and gives up. Before session 12 such runs crawled on at a degree a second (every rolling
 /// sub-target reached only by settling, the object a degree off the plan) and, at the plan's
 /// end, waited for a step that never came.
 #[test]
