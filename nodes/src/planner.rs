@@ -660,7 +660,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut replans = 0u32;
     let joint_tolerance = WAY_POINT_TOLERANCE + 5.0 * ctx.scenario.config.pipeline.joint_noise;
     let hand_tolerance = HAND_AT_TARGET + 5.0 * ctx.scenario.config.pipeline.joint_noise;
-    let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_steps = ctx.launch.log.contacts;
     let problem = &ctx.scenario.setup.problem;
     let alpha = ctx.scenario.config.grasp.alpha;
     // The regions each target's messages carry, computed now rather than per step.

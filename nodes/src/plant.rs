@@ -126,10 +126,10 @@ pub fn run(ctx: &Context) -> Result<()> {
     let latency_ns = (p.pose_latency * 1e9) as u64;
 
     let mut ticks: u64 = 0;
-    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_contacts = ctx.launch.log.contacts;
     let saved = Checkpoint::new(state_file)?;
     // Its thread (started above) stays at normal priority.
-    icrflow_runtime::node::promote(ctx.name);
+    icrflow_runtime::node::promote(ctx.name, ctx.launch.realtime);
     // The plant keeps its own clock, like a hand's controller: a tick every period on an
     // absolute schedule (a WaitSet interval would drift by its millisecond timeouts), taking
     // the newest command at each tick; SIGTERM or SIGINT during the sleep stops it (another

@@ -33,7 +33,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut evaluated: Option<(Vec<usize>, WrenchSpaceHeader)> = None;
     let mut e = Evaluation::default();
     let mut scratch = EvaluationScratch::default();
-    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_contacts = ctx.launch.log.contacts;
     let n = problem.candidates().points.len();
 
     serve(ctx, &[grasps.listener()], None, |_| {

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use icrflow_interfaces::{Header, JointState, Kind, SCHEMA_VERSION, read_text, topics};
 use icrflow_runtime::bus::{Bus, BusConfig};
+use icrflow_runtime::launch::Launch;
 
 /// The paper scenario's config.
 fn config() -> PathBuf {
@@ -19,9 +20,7 @@ fn config() -> PathBuf {
 /// The estimator process on bus `c`.
 fn estimator(c: &BusConfig) -> Child {
     Command::new(env!("CARGO_BIN_EXE_icrflow-estimator"))
-        .arg("--config")
-        .arg(config())
-        .envs(c.env())
+        .args(Launch::new(config(), c.clone()).to_args())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
