@@ -111,7 +111,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
-    let statics = statics(setup, &id, alpha);
+    let statics = statics(setup, id, alpha);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
     let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);
