@@ -7,7 +7,6 @@ mod output;
 mod plan;
 mod progress;
 mod run;
-mod watch;
 
 use std::process::ExitCode;
 

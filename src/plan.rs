@@ -143,7 +143,7 @@ pub fn run(
         .transpose()?;
     let program = recording
         .as_ref()
-        .map(|_| crate::run::node_program(crate::run::VISUALIZER))
+        .map(|_| crate::run::launch::node_program(icrflow_interfaces::topics::NodeRole::Visualizer))
         .transpose()?;
     let mut shown = crate::progress::Shown::new(progress_after);
     let setup = Setup::new_with(&config, &mut shown)?;
@@ -197,84 +197,103 @@ pub fn run(
         serde_json::to_writer_pretty(&mut o, s).context("writing JSON")?;
         writeln!(o)?;
     } else {
-        let mut o = std::io::stdout().lock();
-        writeln!(o, "config     {}", path.display())?;
-        writeln!(
-            o,
-            "object     {} ({} space, mu = {}, s = {})",
-            config.object.describe(),
-            config.grasp.space.name(),
-            config.grasp.model.mu(),
-            config.grasp.model.edges()
+        print_text(
+            path,
+            &config,
+            s,
+            &dir,
+            elapsed,
+            recording
+                .as_ref()
+                .map(|r| (r, recorded.as_deref().unwrap_or_default())),
         )?;
-        writeln!(
-            o,
-            "rotation   {:.1} deg of {:.1} deg{}",
-            s.rotation_deg,
-            s.goal_deg,
-            if s.completed { "" } else { " (stopped early)" }
-        )?;
-        writeln!(
-            o,
-            "steps      {} ({} rolling), {} finger switches",
-            s.steps, s.rolling_steps, s.switches
-        )?;
-        writeln!(
-            o,
-            "quality    minimum alpha* = {:.6} {} alpha = {}",
-            s.min_quality,
-            if s.min_quality >= s.alpha { ">=" } else { "<" },
-            s.alpha
-        )?;
-        writeln!(
-            o,
-            "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
-            s.max_rolling_residual
-        )?;
-        if let Some(mm) = s.min_link_clearance_mm {
-            writeln!(
-                o,
-                "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
-            )?;
-        }
-        if s.switches > 0 {
-            let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
-            writeln!(
-                o,
-                "switching  rendezvous candidates over all switches: {} exact (brute force, used), {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
-                s.brute_force_candidates,
-                s.lp_region_candidates,
-                pct(s.lp_region_candidates),
-                s.lp_region_unsafe,
-                s.icr_region_candidates,
-                pct(s.icr_region_candidates)
-            )?;
-        }
-        if let Some(why) = &s.stop_reason {
-            writeln!(o, "stopped    {why}")?;
-        }
-        writeln!(
-            o,
-            "wrote      {} and {} ({:.0} ms planning)",
-            dir.join("trajectory.csv").display(),
-            dir.join("trajectory.json").display(),
-            elapsed.as_secs_f64() * 1e3
-        )?;
-        if let Some(r) = &recording {
-            let how = match r {
-                Recording::Rrd(p) => {
-                    format!("saved to {} (open it: rerun {})", p.display(), p.display())
-                }
-                other => format!("streamed to the {}", crate::run::target_name(other)),
-            };
-            writeln!(
-                o,
-                "recording  {how}; id {}",
-                recorded.as_deref().unwrap_or_default()
-            )?;
-        }
     }
     Ok(if s.completed { 0 } else { EXIT_INCOMPLETE })
+}
+
+/// The plan's summary `s` as text on stdout: the plan of config `path` written in `dir`,
+/// planned in `elapsed`, recorded to `recording` (with its id).
+fn print_text(
+    path: &Path,
+    config: &Config,
+    s: &icrflow_plan::planner::Summary,
+    dir: &Path,
+    elapsed: std::time::Duration,
+    recording: Option<(&Recording, &str)>,
+) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "config     {}", path.display())?;
+    writeln!(
+        o,
+        "object     {} ({} space, mu = {}, s = {})",
+        config.object.describe(),
+        config.grasp.space.name(),
+        config.grasp.model.mu(),
+        config.grasp.model.edges()
+    )?;
+    writeln!(
+        o,
+        "rotation   {:.1} deg of {:.1} deg{}",
+        s.rotation_deg,
+        s.goal_deg,
+        if s.completed { "" } else { " (stopped early)" }
+    )?;
+    writeln!(
+        o,
+        "steps      {} ({} rolling), {} finger switches",
+        s.steps, s.rolling_steps, s.switches
+    )?;
+    writeln!(
+        o,
+        "quality    minimum alpha* = {:.6} {} alpha = {}",
+        s.min_quality,
+        if s.min_quality >= s.alpha { ">=" } else { "<" },
+        s.alpha
+    )?;
+    writeln!(
+        o,
+        "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
+        s.max_rolling_residual
+    )?;
+    if let Some(mm) = s.min_link_clearance_mm {
+        writeln!(
+            o,
+            "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
+        )?;
+    }
+    if s.switches > 0 {
+        let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
+        writeln!(
+            o,
+            "switching  rendezvous candidates over all switches: {} exact (brute force, used), {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
+            s.brute_force_candidates,
+            s.lp_region_candidates,
+            pct(s.lp_region_candidates),
+            s.lp_region_unsafe,
+            s.icr_region_candidates,
+            pct(s.icr_region_candidates)
+        )?;
+    }
+    if let Some(why) = &s.stop_reason {
+        writeln!(o, "stopped    {why}")?;
+    }
+    writeln!(
+        o,
+        "wrote      {} and {} ({:.0} ms planning)",
+        dir.join("trajectory.csv").display(),
+        dir.join("trajectory.json").display(),
+        elapsed.as_secs_f64() * 1e3
+    )?;
+    if let Some((r, recorded)) = recording {
+        let how = match r {
+            Recording::Rrd(p) => {
+                format!("saved to {} (open it: rerun {})", p.display(), p.display())
+            }
+            other => format!("streamed to the {}", crate::run::target_name(other)),
+        };
+        writeln!(o, "recording  {how}; id {}", recorded)?;
+    }
+    Ok(())
 }
 
 /// Records the plan written in `dir` with the visualizer in its plan mode (Rerun lives in that
@@ -290,8 +309,14 @@ fn record(program: &Path, config: &Path, dir: &Path, target: &Recording) -> Resu
         .arg("--plan")
         .arg(config)
         .arg(dir.join("trajectory.json"))
-        .env(icrflow_scenario::ENV_RECORDING, target.to_env())
-        .env(icrflow_scenario::ENV_RECORDING_ID, &id)
+        .args(
+            icrflow_runtime::launch::RecordingLaunch {
+                target: target.to_text(),
+                id: id.clone(),
+                footer: true,
+            }
+            .to_args(),
+        )
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .status()

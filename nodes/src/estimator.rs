@@ -292,7 +292,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .unwrap_or(0.0);
     let mut estimator = Estimator::new(&ctx.scenario.setup.hand, surface, &object.section, theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
-    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_contacts = ctx.launch.log.contacts;
     let saved = Checkpoint::new(checkpoint)?;
 
     serve(ctx, &[joints.listener(), poses.listener()], None, |_| {

@@ -204,7 +204,7 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
 /// Runs the planner node: the adapter around [`Follower`].
 pub fn run(ctx: &Context) -> Result<()> {
     let (setup, config) = (&ctx.scenario.setup, &ctx.scenario.config);
-    let log_steps = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_steps = ctx.launch.log.contacts;
     let tolerances = Tolerances::new(config.pipeline.joint_noise);
     let mut follower = Follower::new(
         setup.scenario(config),

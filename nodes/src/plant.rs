@@ -487,7 +487,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut health = Health::new(ctx)?;
     let (mut joint_seq, mut pose_seq) = (Sequence::default(), Sequence::default());
     let mut truth_seq = Sequence::default();
-    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_contacts = ctx.launch.log.contacts;
     let state_file = ctx.bus.config().root.join("plant.state");
     let mut plant = Plant::new(&ctx.scenario.setup.hand, surface, &contacts, p, now());
     if let Ok(text) = std::fs::read_to_string(&state_file) {

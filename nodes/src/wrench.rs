@@ -141,7 +141,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut seq = Sequence::default();
     let mut last = 0;
     let mut step = WrenchSpace::new(&ctx.scenario.setup.problem, ctx.scenario.config.grasp.alpha);
-    let log_contacts = std::env::var_os("ICRFLOW_LOG_CONTACTS").is_some();
+    let log_contacts = ctx.launch.log.contacts;
 
     serve(ctx, &[grasps.listener()], None, |_| {
         health.tick()?;

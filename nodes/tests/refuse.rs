@@ -10,6 +10,7 @@ use icrflow_interfaces::{
     HandCommand, Header, JointState, Kind, SCHEMA_VERSION, read_text, topics,
 };
 use icrflow_runtime::bus::{Bus, BusConfig};
+use icrflow_runtime::launch::Launch;
 
 /// The paper scenario's config.
 fn config() -> PathBuf {
@@ -21,9 +22,7 @@ fn config() -> PathBuf {
 /// The estimator process on bus `c`.
 fn estimator(c: &BusConfig) -> Child {
     Command::new(env!("CARGO_BIN_EXE_icrflow-estimator"))
-        .arg("--config")
-        .arg(config())
-        .envs(c.env())
+        .args(Launch::new(config(), c.clone()).to_args())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()

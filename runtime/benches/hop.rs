@@ -213,14 +213,17 @@ fn measure_cell(bus: &Bus, cell: Cell, timing: Timing) -> Result<(Vec<u64>, usiz
 /// The receiving process: echoes (`ping-pong`) or prints the one-way latencies it saw
 /// (`1kHz`), one per line in nanoseconds.
 fn receiver_main(args: &[String]) -> Result<()> {
-    let [mode, pattern] = args else {
-        bail!("usage: hop {RECEIVER} MODE PATTERN (started by the hop bench)");
+    let [mode, pattern, rig, prefix, root] = args else {
+        bail!("usage: hop {RECEIVER} MODE PATTERN RIG PREFIX ROOT (started by the hop bench)");
     };
     let cell = Cell {
         mode: mode.parse()?,
         pattern: pattern.parse()?,
     };
-    let bus = Bus::new("hop-receiver", &BusConfig::from_env()?)?;
+    let bus = Bus::new(
+        "hop-receiver",
+        &BusConfig::new(rig, prefix, PathBuf::from(root))?,
+    )?;
     with_link(&bus, cell, Side::Receiver, |link| {
         println!("{READY}");
         match cell.pattern {
@@ -707,7 +710,8 @@ impl Receiver {
         let exe = std::env::current_exe().context("locating the bench binary")?;
         let mut child = Command::new(exe)
             .args([RECEIVER, &cell.mode.to_string(), &cell.pattern.to_string()])
-            .envs(cfg.env())
+            .args([&cfg.rig, &cfg.prefix])
+            .arg(&cfg.root)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .spawn()

@@ -21,13 +21,6 @@ use iceoryx2::service::builder::publish_subscribe::{
 use icrflow_interfaces::Message;
 use icrflow_interfaces::topics::{self, SliceTopic, Topic};
 
-/// Environment variable carrying the run's iceoryx2 prefix to a node process.
-pub const ENV_PREFIX: &str = "ICRFLOW_IOX_PREFIX";
-/// Environment variable carrying the run's iceoryx2 root directory.
-pub const ENV_ROOT: &str = "ICRFLOW_IOX_ROOT";
-/// Environment variable carrying the rig name.
-pub const ENV_RIG: &str = "ICRFLOW_RIG";
-
 /// Messages a subscriber keeps queued (the oldest is overwritten beyond that).
 const BUFFER: usize = 32;
 
@@ -66,7 +59,8 @@ pub enum BusError {
     },
 }
 
-/// Where a run's iceoryx2 resources live.
+/// Where a run's iceoryx2 resources live (handed to a node in its
+/// [`Launch`](crate::launch::Launch)).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BusConfig {
     /// Rig name (part of every topic name).
@@ -108,32 +102,6 @@ impl BusConfig {
             prefix: prefix.into(),
             root,
         })
-    }
-
-    /// The configuration a supervisor passed in the environment ([`ENV_RIG`], [`ENV_PREFIX`],
-    /// [`ENV_ROOT`]).
-    pub fn from_env() -> Result<Self, BusError> {
-        let get = |k: &str| {
-            std::env::var(k).map_err(|_| {
-                BusError::Settings(format!(
-                    "{k} is not set: nodes are started by `icrflow run`, which sets it"
-                ))
-            })
-        };
-        Self::new(
-            &get(ENV_RIG)?,
-            &get(ENV_PREFIX)?,
-            PathBuf::from(get(ENV_ROOT)?),
-        )
-    }
-
-    /// The environment that hands this configuration to a child process.
-    pub fn env(&self) -> [(&'static str, String); 3] {
-        [
-            (ENV_RIG, self.rig.clone()),
-            (ENV_PREFIX, self.prefix.clone()),
-            (ENV_ROOT, self.root.display().to_string()),
-        ]
     }
 
     /// The iceoryx2 configuration: this run's prefix and root, defaults otherwise.

@@ -1,6 +1,7 @@
 //! The event loop every node runs ([`serve`]), and waiting that a termination signal cuts
 //! short but another signal does not.
 
+use std::ops::ControlFlow;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result, anyhow};
@@ -39,50 +40,92 @@ pub fn serve<S>(
     tick: Option<Duration>,
     mut handle: impl FnMut(bool) -> Result<()>,
 ) -> Result<()> {
-    use std::time::Instant;
+    let on = Loop {
+        node: ctx.bus.node(),
+        name: ctx.name,
+        realtime: ctx.launch.realtime,
+    };
+    on.serve_until(listeners, tick, |ticked| {
+        handle(ticked).map(|()| ControlFlow::<()>::Continue(()))
+    })
+    .map(|_| ())
+}
 
-    let node = ctx.bus.node();
-    // Checks for a termination request; the first call installs iceoryx2's signal handler.
-    let terminated = || termination_requested(node);
-    if terminated() {
-        return Ok(());
-    }
-    let mut waiter = Waiter::new(listeners);
-    promote(ctx.name);
-    let start = Instant::now();
-    let mut next_tick = tick.map(|t| start + t);
-    let mut next_resync = start + RESYNC;
-    let mut next_check = next_resync;
-    loop {
-        let deadline = next_tick.map_or(next_resync, |t| t.min(next_resync));
-        let woken = waiter
-            .wait(deadline.saturating_duration_since(Instant::now()))
-            .with_context(|| format!("{}: waiting for input", ctx.name))?;
-        // A signal: a termination request, or another one (then on as usual).
-        if !woken && terminated() {
-            return Ok(());
+/// Who runs an event loop: the process's iceoryx2 node (whose signal handler records the
+/// termination request), its name for messages, and the SCHED_FIFO priority the loop switches
+/// to, if any ([`promote`]). [`serve`] runs a node's (at its [`Launch::realtime`]); `icrflow
+/// run` waits on its own at normal priority.
+///
+/// [`Launch::realtime`]: crate::launch::Launch::realtime
+#[derive(Clone, Copy)]
+pub struct Loop<'a> {
+    /// The process's iceoryx2 node.
+    pub node: &'a iceoryx2::node::Node<ipc::Service>,
+    /// Its name (in error messages).
+    pub name: &'a str,
+    /// The SCHED_FIFO priority the loop runs at, if any.
+    pub realtime: Option<u8>,
+}
+
+impl Loop<'_> {
+    /// [`serve`]'s loop, which `handle` may also end: it returns
+    /// `ControlFlow::Break(b)`, and the loop returns `Some(b)`; `None` after a termination
+    /// signal.
+    pub fn serve_until<B>(
+        self,
+        listeners: &[&Listener<ipc::Service>],
+        tick: Option<Duration>,
+        mut handle: impl FnMut(bool) -> Result<ControlFlow<B>>,
+    ) -> Result<Option<B>> {
+        use std::time::Instant;
+
+        // Checks for a termination request; the first call installs iceoryx2's signal handler.
+        let terminated = || termination_requested(self.node);
+        if terminated() {
+            return Ok(None);
         }
-        let now = Instant::now();
-        if now >= next_check {
-            next_check = now + RESYNC;
-            // A termination request that came while `handle` ran is seen here at the latest.
-            if terminated() {
-                return Ok(());
+        let mut waiter = Waiter::new(listeners);
+        promote(self.name, self.realtime);
+        let start = Instant::now();
+        let mut next_tick = tick.map(|t| start + t);
+        let mut next_resync = start + RESYNC;
+        let mut next_check = next_resync;
+        loop {
+            let deadline = next_tick.map_or(next_resync, |t| t.min(next_resync));
+            let woken = waiter
+                .wait(deadline.saturating_duration_since(Instant::now()))
+                .with_context(|| format!("{}: waiting for input", self.name))?;
+            // A signal: a termination request, or another one (then on as usual).
+            if !woken && terminated() {
+                return Ok(None);
+            }
+            let now = Instant::now();
+            if now >= next_check {
+                next_check = now + RESYNC;
+                // A termination request that came while `handle` ran is seen here at the
+                // latest.
+                if terminated() {
+                    return Ok(None);
+                }
+            }
+            let ticked = match (next_tick, tick) {
+                (Some(due), Some(period)) if now >= due => {
+                    // The next one a period on; missed ones are skipped, not made up in a
+                    // burst.
+                    let next = due + period;
+                    next_tick = Some(if next > now { next } else { now + period });
+                    true
+                }
+                _ => false,
+            };
+            // Every wake-up reads every input, so the resync is due RESYNC after the last
+            // one: a loop that ticks more often than that (the plant at 1 kHz) never wakes
+            // for it.
+            next_resync = now + RESYNC;
+            if let ControlFlow::Break(b) = handle(ticked)? {
+                return Ok(Some(b));
             }
         }
-        let ticked = match (next_tick, tick) {
-            (Some(due), Some(period)) if now >= due => {
-                // The next one a period on; missed ones are skipped, not made up in a burst.
-                let next = due + period;
-                next_tick = Some(if next > now { next } else { now + period });
-                true
-            }
-            _ => false,
-        };
-        // Every wake-up reads every input, so the resync is due RESYNC after the last one: a
-        // loop that ticks more often than that (the plant at 1 kHz) never wakes for it.
-        next_resync = now + RESYNC;
-        handle(ticked)?;
     }
 }
 

@@ -1,27 +1,32 @@
-//! A node process: its arguments, what it loads, its bus, and its supervisor.
+//! A node process: what it is started with ([`Launch`]), what it loads, its bus, and its
+//! supervisor.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::{Context as _, Result, anyhow, bail};
 use iceoryx2::prelude::{LogLevel, set_log_level};
 
-use crate::bus::{Bus, BusConfig};
+use crate::bus::Bus;
+pub use crate::launch::Launch;
 
-/// A node's context: its name, what it loaded from its config file (`S`: the config, or the
-/// config with what it builds), and its bus connection.
+/// A node's context: its name, what it was started with, what it loaded from its config file
+/// (`S`: the config, or the config with what it builds), and its bus connection.
 pub struct Context<S> {
     /// Node name.
     pub name: &'static str,
-    /// What the node loaded from `--config PATH`.
+    /// What it was started with.
+    pub launch: Launch,
+    /// What the node loaded from [`Launch::config`].
     pub scenario: S,
     /// The bus.
     pub bus: Bus,
 }
 
-/// Runs node `name`: reads `--config PATH` from the arguments and the bus settings from the
-/// environment, loads the config with `load`, builds the context and calls `body`; errors are
-/// printed with the node's name and give exit status 1.
+/// Runs node `name`: reads what it was started with from its arguments ([`Launch::parse`]),
+/// follows its supervisor, loads the config with `load`, builds the context and calls `body`;
+/// errors (a malformed launch among them) are printed with the node's name and give exit
+/// status 1.
 pub fn main<S>(
     name: &'static str,
     load: fn(&Path) -> Result<S>,
@@ -29,16 +34,18 @@ pub fn main<S>(
 ) -> ExitCode {
     set_log_level(LogLevel::Warn);
     let result = (|| -> Result<()> {
-        let supervisor = follow_supervisor()?;
         let args: Vec<String> = std::env::args().skip(1).collect();
-        let config = match args.as_slice() {
-            [flag, path] if flag == "--config" => PathBuf::from(path),
-            _ => bail!("usage: icrflow-{name} --config CONFIG (started by `icrflow run`)"),
-        };
-        let scenario = load(&config)?;
-        let bus = Bus::new(name, &BusConfig::from_env()?)?;
+        let launch = Launch::parse(&args).with_context(|| {
+            format!(
+                "usage: icrflow-{name} --config CONFIG --rig RIG --bus-prefix PREFIX --bus-root DIR [...] (started by `icrflow run`; see icrflow_runtime::launch)"
+            )
+        })?;
+        let supervisor = follow_supervisor(launch.supervisor)?;
+        let scenario = load(&launch.config)?;
+        let bus = Bus::new(name, &launch.bus)?;
         body(&Context {
             name,
+            launch,
             scenario,
             bus,
         })?;
@@ -47,7 +54,10 @@ pub fn main<S>(
         if let Some(pid) = supervisor
             && std::os::unix::process::parent_id() != pid
         {
-            eprintln!("icrflow-{name}: stopped: its supervisor (pid {pid}) died");
+            // One write: the nodes stop at once, and their lines must not interleave on the
+            // stderr they share (eprintln! writes a line in pieces).
+            let line = format!("icrflow-{name}: stopped: its supervisor (pid {pid}) died\n");
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
         }
         Ok(())
     })();
@@ -60,21 +70,13 @@ pub fn main<S>(
     }
 }
 
-/// The environment variable through which a [`Supervisor`](crate::supervise::Supervisor) gives
-/// the nodes it starts its process id: a node started with it stops, as on a shutdown, when
-/// that process dies however it died (SIGKILL, a crash), rather than run on unsupervised.
-pub const ENV_SUPERVISOR: &str = "ICRFLOW_SUPERVISOR_PID";
-
-/// With [`ENV_SUPERVISOR`] set: asks the kernel for SIGTERM when the parent dies
-/// (`PR_SET_PDEATHSIG`) and checks that the parent is that supervisor still (it may have died
-/// before). Returns the supervisor's pid, `None` without the variable.
-fn follow_supervisor() -> Result<Option<u32>> {
-    let Ok(text) = std::env::var(ENV_SUPERVISOR) else {
+/// With a supervisor ([`Launch::supervisor`]): asks the kernel for SIGTERM when the parent
+/// dies (`PR_SET_PDEATHSIG`) and checks that the parent is that supervisor still (it may have
+/// died before). Returns the supervisor's pid.
+fn follow_supervisor(supervisor: Option<u32>) -> Result<Option<u32>> {
+    let Some(pid) = supervisor else {
         return Ok(None);
     };
-    let pid: u32 = text
-        .parse()
-        .map_err(|_| anyhow!("{ENV_SUPERVISOR}={text:?} is not a process id"))?;
     nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGTERM)
         .context("asking for SIGTERM when the supervisor dies (prctl PR_SET_PDEATHSIG)")?;
     if std::os::unix::process::parent_id() != pid {
@@ -82,10 +84,6 @@ fn follow_supervisor() -> Result<Option<u32>> {
     }
     Ok(Some(pid))
 }
-
-/// The environment variable through which `run` asks a node to run its loop under SCHED_FIFO,
-/// at this priority (1 to 99): see [`promote`].
-pub const ENV_REALTIME: &str = "ICRFLOW_REALTIME_PRIORITY";
 
 /// Puts the calling thread under SCHED_FIFO at `priority` (1 to 99).
 pub fn set_fifo(priority: u8) -> Result<()> {
@@ -119,20 +117,16 @@ pub fn realtime_allowed(priority: u8) -> Result<()> {
         .map_err(|_| anyhow!("the SCHED_FIFO probe thread panicked"))?
 }
 
-/// Runs the calling thread (a node's loop) under SCHED_FIFO when `run` asked for it through
-/// [`ENV_REALTIME`]. Called as the loop starts, so that the node's start-up (its config,
-/// grasp problem and bus) ran at normal priority and cannot hold up other processes starting
-/// beside it. A failure is said on stderr, and the loop runs at normal priority.
-pub fn promote(name: &str) {
-    let Some(value) = std::env::var_os(ENV_REALTIME) else {
+/// Runs the calling thread (node `name`'s loop) under SCHED_FIFO at `priority` when `run`
+/// asked for it ([`Launch::realtime`]). Called as the loop starts, so that the node's
+/// start-up (its config, grasp problem and bus) ran at normal priority and cannot hold up
+/// other processes starting beside it. A failure is said on stderr, and the loop runs at
+/// normal priority.
+pub fn promote(name: &str, priority: Option<u8>) {
+    let Some(priority) = priority else {
         return;
     };
-    let result = value
-        .to_str()
-        .and_then(|v| v.parse::<u8>().ok())
-        .ok_or_else(|| anyhow!("{ENV_REALTIME}={value:?}: expected a priority from 1 to 99"))
-        .and_then(set_fifo);
-    if let Err(e) = result {
+    if let Err(e) = set_fifo(priority) {
         eprintln!("icrflow-{name}: the loop runs at normal priority: {e:#}");
     }
 }

@@ -1,5 +1,5 @@
 //! Process supervision for `icrflow run` (issue #4): every node is its own OS process,
-//! started with the run's bus settings in its environment, restarted by its policy when it
+//! started with its [`Launch`] (the run's bus settings among it) as its arguments, restarted by its policy when it
 //! exits (exponential backoff, at most `max_restarts` within `window`), with the run's dead
 //! iceoryx2 nodes cleaned up before a restart; shutdown sends SIGTERM, then SIGKILL to what
 //! is still running after the grace period.
@@ -14,6 +14,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
 use crate::bus::BusConfig;
+use crate::launch::Launch;
 
 /// When and how often a node is restarted.
 #[derive(Debug, Clone, PartialEq)]
@@ -46,15 +47,16 @@ pub struct NodeSpec {
     pub name: String,
     /// The executable.
     pub program: PathBuf,
-    /// Its arguments.
+    /// Its arguments (before the launch's).
     pub args: Vec<String>,
+    /// What the node is started with, as arguments after `args` (`None`: a program that is
+    /// not a node).
+    pub launch: Option<Launch>,
     /// The restart policy.
     pub policy: RestartPolicy,
     /// Whether the run depends on it: a node that is not (the Zenoh bridge: monitoring) may
     /// fail for good without failing the run ([`Supervisor::failed`]).
     pub essential: bool,
-    /// Environment variables it gets besides the bus's.
-    pub env: Vec<(String, String)>,
 }
 
 /// Something the supervisor did or saw.
@@ -188,9 +190,7 @@ impl Supervisor {
     fn spawn(&self, spec: &NodeSpec) -> Result<Child, SuperviseError> {
         let mut cmd = Command::new(&spec.program);
         cmd.args(&spec.args)
-            .envs(self.bus.env())
-            .env(crate::node::ENV_SUPERVISOR, std::process::id().to_string())
-            .envs(spec.env.iter().map(|(k, v)| (k, v)))
+            .args(spec.launch.iter().flat_map(Launch::to_args))
             .stdin(Stdio::null())
             // A process group of its own: the terminal's signals (Ctrl-C, a hang-up) reach the
             // supervisor only, which stops its nodes in order (SIGTERM, then SIGKILL).

@@ -23,7 +23,7 @@ fn sh(name: &str, script: &str, policy: RestartPolicy) -> NodeSpec {
         args: vec!["-c".into(), script.into()],
         policy,
         essential: true,
-        env: Vec::new(),
+        launch: None,
     }
 }
 

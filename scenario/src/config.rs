@@ -326,19 +326,10 @@ pub struct VisualizerSpec {
     pub url: String,
 }
 
-/// Environment variable handing the recording target to the visualizer node
-/// ([`Recording::to_env`]).
-pub const ENV_RECORDING: &str = "ICRFLOW_RECORDING";
-/// Environment variable carrying the run's recording id to the visualizer node.
-pub const ENV_RECORDING_ID: &str = "ICRFLOW_RECORDING_ID";
-/// Environment variable telling the visualizer node to write its `.rrd` without Rerun's index
-/// footer (`0`): set for `--live` runs, whose length has no bound (the footer's index of every
-/// chunk is held in memory until the file is closed).
-pub const ENV_RECORDING_FOOTER: &str = "ICRFLOW_RECORDING_FOOTER";
-
 impl Recording {
-    /// The value of [`ENV_RECORDING`]: `rrd:PATH`, `spawn:PORT` or `connect:URL`.
-    pub fn to_env(&self) -> String {
+    /// As text (how `run` hands it to the visualizer, `--recording TARGET`): `rrd:PATH`,
+    /// `spawn:PORT` or `connect:URL`.
+    pub fn to_text(&self) -> String {
         match self {
             Self::Rrd(p) => format!("rrd:{}", p.display()),
             Self::Spawn(port) => format!("spawn:{port}"),
@@ -346,8 +337,8 @@ impl Recording {
         }
     }
 
-    /// Reads a value of [`ENV_RECORDING`].
-    pub fn from_env(value: &str) -> Result<Self> {
+    /// Reads it from its text ([`Recording::to_text`]).
+    pub fn parse(value: &str) -> Result<Self> {
         if let Some(p) = value.strip_prefix("rrd:") {
             Ok(Self::Rrd(p.into()))
         } else if let Some(url) = value.strip_prefix("connect:") {
@@ -355,10 +346,10 @@ impl Recording {
             Ok(Self::Connect(url.into()))
         } else if let Some(port) = value.strip_prefix("spawn:") {
             Ok(Self::Spawn(port.parse().with_context(|| {
-                format!("{ENV_RECORDING}={value:?}: the port is not a number")
+                format!("recording target {value:?}: the port is not a number")
             })?))
         } else {
-            bail!("{ENV_RECORDING}={value:?}: expected rrd:PATH, spawn:PORT or connect:URL")
+            bail!("recording target {value:?}: expected rrd:PATH, spawn:PORT or connect:URL")
         }
     }
 }

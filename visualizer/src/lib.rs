@@ -10,9 +10,9 @@
 //! dropped and counted (its health's `refused`, and `/timeseries/dropped_frames`), never
 //! queued without bound. Rerun lives in this crate only.
 //!
-//! Where the recording goes comes from `icrflow run` in the environment
-//! ([`icrflow_scenario::ENV_RECORDING`], [`icrflow_scenario::ENV_RECORDING_ID`]): an `.rrd`
-//! file (the default), a viewer it spawns, or a viewer at a URL.
+//! Where the recording goes comes from `icrflow run` in the node's launch
+//! ([`icrflow_runtime::launch::RecordingLaunch`], `--recording TARGET --recording-id ID`): an
+//! `.rrd` file (the default), a viewer it spawns, or a viewer at a URL.
 
 #![warn(missing_docs)]
 
@@ -33,20 +33,13 @@ use icrflow_interfaces::{
 };
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::Health;
+use icrflow_runtime::launch::RecordingLaunch;
 use icrflow_runtime::node::Context;
 use icrflow_scenario::Loaded;
-use icrflow_scenario::{ENV_RECORDING, ENV_RECORDING_ID, Recording, rrd_parts};
+use icrflow_scenario::{Recording, rrd_parts};
 
 use geometry::{P3, p3};
 use record::{FingerView, Frame, Statics};
-
-pub(crate) fn recording_from_env() -> Result<(Recording, String)> {
-    let target = std::env::var(ENV_RECORDING).map_err(|_| {
-        anyhow!("{ENV_RECORDING} is not set: the visualizer is started by `icrflow run`")
-    })?;
-    let id = std::env::var(ENV_RECORDING_ID).unwrap_or_else(|_| "icrflow".into());
-    Ok((Recording::from_env(&target)?, id))
-}
 
 /// A restarted visualizer must not overwrite what its predecessor wrote: it records into the
 /// first free `STEM.N.rrd` beside the file (same recording id, so the viewer shows them as one:
@@ -105,9 +98,10 @@ pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64) -> 
 
 /// Runs the visualizer node.
 pub fn run(ctx: &Context<Loaded>) -> Result<()> {
-    let (recording, id) = recording_from_env()?;
-    let recording = fresh(recording);
-    let footer = std::env::var(icrflow_scenario::ENV_RECORDING_FOOTER).as_deref() != Ok("0");
+    let Some(RecordingLaunch { target, id, footer }) = &ctx.launch.recording else {
+        bail!("no --recording TARGET: the visualizer is started by `icrflow run`");
+    };
+    let (recording, footer) = (fresh(Recording::parse(target)?), *footer);
     let spec = &ctx.scenario.config.visualizer;
     let setup = &ctx.scenario.setup;
     let problem = &setup.problem;
@@ -119,7 +113,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
-    let statics = statics(setup, &id, alpha);
+    let statics = statics(setup, id, alpha);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
     let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);

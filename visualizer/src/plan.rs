@@ -12,7 +12,8 @@ use std::path::Path;
 use anyhow::{Context as _, Result, bail};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_plan::planner::Step;
-use icrflow_scenario::{Config, Setup};
+use icrflow_runtime::launch::RecordingLaunch;
+use icrflow_scenario::{Config, Recording, Setup};
 use nalgebra::UnitQuaternion;
 use serde::Deserialize;
 
@@ -26,9 +27,10 @@ struct Trajectory {
 }
 
 /// Records the plan in `trajectory` (written by `icrflow plan` for `config`) to the target in
-/// the environment; returns the frames logged.
-pub fn run(config: &Path, trajectory: &Path) -> Result<u64> {
-    let (recording, id) = crate::recording_from_env()?;
+/// `launch`; returns the frames logged.
+pub fn run(config: &Path, trajectory: &Path, launch: &RecordingLaunch) -> Result<u64> {
+    let recording = Recording::parse(&launch.target)?;
+    let id = launch.id.clone();
     let config = Config::load(config)?;
     let setup = Setup::new(&config)?;
     let text = std::fs::read_to_string(trajectory)

@@ -1,10 +1,12 @@
 //! `icrflow-visualizer`: the pipeline's Rerun visualizer, started by `icrflow run` when
 //! `[visualizer]` is enabled (see `icrflow_visualizer`); with `--plan CONFIG TRAJECTORY`,
-//! started by `icrflow plan --rrd ...`, it records a written plan instead
-//! (`icrflow_visualizer::plan`).
+//! `--recording TARGET --recording-id ID`, started by `icrflow plan --rrd ...`, it records a
+//! written plan instead (`icrflow_visualizer::plan`).
 
 use std::path::Path;
 use std::process::ExitCode;
+
+use icrflow_runtime::launch::RecordingLaunch;
 
 #[global_allocator]
 static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
@@ -12,10 +14,15 @@ static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if let [flag, config, trajectory] = args.as_slice()
+    if let [flag, config, trajectory, recording @ ..] = args.as_slice()
         && flag == "--plan"
     {
-        return match icrflow_visualizer::plan::run(Path::new(config), Path::new(trajectory)) {
+        let recorded = RecordingLaunch::parse(recording)
+            .map_err(anyhow::Error::from)
+            .and_then(|r| {
+                icrflow_visualizer::plan::run(Path::new(config), Path::new(trajectory), &r)
+            });
+        return match recorded {
             Ok(_) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("icrflow-visualizer: error: {e:#}");

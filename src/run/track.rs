@@ -1,5 +1,5 @@
 //! What `icrflow run` watches besides the topics' flow, each a pure state machine fed with
-//! the time (unit-tested here, driven by `run`): the nodes' heartbeats ([`Heartbeats`]), the
+//! the time (unit-tested here, driven by [`super::watch`]): the nodes' heartbeats ([`Heartbeats`]), the
 //! estimate against the simulated plant's truth ([`TruthTrack`]), whether plans made again
 //! from the estimate get anywhere ([`ReplanProgress`]), and the hang-up signal ([`Hangup`]).
 
@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{GraspState, PlantTruth};
 
-use crate::run::{Histogram, Percentiles};
+use super::summary::{Histogram, Percentiles};
 
 /// A node silent (no health report, which every node sends every 100 ms) this long is
 /// reported: within a second of its last report.
