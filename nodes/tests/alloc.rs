@@ -1,5 +1,5 @@
 //! Heap allocations of the bus in its steady state, counted by the allocator the node
-//! binaries install (`runtime::COUNTING_ALLOCATOR`): receiving allocates nothing; sending
+//! binaries install (`icrflow_runtime::health::COUNTING_ALLOCATOR`): receiving allocates nothing; sending
 //! allocates once, inside iceoryx2 0.10 (`Publisher::loan_uninit` creates a reference-counted
 //! `ChunkMutSharedState` per sample), which no use of its API avoids.
 
@@ -161,7 +161,7 @@ fn a_slice_topic_allocates_only_in_iceoryx2s_send() {
     c.remove_files();
 }
 
-/// How the nodes sleep (`runtime::Waiter`, ppoll on the listener): a send wakes the waiter,
+/// How the nodes sleep (`icrflow_runtime::event::Waiter`, ppoll on the listener): a send wakes the waiter,
 /// waiting allocates nothing, and with nothing sent it sleeps out its timeout.
 fn waiting_on_a_listener_allocates_nothing() {
     let c = BusConfig::isolated("alloc-wait").unwrap();

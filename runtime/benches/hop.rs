@@ -15,7 +15,7 @@
 //!   `Subscriber::receive` (iceoryx2's own benchmark style);
 //! - `iox2-event`: the project's bus, [`Pub::send`] publishes and notifies, the receiver
 //!   sleeps in `ppoll(2)` on the topic's listener ([`Waiter`]) and then drains [`Sub`] (how
-//!   the nodes wake, `runtime::serve`);
+//!   the nodes wake, `icrflow_runtime::event::serve`);
 //! - `iox2-waitset`: the same, but the receiver sleeps in an iceoryx2 WaitSet (how the nodes
 //!   woke until session 10);
 //! - `spin-then-block-Wus`: the same bus, but after each message the receiver keeps polling

@@ -351,7 +351,7 @@ impl RunSummary {
         if let Some(e) = &summary.estimate {
             writeln!(
                 o,
-                "estimate   off the plant's truth p50 {:.2} / p99 {:.2} / max {:.2} deg; {} tracking commands beyond the bound ({} deg), {} holds for the estimate",
+                "estimate   off the plant's truth p50 {:.2} / p99 {:.2} / max {:.2} deg; {} tracking commands beyond the bound ({:.1} deg), {} holds for the estimate",
                 e.rotation_deg.p50,
                 e.rotation_deg.p99,
                 e.rotation_deg.max,
