@@ -404,14 +404,8 @@ impl Tracker<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::paper;
     use icrflow_interfaces::{FingerContact, FingerTarget, PlanPhase, read_text};
-
-    fn paper() -> (Config, Setup) {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
-        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
-        let setup = Setup::new(&config).unwrap();
-        (config, setup)
-    }
 
     /// A start time (ns).
     const T0: u64 = 1_000_000_000_000;

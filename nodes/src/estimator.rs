@@ -357,14 +357,8 @@ pub fn run(ctx: &Context) -> Result<()> {
 mod tests {
     use super::*;
     use crate::noise::Noise;
+    use crate::testing::paper;
     use icrflow_scenario::{Config, Setup};
-
-    fn paper() -> (Config, Setup) {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
-        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
-        let setup = Setup::new(&config).unwrap();
-        (config, setup)
-    }
 
     /// The hand of the paper's initial grasp, as its encoders read it (with noise).
     fn measurement(setup: &Setup, q: &[Vec<f64>], t: u64, noise: &mut Noise) -> JointState {

@@ -26,3 +26,17 @@ pub fn main(
 ) -> std::process::ExitCode {
     icrflow_runtime::node::main(name, icrflow_scenario::Loaded::load, body)
 }
+
+/// What the steps' unit tests share.
+#[cfg(test)]
+mod testing {
+    use icrflow_scenario::{Config, Setup};
+
+    /// The paper scenario's config (`config/paper_sphere.toml`) and what it builds.
+    pub fn paper() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
+}

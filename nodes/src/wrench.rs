@@ -169,15 +169,8 @@ pub fn run(ctx: &Context) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::paper;
     use icrflow_interfaces::FingerContact;
-    use icrflow_scenario::{Config, Setup};
-
-    fn paper() -> (Config, Setup) {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
-        let config = Config::load(&dir.join("paper_sphere.toml")).unwrap();
-        let setup = Setup::new(&config).unwrap();
-        (config, setup)
-    }
 
     /// A grasp state whose fingers touch `candidates` (finger 1 to n); `free` more fingers out
     /// of contact.
