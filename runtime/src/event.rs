@@ -138,25 +138,6 @@ pub fn termination_requested(node: &iceoryx2::node::Node<ipc::Service>) -> bool 
     )
 }
 
-/// Sleeps until `deadline`, or until a termination signal comes: then `true`. Another signal
-/// cuts a sleep short; it sleeps on to the deadline.
-pub fn sleep_until(
-    node: &iceoryx2::node::Node<ipc::Service>,
-    deadline: std::time::Instant,
-) -> bool {
-    loop {
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        if left.is_zero() {
-            return termination_requested(node);
-        }
-        match node.wait(left) {
-            Ok(()) => return false,
-            Err(iceoryx2::node::NodeWaitFailure::TerminationRequest) => return true,
-            Err(iceoryx2::node::NodeWaitFailure::Interrupt) => {}
-        }
-    }
-}
-
 /// Sleeps on listeners' file descriptors (the iceoryx2 events their senders notify) with
 /// `ppoll(2)`: allocates nothing per wait. How [`serve`] and the hop benchmark wait.
 pub struct Waiter<'a> {

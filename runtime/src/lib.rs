@@ -5,7 +5,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`bus`] | the run's isolated iceoryx2 bus: typed topics as publisher + notifier and subscriber + listener pairs |
-//! | [`event`] | the event loop every node runs (`ppoll` on the listeners, a tick, a resync), and waits that only a termination signal ends |
+//! | [`event`] | the event loop every node runs (`ppoll` on the listeners, a tick, a resync); only a termination signal (SIGTERM, SIGINT) ends it |
 //! | [`launch`] | what a node is started with: one typed description, handed over as its arguments |
 //! | [`node`] | a node process: what it is started with, what it loads, its bus, its supervisor, real-time priority |
 //! | [`health`] | health reports, sequence numbers, heap-allocation counts |
