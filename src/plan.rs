@@ -234,8 +234,8 @@ fn print_text(
     writeln!(
         o,
         "rotation   {:.1} deg of {:.1} deg{}",
-        s.rotation_deg,
-        s.goal_deg,
+        s.rotation.to_degrees(),
+        s.goal.to_degrees(),
         if s.completed { "" } else { " (stopped early)" }
     )?;
     writeln!(
@@ -362,13 +362,15 @@ fn csv(plan: &Plan, hand: &Hand) -> String {
     }
     out.push('\n');
     let opt = |x: Option<Real>| x.map_or(String::new(), |v| format!("{v}"));
+    // Angles in degrees, as in the JSON (the same conversion).
+    let deg = |x: Option<Real>| opt(x.map(Real::to_degrees));
     for s in &plan.steps {
         let _ = write!(
             out,
             "{},{},{},{}",
             s.step,
             s.phase.name(),
-            s.rotation_deg,
+            s.rotation.to_degrees(),
             s.quality
         );
         for f in &s.fingers {
@@ -380,12 +382,12 @@ fn csv(plan: &Plan, hand: &Hand) -> String {
                 opt(p[0]),
                 opt(p[1]),
                 opt(p[2]),
-                opt(f.angle_deg),
-                opt(f.cap_angle_deg),
-                f.tip_rotation_deg
+                deg(f.angle),
+                deg(f.cap_angle),
+                f.tip_rotation.to_degrees()
             );
-            for q in &f.joints_deg {
-                let _ = write!(out, ",{q}");
+            for q in &f.joints {
+                let _ = write!(out, ",{}", q.to_degrees());
             }
         }
         out.push('\n');

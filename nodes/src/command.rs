@@ -37,7 +37,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, Kind, MAX_FINGERS, MAX_JOINTS, PlanStepHeader,
     WrenchSpaceHeader, topics, write_text,
 };
-use icrflow_plan::forces::{ForceContact, ForceError, ForceSolver, Load};
+use icrflow_plan::forces::{Balance, ForceContact, ForceError, ForceSolver, Load};
 use icrflow_scenario::{Config, Setup};
 
 use crate::Context;
@@ -271,6 +271,18 @@ struct Tracker<'a> {
     last: Option<(HandCommand, u64)>,
 }
 
+/// Why a plan step was not tracked: no forces balance its contacts (an outcome: the
+/// commander holds), or the force problem could not be posed.
+#[derive(Debug, thiserror::Error)]
+enum Untracked {
+    /// No balancing forces exist.
+    #[error("{0}")]
+    Infeasible(Balance<()>),
+    /// Bad input to the force solve.
+    #[error(transparent)]
+    Input(#[from] ForceError),
+}
+
 impl Tracker<'_> {
     /// The command that follows `plan` in the grasp the gate accepted, with `header`, at time
     /// `t`; or why there is none.
@@ -280,7 +292,7 @@ impl Tracker<'_> {
         gate: &Gate,
         header: Header,
         t: u64,
-    ) -> Result<HandCommand, ForceError> {
+    ) -> Result<HandCommand, Untracked> {
         let (config, setup) = (self.config, self.setup);
         let p = &config.pipeline;
         let hand = &setup.hand;
@@ -310,13 +322,16 @@ impl Tracker<'_> {
                     normal: cands.normals[c as usize],
                 });
             }
-            self.solver.solve(
+            let found = self.solver.solve(
                 &self.contacts,
                 &Load::none(),
                 config.grasp.model.mu(),
                 p.min_normal_force,
                 &mut self.forces,
             )?;
+            if let Balance::Infeasible { .. } = found {
+                return Err(Untracked::Infeasible(found));
+            }
             self.solved_for = Some(set);
         }
         let forces = &self.forces;

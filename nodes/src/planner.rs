@@ -136,7 +136,7 @@ fn message(target: &Target, done: bool, regions: &Regions, header: Header) -> Pl
         },
         finger_count: step.fingers.len().min(MAX_FINGERS) as u32,
         step: step.step as u64,
-        rotation: step.rotation_deg.to_radians(),
+        rotation: step.rotation,
         quality: step.quality,
         region_lengths: regions.lengths,
         ..Default::default()
@@ -148,13 +148,13 @@ fn message(target: &Target, done: bool, regions: &Regions, header: Header) -> Pl
             finger: f.finger,
             in_contact: u32::from(f.contact.is_some()),
             candidate: f.contact.unwrap_or(0) as u32,
-            joint_count: f.joints_deg.len().min(MAX_JOINTS) as u32,
+            joint_count: f.joints.len().min(MAX_JOINTS) as u32,
             point: f.point.unwrap_or([0.0; 3]),
-            cap_angle: f.cap_angle_deg.unwrap_or(0.0).to_radians(),
+            cap_angle: f.cap_angle.unwrap_or(0.0),
             joints: [0.0; MAX_JOINTS],
         };
-        for (j, d) in f.joints_deg.iter().enumerate().take(MAX_JOINTS) {
-            t.joints[j] = d.to_radians();
+        for (j, q) in f.joints.iter().enumerate().take(MAX_JOINTS) {
+            t.joints[j] = *q;
         }
     }
     h
@@ -194,7 +194,7 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
                 next.step.phase,
                 if next.way_point { " (way point)" } else { "" },
                 fingers_in_contact(&next.step).collect::<Vec<_>>(),
-                next.step.rotation_deg
+                next.step.rotation.to_degrees()
             );
         }
         _ => {}

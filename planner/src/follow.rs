@@ -46,12 +46,26 @@ pub const SUBSTEP: Real = 0.5 * std::f64::consts::PI / 180.0;
 pub const STANDOFF: Real = 8e-3;
 /// Stand-off distances tried, farthest first (m); all beyond the estimator's release distance.
 pub const STANDOFFS: [Real; 4] = [STANDOFF, 6e-3, 4.5e-3, 3e-3];
-/// Directions tried for a stand-off (deg from straight out of the object's centre through the
+/// Directions tried for a stand-off (rad from straight out of the object's centre through the
 /// contact), straight out first: a finger at a joint limit may only be able to leave the
 /// object sideways.
-const SWINGS: [Real; 5] = [0.0, 30.0, -30.0, 60.0, -60.0];
-/// Cap-angle changes tried at a stand-off pose (deg), the unchanged one first.
-const CAP_TURNS: [Real; 7] = [0.0, 10.0, -10.0, 20.0, -20.0, 35.0, -35.0];
+const SWINGS: [Real; 5] = [
+    0.0,
+    30.0_f64.to_radians(),
+    -30.0_f64.to_radians(),
+    60.0_f64.to_radians(),
+    -60.0_f64.to_radians(),
+];
+/// Cap-angle changes tried at a stand-off pose (rad), the unchanged one first.
+const CAP_TURNS: [Real; 7] = [
+    0.0,
+    10.0_f64.to_radians(),
+    -10.0_f64.to_radians(),
+    20.0_f64.to_radians(),
+    -20.0_f64.to_radians(),
+    35.0_f64.to_radians(),
+    -35.0_f64.to_radians(),
+];
 
 /// How close a free finger's joints must come to a way point (rad), beyond the encoder noise
 /// (five standard deviations of `pipeline.joint_noise_deg` are added: [`Tolerances::new`]).
@@ -122,10 +136,10 @@ impl Estimate {
             .filter_map(|f| {
                 let e = self.fingers.iter().find(|e| e.finger == f.finger)?;
                 Some(
-                    f.joints_deg
+                    f.joints
                         .iter()
                         .zip(&e.joints)
-                        .fold(0.0_f64, |m, (d, q)| m.max((d.to_radians() - q).abs())),
+                        .fold(0.0_f64, |m, (t, q)| m.max((t - q).abs())),
                 )
             })
             .fold(0.0, f64::max)
@@ -168,7 +182,7 @@ impl Target {
     /// for ever); for a way point, every free finger within `joint_tolerance` (rad) of it.
     pub fn reached(&self, e: &Estimate, settled: bool, joint_tolerance: Real) -> bool {
         let step = &self.step;
-        let off = (e.rotation - step.rotation_deg.to_radians()).abs();
+        let off = (e.rotation - step.rotation).abs();
         e.same_contacts(step)
             && (step.phase != Phase::Rolling
                 || off <= ROTATION_TOLERANCE
@@ -195,53 +209,45 @@ impl Target {
             && stopped_ns >= REPLAN_NS
             && e.touching().count() >= 2
             && e.joint_error(step, false) <= joint_tolerance
-            && (e.rotation - step.rotation_deg.to_radians()).abs() > SETTLED_TOLERANCE
+            && (e.rotation - step.rotation).abs() > SETTLED_TOLERANCE
     }
 }
 
-/// `step` with finger `slot` (not in contact in it) at a pose off the contact pose `q_deg`:
+/// `step` with finger `slot` (not in contact in it) at a pose off the contact pose `q`:
 /// the fingertip moved out along the line from the object's centre (the hand frame's origin),
 /// or swung from it by one of [`SWINGS`], by the first of `distances` and [`CAP_TURNS`] whose
-/// straight joint-space moves from every pose of `legs` (degrees) stay outside the object
+/// straight joint-space moves from every pose of `legs` stay outside the object
 /// (`surface`, turned as in `step`). `None` if there is none.
 fn standoff(
     step: &Step,
     slot: usize,
-    q_deg: &[Real],
+    q: &[Real],
     distances: &[Real],
     legs: &[&[Real]],
     hand: &Hand,
     surface: &Surface,
 ) -> Option<Step> {
     let f = hand.finger(step.fingers[slot].finger)?;
-    let q = radians(q_deg);
-    let legs: Vec<Vec<Real>> = legs.iter().map(|l| radians(l)).collect();
-    let (x, y, phi) = f.planar_pose(&q)?;
+    let (x, y, phi) = f.planar_pose(q)?;
     let r = x.hypot(y);
     let q = SWINGS.iter().find_map(|swing| {
         // The direction out of the contact: away from the centre, swung by `swing`.
-        let (sin, cos) = swing.to_radians().sin_cos();
+        let (sin, cos) = swing.sin_cos();
         let (ux, uy) = ((cos * x - sin * y) / r, (sin * x + cos * y) / r);
         distances.iter().find_map(|d| {
             CAP_TURNS.iter().find_map(|turn| {
-                let ik = f.ik_planar(x + d * ux, y + d * uy, phi + turn.to_radians(), &q);
+                let ik = f.ik_planar(x + d * ux, y + d * uy, phi + turn, q);
                 ik.ok().filter(|pose| {
-                    legs.iter().all(|from| {
-                        outside(f, from, pose, r, surface, step.rotation_deg.to_radians())
-                    })
+                    legs.iter()
+                        .all(|from| outside(f, from, pose, r, surface, step.rotation))
                 })
             })
         })
     })?;
     let mut t = step.clone();
     t.fingers[slot].contact = None;
-    t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+    t.fingers[slot].joints = q;
     Some(t)
-}
-
-/// Joint angles in radians from a plan's degrees.
-fn radians(deg: &[Real]) -> Vec<Real> {
-    deg.iter().map(|d| d.to_radians()).collect()
 }
 
 /// Whether the fingertip of `f` stays off the object (by -0.2 mm at most) all along the
@@ -310,8 +316,8 @@ fn way_points(
     for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
         // The free pose, the contact pose, and which way the finger goes between them.
         let (free, contact, base) = match (a.contact, b.contact, step.phase) {
-            (None, Some(_), Phase::Attach) => (&a.joints_deg, &b.joints_deg, prev),
-            (Some(_), None, Phase::Detach) => (&b.joints_deg, &a.joints_deg, step),
+            (None, Some(_), Phase::Attach) => (&a.joints, &b.joints, prev),
+            (Some(_), None, Phase::Detach) => (&b.joints, &a.joints, step),
             _ => continue,
         };
         // Near the contact: the stand-off, reached straight from the contact pose.
@@ -331,20 +337,20 @@ fn way_points(
             ));
             continue;
         };
-        let near_q = near.fingers[slot].joints_deg.clone();
+        let near_q = near.fingers[slot].joints.clone();
         // Between it and the free pose, around the object where the straight move would come
         // close to it or cut through.
         let Some(f) = hand.finger(a.finger) else {
             continue;
         };
         let (start, end) = match step.phase {
-            Phase::Attach => (radians(free), radians(&near_q)),
-            _ => (radians(&near_q), radians(free)),
+            Phase::Attach => (free.clone(), near_q),
+            _ => (near_q, free.clone()),
         };
         let way = match surface {
             // A circle: the fingertip beyond the contact's distance plus the clearance.
             Surface::Circle { .. } => {
-                let touch = f.fk(&radians(contact)).tip_centre.xy().norm();
+                let touch = f.fk(contact).tip_centre.xy().norm();
                 let reach = Keepout::new(touch + clearance, touch - f.tip_radius);
                 route::route(f, &start, &end, reach)
             }
@@ -352,7 +358,7 @@ fn way_points(
             // clearance, the links' at least the link margin, the roadmap beyond its farthest
             // point.
             Surface::Curve(_) => {
-                let theta = base.rotation_deg.to_radians();
+                let theta = base.rotation;
                 route::route_with(
                     f,
                     &start,
@@ -382,7 +388,7 @@ fn way_points(
         for q in way {
             let mut t = base.clone();
             t.fingers[slot].contact = None;
-            t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+            t.fingers[slot].joints = q;
             legs.push(t);
         }
         if step.phase == Phase::Attach {
@@ -407,33 +413,30 @@ fn way_points(
 /// the fingers in contact interpolated along the rolling (centre and cap angle), solved by
 /// inverse kinematics from the previous sub-target's joints.
 fn rolling(prev: &Step, step: &Step, hand: &Hand, out: &mut Vec<Target>) {
-    let turn = (step.rotation_deg - prev.rotation_deg).to_radians();
-    let n = (turn.abs() / SUBSTEP).ceil().max(1.0) as usize;
-    let mut near: Vec<Vec<Real>> = prev
-        .fingers
-        .iter()
-        .map(|f| radians(&f.joints_deg))
-        .collect();
+    let turn = step.rotation - prev.rotation;
+    // A whole number of sub-steps is that many, not one more for the rounding of the turn.
+    let n = (turn.abs() / SUBSTEP - 1e-9).ceil().max(1.0) as usize;
+    let mut near: Vec<Vec<Real>> = prev.fingers.iter().map(|f| f.joints.clone()).collect();
     for i in 1..=n {
         let s = i as Real / n as Real;
         let mut t = step.clone();
-        t.rotation_deg = prev.rotation_deg + s * (step.rotation_deg - prev.rotation_deg);
+        t.rotation = prev.rotation + s * (step.rotation - prev.rotation);
         if i < n {
             for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
                 let (Some(_), Some(_), Some(f)) = (a.contact, b.contact, hand.finger(a.finger))
                 else {
                     continue;
                 };
-                let (qa, qb) = (radians(&a.joints_deg), radians(&b.joints_deg));
+                let (qa, qb) = (&a.joints, &b.joints);
                 let (Some((xa, ya, pa)), Some((xb, yb, pb))) =
-                    (f.planar_pose(&qa), f.planar_pose(&qb))
+                    (f.planar_pose(qa), f.planar_pose(qb))
                 else {
                     continue;
                 };
                 let phi = pa + s * wrap(pb - pa);
                 if let Ok(q) = f.ik_planar(xa + s * (xb - xa), ya + s * (yb - ya), phi, &near[slot])
                 {
-                    t.fingers[slot].joints_deg = q.iter().map(|r| r.to_degrees()).collect();
+                    t.fingers[slot].joints = q.clone();
                     near[slot] = q;
                 }
             }
@@ -578,7 +581,7 @@ pub fn replan(
         })?;
     for step in &mut plan.steps {
         step.step += first;
-        step.rotation_deg -= delta.to_degrees();
+        step.rotation -= delta;
     }
     let mut notes = Vec::new();
     let targets = targets(&plan.steps, hand, surface, clearance, &mut |n| {
@@ -774,9 +777,8 @@ impl fmt::Display for Replanned {
             p.steps.len(),
             self.first,
             p.summary.switches,
-            p.summary.goal_deg
-                - p.steps.first().map_or(0.0, |s| s.rotation_deg)
-                - self.delta.to_degrees(),
+            (p.summary.goal - p.steps.first().map_or(0.0, |s| s.rotation) - self.delta)
+                .to_degrees(),
             self.delta.to_degrees(),
         )
     }
@@ -827,8 +829,8 @@ impl<'a> Follower<'a> {
         let (Some(first), Some(last)) = (self.targets.first(), self.targets.last()) else {
             return false;
         };
-        let goal = last.step.rotation_deg.to_radians();
-        let direction = (goal - first.step.rotation_deg.to_radians()).signum();
+        let goal = last.step.rotation;
+        let direction = (goal - first.step.rotation).signum();
         direction != 0.0 && (e.rotation - goal) * direction > 0.0
     }
 
@@ -885,7 +887,7 @@ impl<'a> Follower<'a> {
         (0..steps.len())
             .filter(|&k| e.same_contacts(&steps[k].step))
             .min_by(|&a, &b| {
-                let d = |k: usize| (e.rotation - steps[k].step.rotation_deg.to_radians()).abs();
+                let d = |k: usize| (e.rotation - steps[k].step.rotation).abs();
                 let j = |k: usize| e.joint_error(&steps[k].step, false);
                 d(a).total_cmp(&d(b))
                     .then(j(a).total_cmp(&j(b)))
@@ -942,7 +944,7 @@ impl<'a> Follower<'a> {
                     && e.same_contacts(&self.targets[k].step)));
         if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint) {
             // Stuck short of the target: plan again from the estimate.
-            let target = self.targets[k].step.rotation_deg.to_radians();
+            let target = self.targets[k].step.rotation;
             let first = self.targets[k].step.step + 1;
             match replan(&self.scenario, e, self.surface, first, self.clearance, beat) {
                 Ok(again) => {

@@ -8,8 +8,8 @@
 //! - a minimum normal force `f_i . n_i >= f_min`, so the object is squeezed.
 //!
 //! Objective: the least total squared force `sum ||f_i||^2`. An infeasible problem (the
-//! contacts cannot balance the load inside their cones) is a status the caller acts on
-//! ([`ForceError::Infeasible`]), not a crash.
+//! contacts cannot balance the load inside their cones) is an outcome the caller acts on
+//! ([`Balance::Infeasible`]), not an error and not a crash; [`ForceError`] is bad input.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -27,17 +27,47 @@ pub struct ForceContact {
     pub normal: Vec3,
 }
 
-/// Why no forces were found.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum ForceError {
+/// What a force solve found: forces, or that none exist. Either is an expected outcome.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Balance<T> {
+    /// The balancing forces (for [`ForceSolver::solve`], `()`: they are in its buffer).
+    Balanced(T),
     /// The contacts cannot balance the load inside their friction cones with the minimum
     /// normal force.
-    #[error("no balancing contact forces exist (solver status {status})")]
     Infeasible {
         /// The solver's status.
         status: String,
     },
+}
+
+impl<T> Balance<T> {
+    /// The forces, if they exist.
+    pub fn balanced(self) -> Option<T> {
+        match self {
+            Balance::Balanced(t) => Some(t),
+            Balance::Infeasible { .. } => None,
+        }
+    }
+}
+
+impl<T> std::fmt::Display for Balance<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Balance::Balanced(_) => write!(f, "balanced"),
+            Balance::Infeasible { status } => {
+                write!(
+                    f,
+                    "no balancing contact forces exist (solver status {status})"
+                )
+            }
+        }
+    }
+}
+
+/// Why a force problem could not be posed: bad input.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ForceError {
     /// Bad input: no contacts, non-finite values, a zero normal, negative friction or force.
     #[error("bad force problem: {0}")]
     Input(String),
@@ -56,9 +86,9 @@ pub fn balance(
     min_normal: Real,
     external_force: &Vec3,
     external_torque: &Vec3,
-) -> Result<Vec<Vec3>, ForceError> {
+) -> Result<Balance<Vec<Vec3>>, ForceError> {
     let mut forces = Vec::with_capacity(contacts.len());
-    ForceSolver::new().solve(
+    let found = ForceSolver::new().solve(
         contacts,
         &Load {
             centre: *centre,
@@ -69,7 +99,10 @@ pub fn balance(
         min_normal,
         &mut forces,
     )?;
-    Ok(forces)
+    Ok(match found {
+        Balance::Balanced(()) => Balance::Balanced(forces),
+        Balance::Infeasible { status } => Balance::Infeasible { status },
+    })
 }
 
 /// The external load on the object: a force and a torque about `centre`.
@@ -135,7 +168,7 @@ impl ForceSolver {
     }
 
     /// Solves the problem of [`balance`] and writes the forces, one per contact, into
-    /// `forces` (cleared first; left empty on an error).
+    /// `forces` (cleared first; left empty unless balanced).
     pub fn solve(
         &mut self,
         contacts: &[ForceContact],
@@ -143,7 +176,7 @@ impl ForceSolver {
         mu: Real,
         min_normal: Real,
         forces: &mut Vec<Vec3>,
-    ) -> Result<(), ForceError> {
+    ) -> Result<Balance<()>, ForceError> {
         forces.clear();
         let n = contacts.len();
         if n == 0 {
@@ -193,9 +226,9 @@ impl ForceSolver {
                         .chunks_exact(3)
                         .map(|f| Vec3::new(f[0], f[1], f[2])),
                 );
-                Ok(())
+                Ok(Balance::Balanced(()))
             }
-            status => Err(ForceError::Infeasible {
+            status => Ok(Balance::Infeasible {
                 status: format!("{status:?}"),
             }),
         }
@@ -279,6 +312,14 @@ impl ForceSolver {
 mod tests {
     use super::*;
 
+    /// The forces of a solve that must balance.
+    fn forces(found: Result<Balance<Vec<Vec3>>, ForceError>) -> Vec<Vec3> {
+        match found {
+            Ok(Balance::Balanced(f)) => f,
+            other => panic!("expected forces: {other:?}"),
+        }
+    }
+
     fn ring(angles_deg: &[Real], r: Real) -> Vec<ForceContact> {
         angles_deg
             .iter()
@@ -299,7 +340,7 @@ mod tests {
     fn without_a_load_the_forces_rotate_with_the_contacts() {
         let body = ring(&[30.0, -30.0, 140.0], 0.0475);
         let zero = Vec3::zeros();
-        let f = balance(&body, &zero, 0.3, 1.0, &zero, &zero).unwrap();
+        let f = forces(balance(&body, &zero, 0.3, 1.0, &zero, &zero));
         for angle in [0.4_f64, 2.0, -1.3] {
             let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), angle);
             let turned: Vec<ForceContact> = body
@@ -309,7 +350,7 @@ mod tests {
                     normal: rot * c.normal,
                 })
                 .collect();
-            let g = balance(&turned, &zero, 0.3, 1.0, &zero, &zero).unwrap();
+            let g = forces(balance(&turned, &zero, 0.3, 1.0, &zero, &zero));
             for (a, b) in f.iter().zip(&g) {
                 assert!((rot * a - b).norm() < 1e-6, "{angle}: {a} turned vs {b}");
             }
@@ -320,7 +361,14 @@ mod tests {
     fn the_paper_grasp_balances_with_forces_inside_the_cones() {
         let c = ring(&[30.0, -30.0, 140.0], 0.0475);
         let (mu, fmin) = (0.3, 1.0);
-        let f = balance(&c, &Vec3::zeros(), mu, fmin, &Vec3::zeros(), &Vec3::zeros()).unwrap();
+        let f = forces(balance(
+            &c,
+            &Vec3::zeros(),
+            mu,
+            fmin,
+            &Vec3::zeros(),
+            &Vec3::zeros(),
+        ));
         let total: Vec3 = f.iter().sum();
         assert!(total.norm() < 1e-6, "net force {total}");
         let torque: Vec3 = c.iter().zip(&f).map(|(c, f)| c.point.cross(f)).sum();
@@ -338,8 +386,8 @@ mod tests {
     fn a_grasp_that_cannot_balance_is_infeasible_not_a_crash() {
         // Two contacts on the same side cannot squeeze the object.
         let c = ring(&[10.0, -10.0], 0.05);
-        let e = balance(&c, &Vec3::zeros(), 0.3, 1.0, &Vec3::zeros(), &Vec3::zeros()).unwrap_err();
-        assert!(matches!(e, ForceError::Infeasible { .. }), "{e}");
+        let e = balance(&c, &Vec3::zeros(), 0.3, 1.0, &Vec3::zeros(), &Vec3::zeros()).unwrap();
+        assert!(matches!(e, Balance::Infeasible { .. }), "{e}");
         let e = balance(
             &[],
             &Vec3::zeros(),
@@ -400,18 +448,22 @@ mod tests {
             };
             let fresh = balance(&c, &load.centre, 0.5, min_normal, &load.force, &load.torque);
             let again = kept.solve(&c, &load, 0.5, min_normal, &mut forces);
-            match fresh {
-                Ok(f) => {
-                    again.unwrap_or_else(|e| panic!("set {k}: kept solver: {e}"));
+            match fresh.unwrap() {
+                Balance::Balanced(f) => {
+                    let again = again.unwrap_or_else(|e| panic!("set {k}: kept solver: {e}"));
+                    assert_eq!(again, Balance::Balanced(()), "set {k}");
                     assert_eq!(forces.len(), f.len());
                     for (a, b) in f.iter().zip(&forces) {
                         assert!((a - b).norm() < 1e-6, "set {k}: fresh {a} vs kept {b}");
                     }
                 }
-                Err(e) => {
-                    assert!(matches!(e, ForceError::Infeasible { .. }), "set {k}: {e}");
+                infeasible => {
                     assert!(
-                        matches!(again, Err(ForceError::Infeasible { .. })),
+                        matches!(infeasible, Balance::Infeasible { .. }),
+                        "set {k}: {infeasible}"
+                    );
+                    assert!(
+                        matches!(again, Ok(Balance::Infeasible { .. })),
                         "set {k}: kept solver {again:?}"
                     );
                     assert!(forces.is_empty());
@@ -429,13 +481,20 @@ mod tests {
         // Four contacts around the equator hold a 1 N weight with mu = 0.5.
         let c = ring(&[0.0, 90.0, 180.0, 270.0], 0.05);
         let weight = Vec3::new(0.0, 0.0, -1.0);
-        let f = balance(&c, &Vec3::zeros(), 0.5, 0.1, &weight, &Vec3::zeros()).unwrap();
+        let f = forces(balance(
+            &c,
+            &Vec3::zeros(),
+            0.5,
+            0.1,
+            &weight,
+            &Vec3::zeros(),
+        ));
         let total: Vec3 = f.iter().sum::<Vec3>() + weight;
         assert!(total.norm() < 1e-6, "net force {total}");
         // Without friction nothing can carry a vertical load with horizontal contacts.
         assert!(matches!(
             balance(&c, &Vec3::zeros(), 0.0, 0.1, &weight, &Vec3::zeros()),
-            Err(ForceError::Infeasible { .. })
+            Ok(Balance::Infeasible { .. })
         ));
     }
 }

@@ -54,16 +54,22 @@ pub enum IkError {
         distance: Real,
     },
     /// Solutions exist but each violates a joint limit.
-    #[error("joint {} would be at {angle_deg:.2} deg, outside [{lower_deg:.2}, {upper_deg:.2}] deg", joint + 1)]
+    #[error(
+        "joint {} would be at {:.2} deg, outside [{:.2}, {:.2}] deg",
+        joint + 1,
+        angle.to_degrees(),
+        lower.to_degrees(),
+        upper.to_degrees()
+    )]
     JointLimit {
         /// Joint index (0-based) of the first violated limit of the best solution.
         joint: usize,
-        /// The angle it would need (degrees).
-        angle_deg: Real,
-        /// Its lower limit (degrees).
-        lower_deg: Real,
-        /// Its upper limit (degrees).
-        upper_deg: Real,
+        /// The angle it would need (rad).
+        angle: Real,
+        /// Its lower limit (rad).
+        lower: Real,
+        /// Its upper limit (rad).
+        upper: Real,
     },
     /// Damped least squares did not converge.
     #[error("no convergence: residual {residual:.3e} m after {iterations} iterations")]
@@ -338,9 +344,9 @@ impl Finger {
             .find(|(_, (j, a))| **a < j.lower - slack || **a > j.upper + slack)
             .map(|(i, (j, a))| IkError::JointLimit {
                 joint: i,
-                angle_deg: a.to_degrees(),
-                lower_deg: j.lower.to_degrees(),
-                upper_deg: j.upper.to_degrees(),
+                angle: *a,
+                lower: j.lower,
+                upper: j.upper,
             })
     }
 

@@ -8,6 +8,7 @@
 //!
 //! | module | what |
 //! |---|---|
+//! | [`degrees`] | radians inside, degrees in the plan's files: the serde adapters |
 //! | [`follow`] | following a plan closed loop: its targets (sub-targets, stand-offs, way points around the object), the [`follow::Follower`] step, re-planning from an estimate |
 //! | [`forces`] | fingertip forces balancing the grasp inside the exact friction cones (SOCP, clarabel) |
 //! | [`hand`] | fingers as revolute chains: forward kinematics, closed-form planar and damped-least-squares inverse kinematics, limits, manipulability |
@@ -19,6 +20,7 @@
 
 #![warn(missing_docs)]
 
+pub mod degrees;
 pub mod follow;
 pub mod forces;
 pub mod hand;

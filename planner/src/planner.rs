@@ -241,16 +241,21 @@ pub struct FingerState {
     pub contact: Option<usize>,
     /// Body-frame contact point (m).
     pub point: Option<[Real; 3]>,
-    /// The contact's angle on the section (deg, [0, 360)).
-    pub angle_deg: Option<Real>,
-    /// Cap angle gamma of the contact on the fingertip (deg).
-    pub cap_angle_deg: Option<Real>,
-    /// World angle of the fingertip's cap axis phi (deg): the fingertip's rotation.
-    pub tip_rotation_deg: Real,
+    /// The contact's angle on the section (rad, [0, 2 pi); `angle_deg` in files).
+    #[serde(rename = "angle_deg", with = "crate::degrees::option")]
+    pub angle: Option<Real>,
+    /// Cap angle gamma of the contact on the fingertip (rad; `cap_angle_deg` in files).
+    #[serde(rename = "cap_angle_deg", with = "crate::degrees::option")]
+    pub cap_angle: Option<Real>,
+    /// World angle of the fingertip's cap axis phi (rad; `tip_rotation_deg` in files): the
+    /// fingertip's rotation.
+    #[serde(rename = "tip_rotation_deg", with = "crate::degrees")]
+    pub tip_rotation: Real,
     /// Fingertip centre in the hand frame (m).
     pub tip_centre: [Real; 3],
-    /// Joint angles (deg).
-    pub joints_deg: Vec<Real>,
+    /// Joint angles (rad; `joints_deg` in files).
+    #[serde(rename = "joints_deg", with = "crate::degrees::list")]
+    pub joints: Vec<Real>,
 }
 
 /// A finger switch.
@@ -271,13 +276,16 @@ pub struct Switch {
     pub brute_force: Vec<usize>,
     /// The chosen rendezvous candidate.
     pub rendezvous: usize,
-    /// Its angle on the section (deg).
-    pub rendezvous_angle_deg: Option<Real>,
+    /// Its angle on the section (rad; `rendezvous_angle_deg` in files).
+    #[serde(rename = "rendezvous_angle_deg", with = "crate::degrees::option")]
+    pub rendezvous_angle: Option<Real>,
     /// Rolling steps the attached finger could make from there alone.
     pub room_steps: usize,
     /// How far the rendezvous point is ahead of the released contact along the rolling
-    /// direction (deg, counter-clockwise about the object's centre, in [0, 360)).
-    pub ahead_deg: Real,
+    /// direction (rad, counter-clockwise about the object's centre, in [0, 2 pi); `ahead_deg`
+    /// in files).
+    #[serde(rename = "ahead_deg", with = "crate::degrees")]
+    pub ahead: Real,
 }
 
 /// One step of the trajectory.
@@ -287,8 +295,10 @@ pub struct Step {
     pub step: usize,
     /// Phase.
     pub phase: Phase,
-    /// Object rotation about the vertical axis (deg, counter-clockwise positive).
-    pub rotation_deg: Real,
+    /// Object rotation about the vertical axis (rad, counter-clockwise positive;
+    /// `rotation_deg` in files).
+    #[serde(rename = "rotation_deg", with = "crate::degrees")]
+    pub rotation: Real,
     /// Quality alpha* of the grasp in force (recomputed).
     pub quality: Real,
     /// Every finger of the hand.
@@ -305,10 +315,12 @@ pub struct Summary {
     pub completed: bool,
     /// Why planning stopped early, if it did.
     pub stop_reason: Option<String>,
-    /// Total object rotation (deg).
-    pub rotation_deg: Real,
-    /// Goal (deg).
-    pub goal_deg: Real,
+    /// Total object rotation (rad; `rotation_deg` in files).
+    #[serde(rename = "rotation_deg", with = "crate::degrees")]
+    pub rotation: Real,
+    /// Goal (rad; `goal_deg` in files).
+    #[serde(rename = "goal_deg", with = "crate::degrees")]
+    pub goal: Real,
     /// Finger switches.
     pub switches: usize,
     /// Trajectory steps (all phases; the start included).
@@ -768,19 +780,18 @@ impl Scenario<'_> {
                     finger: f.id,
                     contact: contact.map(|c| c.candidate),
                     point: p.map(|p| [p.x, p.y, p.z]),
-                    angle_deg: contact
-                        .and_then(|c| self.angles.map(|a| a[c.candidate].to_degrees())),
-                    cap_angle_deg: contact.map(|c| c.gamma.to_degrees()),
-                    tip_rotation_deg: pose.cap_axis.y.atan2(pose.cap_axis.x).to_degrees(),
+                    angle: contact.and_then(|c| self.angles.map(|a| a[c.candidate])),
+                    cap_angle: contact.map(|c| c.gamma),
+                    tip_rotation: pose.cap_axis.y.atan2(pose.cap_axis.x),
                     tip_centre: [pose.tip_centre.x, pose.tip_centre.y, pose.tip_centre.z],
-                    joints_deg: q.iter().map(|a| a.to_degrees()).collect(),
+                    joints: q.to_vec(),
                 }
             })
             .collect();
         Step {
             step,
             phase,
-            rotation_deg: theta.to_degrees(),
+            rotation: theta,
             quality,
             fingers,
             switch: None,
@@ -952,8 +963,8 @@ impl Scenario<'_> {
         let summary = Summary {
             completed,
             stop_reason,
-            rotation_deg: theta.to_degrees(),
-            goal_deg: s.goal.to_degrees(),
+            rotation: theta,
+            goal: s.goal,
             switches,
             steps: steps.len(),
             rolling_steps,
@@ -1225,9 +1236,9 @@ impl Scenario<'_> {
             lp_region: regions.lp.clone(),
             brute_force: regions.exact.clone(),
             rendezvous: c,
-            rendezvous_angle_deg: self.angles.map(|a| a[c].to_degrees()),
+            rendezvous_angle: self.angles.map(|a| a[c]),
             room_steps: room,
-            ahead_deg: ahead.to_degrees(),
+            ahead,
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
@@ -1296,7 +1307,7 @@ pub fn link_clearance(scenario: &Scenario<'_>, steps: &[Step]) -> LinkClearance 
     let mut q = Vec::new();
     for (k, step) in steps.iter().enumerate() {
         let previous = if k > 0 { &steps[k - 1] } else { step };
-        let theta = step.rotation_deg.to_radians();
+        let theta = step.rotation;
         for (a, b) in previous.fingers.iter().zip(&step.fingers) {
             let f = scenario.finger(b.finger);
             let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
@@ -1307,12 +1318,7 @@ pub fn link_clearance(scenario: &Scenario<'_>, steps: &[Step]) -> LinkClearance 
                     1.0
                 };
                 q.clear();
-                q.extend(
-                    a.joints_deg
-                        .iter()
-                        .zip(&b.joints_deg)
-                        .map(|(x, y)| (x + s * (y - x)).to_radians()),
-                );
+                q.extend(a.joints.iter().zip(&b.joints).map(|(x, y)| x + s * (y - x)));
                 f.link_segments(&q, |link, from, to| {
                     // No point of a link far from the centre can beat the closest so far.
                     if crate::hand::segment_distance(&from, &to) - largest >= closest.clearance {
@@ -1352,17 +1358,16 @@ pub fn rolling_residuals(scenario: &Scenario<'_>, steps: &[Step]) -> Vec<Real> {
                 continue;
             };
             let f = scenario.finger(a.finger);
-            let gamma = |c: usize, rot: Real, joints: &[Real]| {
-                let q: Vec<Real> = joints.iter().map(|d| d.to_radians()).collect();
-                let (_, n) = scenario.world(c, rot.to_radians());
+            let gamma = |c: usize, rot: Real, q: &[Real]| {
+                let (_, n) = scenario.world(c, rot);
                 let phi = {
-                    let axis = f.fk(&q).cap_axis;
+                    let axis = f.fk(q).cap_axis;
                     axis.y.atan2(axis.x)
                 };
                 wrap((-n.y).atan2(-n.x) - phi)
             };
-            let ga = gamma(ca, w[0].rotation_deg, &a.joints_deg);
-            let gb = gamma(cb, w[1].rotation_deg, &b.joints_deg);
+            let ga = gamma(ca, w[0].rotation, &a.joints);
+            let gb = gamma(cb, w[1].rotation, &b.joints);
             out.push((f.tip_radius * wrap(gb - ga) + scenario.arc(ca, cb)).abs());
         }
     }

@@ -11,13 +11,15 @@
 //! fingertip sphere) at least [`LINK_MARGIN`] from its surface ([`Keepout`]).
 //!
 //! Where the straight move is clear, the route is empty. Otherwise a small roadmap is searched:
-//! fingertip poses on circles of [`RADII`] beyond the given distance, every [`SPACING_DEG`]
-//! around the object, with cap angles every [`CAP_SPACING_DEG`], both elbow branches, each
+//! fingertip poses on circles of [`RADII`] beyond the given distance, every [`SPACING`]
+//! around the object, with cap angles every [`CAP_SPACING`], both elbow branches, each
 //! solved by inverse kinematics within the joint limits. Each pose is joined to its
 //! [`NEIGHBOURS`] nearest (in joint space), the start and goal to all; the shortest route (in
 //! joint motion, the time it takes at the joints' speed, plus [`LEG_COST`] per leg) is found
 //! by Dijkstra's algorithm, checking a leg only when it would shorten a route; finally way
 //! points that can be skipped along a clear leg are dropped.
+
+use std::f64::consts::TAU;
 
 use icrflow_grasp::math::Real;
 
@@ -25,10 +27,10 @@ use crate::hand::Finger;
 
 /// Distances of the roadmap's fingertip circles beyond the required distance (m).
 pub const RADII: [Real; 4] = [10e-3, 20e-3, 35e-3, 55e-3];
-/// Spacing of the roadmap's poses around the object (deg).
-pub const SPACING_DEG: Real = 15.0;
-/// Spacing of the cap angles tried at each roadmap position (deg).
-pub const CAP_SPACING_DEG: Real = 30.0;
+/// Spacing of the roadmap's poses around the object (rad): 15 deg.
+pub const SPACING: Real = 15.0_f64.to_radians();
+/// Spacing of the cap angles tried at each roadmap position (rad): 30 deg.
+pub const CAP_SPACING: Real = 30.0_f64.to_radians();
 /// Roadmap poses each one is joined to.
 pub const NEIGHBOURS: usize = 12;
 /// Cost of a leg beyond its joint motion (rad): fewer way points among routes of about the
@@ -119,14 +121,14 @@ pub fn route_with(
     }
     // The roadmap: index 0 is the start, 1 the goal, then the poses.
     let mut poses: Vec<Vec<Real>> = vec![from.to_vec(), to.to_vec()];
-    let around = (360.0 / SPACING_DEG).round() as usize;
-    let caps = (360.0 / CAP_SPACING_DEG).round() as usize;
+    let around = (TAU / SPACING).round() as usize;
+    let caps = (TAU / CAP_SPACING).round() as usize;
     for radius in RADII.map(|r| distance + r) {
         for i in 0..around {
-            let psi = (i as Real * SPACING_DEG).to_radians();
+            let psi = i as Real * SPACING;
             let (x, y) = (radius * psi.cos(), radius * psi.sin());
             for c in 0..caps {
-                let phi = psi + (c as Real * CAP_SPACING_DEG).to_radians();
+                let phi = psi + c as Real * CAP_SPACING;
                 for near in [from, to] {
                     if let Ok(q) = finger.ik_planar(x, y, phi, near)
                         && !poses.iter().any(|p| motion(p, &q) < 1e-6)

@@ -79,12 +79,19 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
     let (o, p, hand, plan) = paper_plan();
     let s = &plan.summary;
     assert!(s.completed, "stopped: {:?}", s.stop_reason);
-    assert!(s.rotation_deg >= 360.0 - 1e-6, "{}", s.rotation_deg);
+    assert!(
+        s.rotation.to_degrees() >= 360.0 - 1e-6,
+        "{}",
+        s.rotation.to_degrees()
+    );
     assert!(s.switches >= 3, "{} switches", s.switches);
     assert_eq!(s.steps, plan.steps.len());
     println!(
         "paper scenario: {:.1} deg, {} steps, {} switches, min quality {:.6}",
-        s.rotation_deg, s.steps, s.switches, s.min_quality
+        s.rotation.to_degrees(),
+        s.steps,
+        s.switches,
+        s.min_quality
     );
     let r_f = paper::TIP_RADIUS;
     let r_o = paper::OBJECT_RADIUS;
@@ -103,10 +110,10 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
         );
         assert!((e.quality - step.quality).abs() <= 1e-12 * e.quality);
         min_quality = min_quality.min(e.quality);
-        let theta = step.rotation_deg.to_radians();
+        let theta = step.rotation;
         for f in &step.fingers {
             let finger = hand.finger(f.finger).unwrap();
-            let q: Vec<Real> = f.joints_deg.iter().map(|d| d.to_radians()).collect();
+            let q = &f.joints;
             // Joint limits.
             for (a, j) in q.iter().zip(&finger.joints) {
                 assert!(
@@ -120,7 +127,7 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
             let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
             let pw = rot * (p.candidates().points[c] - o.centre_of_mass);
             let nw = rot * p.candidates().normals[c];
-            let tip = finger.fk(&q).tip_centre;
+            let tip = finger.fk(q).tip_centre;
             assert!(
                 (tip - (pw + r_f * nw)).norm() < 1e-9,
                 "step {i} finger {}: fingertip off the contact",
@@ -131,7 +138,7 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
             continue;
         }
         let prev = &plan.steps[i - 1];
-        let turned = step.rotation_deg - prev.rotation_deg;
+        let turned = step.rotation - prev.rotation;
         match step.phase {
             Phase::Rolling => {
                 assert!(turned > 0.0);
@@ -143,27 +150,24 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
                         continue;
                     };
                     let finger = hand.finger(a.finger).unwrap();
-                    let gamma = |c: usize, rot_deg: Real, joints: &[Real]| {
-                        let q: Vec<Real> = joints.iter().map(|d| d.to_radians()).collect();
-                        let axis = finger.fk(&q).cap_axis;
+                    let gamma = |c: usize, rot: Real, q: &[Real]| {
+                        let axis = finger.fk(q).cap_axis;
                         let body = o.section.angles[c];
-                        let inward = body + rot_deg.to_radians() + PI;
+                        let inward = body + rot + PI;
                         wrap(inward - axis.y.atan2(axis.x))
                     };
                     let dg = wrap(
-                        gamma(cb, step.rotation_deg, &b.joints_deg)
-                            - gamma(ca, prev.rotation_deg, &a.joints_deg),
+                        gamma(cb, step.rotation, &b.joints) - gamma(ca, prev.rotation, &a.joints),
                     );
                     let db = wrap(o.section.angles[cb] - o.section.angles[ca]);
                     let residual = (r_f * dg + r_o * db).abs();
                     worst_rolling = worst_rolling.max(residual);
                     // The paper's relation for a fingertip that stays in place.
-                    if (db + turned.to_radians()).abs() < 1e-9 {
-                        let dphi =
-                            wrap(b.tip_rotation_deg.to_radians() - a.tip_rotation_deg.to_radians());
+                    if (db + turned).abs() < 1e-9 {
+                        let dphi = wrap(b.tip_rotation - a.tip_rotation);
                         assert!(
-                            (dphi + (r_o / r_f) * turned.to_radians()).abs() < 1e-9,
-                            "step {i}: fingertip turned {dphi} for {turned} deg"
+                            (dphi + (r_o / r_f) * turned).abs() < 1e-9,
+                            "step {i}: fingertip turned {dphi} rad for {turned} rad"
                         );
                     }
                 }
@@ -182,7 +186,7 @@ fn paper_scenario_turns_a_full_turn_keeping_the_margin() {
     }
     assert!(worst_rolling < 1e-9, "rolling residual {worst_rolling}");
     assert!(s.max_rolling_residual < 1e-9);
-    assert!((rotated - s.rotation_deg).abs() < 1e-9);
+    assert!((rotated - s.rotation).abs() < 1e-9);
     assert!((min_quality - s.min_quality).abs() <= 1e-12 * min_quality);
 }
 
@@ -319,7 +323,7 @@ fn links_keep_off_the_object_and_a_link_through_it_is_found() {
     // centre) ends inside the 4.75 cm sphere.
     let mut steps = plan.steps[..2].to_vec();
     let slot = steps[1].fingers.iter().position(|f| f.finger == 1).unwrap();
-    steps[1].fingers[slot].joints_deg = vec![0.0; 3];
+    steps[1].fingers[slot].joints = vec![0.0; 3];
     let inside = link_clearance(&s, &steps);
     assert_eq!((inside.finger, inside.link), (1, 2), "{inside:?}");
     let expected = paper::BASE_RADIUS - paper::LINKS[0] - paper::LINKS[1] - paper::OBJECT_RADIUS;
@@ -340,26 +344,21 @@ fn a_plan_started_mid_way_continues_like_the_whole_plan() {
     let k = plan
         .steps
         .iter()
-        .position(|s| s.phase == Phase::Rolling && s.rotation_deg >= 100.0)
+        .position(|s| s.phase == Phase::Rolling && s.rotation.to_degrees() >= 100.0)
         .unwrap();
     let from = &plan.steps[k];
     let mut again = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
     again.initial = from
         .fingers
         .iter()
-        .filter_map(|f| Some((f.finger, f.contact?, Some(f.cap_angle_deg?.to_radians()))))
+        .filter_map(|f| Some((f.finger, f.contact?, Some(f.cap_angle?))))
         .collect();
     again.start = Start {
-        rotation: from.rotation_deg.to_radians(),
+        rotation: from.rotation,
         joints: from
             .fingers
             .iter()
-            .map(|f| {
-                (
-                    f.finger,
-                    f.joints_deg.iter().map(|d| d.to_radians()).collect(),
-                )
-            })
+            .map(|f| (f.finger, f.joints.clone()))
             .collect(),
     };
     let rest = again.plan(&mut |_| {}).unwrap();
@@ -368,15 +367,20 @@ fn a_plan_started_mid_way_continues_like_the_whole_plan() {
     assert_eq!(rest.steps.len(), plan.steps.len() - k);
     for (a, b) in plan.steps[k..].iter().zip(&rest.steps) {
         assert!(
-            (a.rotation_deg - b.rotation_deg).abs() < 1e-9,
+            (a.rotation.to_degrees() - b.rotation.to_degrees()).abs() < 1e-9,
             "{} vs {}",
             a.step,
             b.step
         );
         assert_eq!(contacts_of(a), contacts_of(b), "step {}", a.step);
         for (fa, fb) in a.fingers.iter().zip(&b.fingers) {
-            for (x, y) in fa.joints_deg.iter().zip(&fb.joints_deg) {
-                assert!((x - y).abs() < 1e-6, "step {}: joints {x} vs {y}", a.step);
+            for (x, y) in fa.joints.iter().zip(&fb.joints) {
+                let (x, y) = (x.to_degrees(), y.to_degrees());
+                assert!(
+                    (x - y).abs() < 1e-6,
+                    "step {}: joints {x} vs {y} deg",
+                    a.step
+                );
             }
         }
     }
@@ -460,7 +464,7 @@ fn a_step_that_rolls_a_contact_out_of_its_icr_is_blocked() {
             if w[1].phase != Phase::Rolling {
                 continue;
             }
-            let turned = w[1].rotation_deg - w[0].rotation_deg;
+            let turned = w[1].rotation.to_degrees() - w[0].rotation.to_degrees();
             for (a, b) in w[0].fingers.iter().zip(&w[1].fingers) {
                 let (Some(ca), Some(cb)) = (a.contact, b.contact) else {
                     continue;
@@ -475,7 +479,7 @@ fn a_step_that_rolls_a_contact_out_of_its_icr_is_blocked() {
         );
         println!(
             "{:.1} deg, {} rolling steps, {} switches, largest drag {worst:.1} deg, {:?}",
-            plan.summary.rotation_deg,
+            plan.summary.rotation.to_degrees(),
             plan.summary.rolling_steps,
             plan.summary.switches,
             plan.summary.stop_reason

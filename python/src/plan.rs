@@ -187,7 +187,7 @@ fn trajectory<'py>(
     let j = plan
         .steps
         .iter()
-        .flat_map(|st| st.fingers.iter().map(|x| x.joints_deg.len()))
+        .flat_map(|st| st.fingers.iter().map(|x| x.joints.len()))
         .max()
         .unwrap_or(0);
     let nan = Real::NAN;
@@ -210,11 +210,14 @@ fn trajectory<'py>(
             if let Some(p) = state.point {
                 point[3 * at..3 * at + 3].copy_from_slice(&p);
             }
-            angle[at] = state.angle_deg.unwrap_or(nan);
-            cap[at] = state.cap_angle_deg.unwrap_or(nan);
-            tip_rotation[at] = state.tip_rotation_deg;
+            // Degrees out, as in the plan's files (the same conversion as theirs).
+            angle[at] = state.angle.map_or(nan, Real::to_degrees);
+            cap[at] = state.cap_angle.map_or(nan, Real::to_degrees);
+            tip_rotation[at] = state.tip_rotation.to_degrees();
             tip_centre[3 * at..3 * at + 3].copy_from_slice(&state.tip_centre);
-            joints[j * at..j * at + state.joints_deg.len()].copy_from_slice(&state.joints_deg);
+            for (out, q) in joints[j * at..].iter_mut().zip(&state.joints) {
+                *out = q.to_degrees();
+            }
         }
     }
     let d = PyDict::new(py);
@@ -235,7 +238,10 @@ fn trajectory<'py>(
         "rotation_deg",
         array_out(
             py,
-            plan.steps.iter().map(|st| st.rotation_deg).collect(),
+            plan.steps
+                .iter()
+                .map(|st| st.rotation.to_degrees())
+                .collect(),
             &[s],
         ),
     )?;

@@ -10,7 +10,7 @@
 use std::path::Path;
 
 use anyhow::{Context as _, Result, bail};
-use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::math::Vec3;
 use icrflow_plan::planner::Step;
 use icrflow_runtime::launch::RecordingLaunch;
 use icrflow_scenario::{Config, Recording, Setup};
@@ -116,7 +116,7 @@ fn frames(step: &Step, config: &Config, setup: &Setup) -> Result<[Frame; 2]> {
 /// mass (held at the hand frame's origin), the contacts, their cones, and the fingers.
 fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
     let com = setup.object.centre_of_mass;
-    let theta = step.rotation_deg.to_radians();
+    let theta = step.rotation;
     let rotation = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), theta);
     let translation = -(rotation * com);
     let candidates = setup.problem.candidates();
@@ -136,8 +136,7 @@ fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
     let mut fingers = Vec::new();
     for f in &step.fingers {
         if let Some(finger) = setup.hand.finger(f.finger) {
-            let q: Vec<Real> = f.joints_deg.iter().map(|d| d.to_radians()).collect();
-            fingers.extend(crate::finger_view(finger, &q, &Vec3::zeros()));
+            fingers.extend(crate::finger_view(finger, &f.joints, &Vec3::zeros()));
         }
     }
     let q = rotation.quaternion();
@@ -147,7 +146,7 @@ fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
             p3(&translation),
             [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
         ),
-        object_deg: step.rotation_deg,
+        object_deg: step.rotation.to_degrees(),
         contacts,
         cones,
         fingers,
