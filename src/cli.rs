@@ -112,4 +112,19 @@ pub enum Command {
         #[arg(long, value_name = "URL")]
         connect_viewer: Option<String>,
     },
+    /// Render a recording of `run` or `plan` into a PNG as the Rerun viewer shows it at a plan
+    /// step or at the end, headless (`rerun` 0.36 beside $ICRFLOW_PYTHON or on the PATH).
+    Render {
+        /// The recording (.rrd).
+        rrd: PathBuf,
+        /// END, or the plan step to show.
+        #[arg(long, default_value = "END")]
+        at: String,
+        /// The picture to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// The window size in logical points, WIDTHxHEIGHT.
+        #[arg(long, default_value = "1280x720")]
+        size: String,
+    },
 }

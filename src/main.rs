@@ -6,6 +6,7 @@ mod monitor;
 mod output;
 mod plan;
 mod progress;
+mod render;
 mod run;
 
 use std::process::ExitCode;
@@ -36,6 +37,7 @@ fn main() -> ExitCode {
             },
             after,
         ),
+        cli::Command::Render { rrd, at, out, size } => render::run(&rrd, &at, &out, &size),
         cli::Command::Validate { config } => plan::validate(&config, after).map(|()| 0),
         cli::Command::Monitor {
             connect,

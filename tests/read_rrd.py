@@ -3,7 +3,8 @@ as the Rust crate (rerun-sdk, pinned in bench/requirements.txt), no code of ours
 tests/visualizer.rs.
 
     python tests/read_rrd.py RECORDING.rrd [MORE.rrd ...]
-    python tests/read_rrd.py --png SCREENSHOT.png
+    python tests/read_rrd.py --png SCREENSHOT.png [OTHER.png]
+    python tests/read_rrd.py --blueprint RECORDING.rrd
 
 Prints one JSON object:
   recording_ids   the recording ids in the files
@@ -15,6 +16,15 @@ Prints one JSON object:
   quality_min     the smallest value logged on /timeseries/quality/alpha_star
   alpha           the values logged on /timeseries/quality/alpha (distinct)
   dropped_max     the last count of dropped frames (/timeseries/dropped_frames)
+
+With --png: the picture's width, height and number of distinct colours (a blank one has
+one); with a second picture of the same size, also `changed`, the fraction of pixels that
+differ between the two by more than 24 (of 255) in some channel.
+
+With --blueprint: the layout the recording opens with, read from its blueprint store:
+  views           [{"name", "class", "origin"}] of every view
+  eyes            {view name: {"position", "look_target", "eye_up"}} of the 3D views' cameras
+  panels          {"blueprint_panel" | "selection_panel" | "time_panel": state}
 """
 
 import collections
@@ -55,21 +65,63 @@ def rows_by_step(store, entity: str, component: str) -> list:
     return sorted(out)
 
 
-def png(path: str) -> int:
-    """Prints the size of a PNG and how many distinct colours it has (a blank one has one)."""
-    from PIL import Image
+def png(path: str, other: str | None = None) -> int:
+    """Prints the size of a PNG, how many distinct colours it has, and how much of it differs
+    from `other`."""
+    from PIL import Image, ImageChops
 
     with Image.open(path) as image:
         rgb = image.convert("RGB")
         pixels = rgb.get_flattened_data() if hasattr(rgb, "get_flattened_data") else rgb.getdata()
-        colours = len(set(pixels))
-        print(json.dumps({"width": rgb.width, "height": rgb.height, "colours": colours}))
+        out = {"width": rgb.width, "height": rgb.height, "colours": len(set(pixels))}
+        if other is not None:
+            with Image.open(other) as second:
+                b = second.convert("RGB")
+                if b.size != rgb.size:
+                    out["changed"] = None
+                else:
+                    diff = ImageChops.difference(rgb, b).convert("L").point(lambda v: 255 if v > 24 else 0)
+                    out["changed"] = diff.histogram()[255] / (rgb.width * rgb.height)
+        print(json.dumps(out))
+    return 0
+
+
+def blueprint(path: str) -> int:
+    """Prints the views, 3D eyes and panel states of the recording's blueprint."""
+    reader = RrdReader(path)
+    rows = collections.defaultdict(dict)
+    for entry in reader.blueprints():
+        for ch in reader.stream(store=entry):
+            batch = ch.to_record_batch()
+            for name in batch.schema.names:
+                if ":" not in name:
+                    continue
+                for value in batch.column(name).to_pylist():
+                    if value is not None:
+                        rows[ch.entity_path][name.split(":")[-1]] = value
+    def one(v):
+        return v[0] if isinstance(v, list) and len(v) == 1 else v
+    views, eyes, panels = [], {}, {}
+    for entity, fields in rows.items():
+        path = entity.strip("/")
+        if path.startswith("view/") and path.count("/") == 1 and "class_identifier" in fields:
+            name = one(fields.get("display_name"))
+            views.append({"name": name, "class": one(fields["class_identifier"]), "origin": one(fields.get("space_origin"))})
+            eye = rows.get(entity + "/EyeControls3D") or rows.get("/" + path + "/EyeControls3D")
+            if eye:
+                eyes[name] = {k: one(eye.get(k)) for k in ("position", "look_target", "eye_up")}
+        elif path in ("blueprint_panel", "selection_panel", "time_panel") and "state" in fields:
+            state = one(fields["state"])
+            panels[path] = {1: "hidden", 2: "collapsed", 3: "expanded"}.get(state, state)
+    print(json.dumps({"views": sorted(views, key=lambda v: v["name"] or ""), "eyes": eyes, "panels": panels}))
     return 0
 
 
 def main() -> int:
     if sys.argv[1] == "--png":
-        return png(sys.argv[2])
+        return png(sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else None)
+    if sys.argv[1] == "--blueprint":
+        return blueprint(sys.argv[2])
     ids, entities = set(), set()
     rows = collections.Counter()
     steps, quality, alpha, dropped, phases, rendezvous = [], [], set(), [], [], []

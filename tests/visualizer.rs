@@ -219,35 +219,198 @@ fn a_run_records_what_its_summary_says_and_the_viewer_renders_it() {
     }
     assert_eq!(r["alpha"], serde_json::json!([s["alpha"]]));
 
-    // The viewer renders it headless (software Vulkan), and the picture is not blank.
-    let shot = dir.join("shot.png");
-    let port = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let viewer = Command::new(rerun())
-        .args(["--headless", "--bind", "127.0.0.1", "--port"])
-        .arg(port.to_string())
-        .args(["--window-size", "1280x720", "--screenshot-to"])
-        .arg(&shot)
-        .arg(&rrd)
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap();
-    assert!(
-        viewer.status.success(),
-        "rerun: {}",
-        String::from_utf8_lossy(&viewer.stderr)
+    // It opens with the paper's layout, the latency row included.
+    let b = blueprint(&rrd);
+    assert!(view_names(&b).contains(&LATENCY.to_string()), "{b}");
+
+    // `icrflow render` draws it headless (software Vulkan) at the end and at the start: each
+    // picture is not blank, and the end differs from the start.
+    let end = dir.join("end.png");
+    let start = dir.join("start.png");
+    render(&rrd, "END", &end);
+    render(&rrd, "0", &start);
+    let png = png_stats(&end, Some(&start));
+    assert_eq!(
+        (png["width"].as_u64(), png["height"].as_u64()),
+        (Some(1280), Some(720))
     );
-    let out = Command::new(python())
+    assert!(png["colours"].as_u64().unwrap() > 100, "{png}");
+    assert!(png_stats(&start, None)["colours"].as_u64().unwrap() > 100);
+    let changed = png["changed"].as_f64().unwrap();
+    assert!(changed > 0.02, "the end looks like the start: {png}");
+
+    // A step beyond the recording is refused, naming the recording's steps.
+    let last = s["steps"].as_u64().unwrap();
+    let out = icrflow(
+        &[
+            "render",
+            rrd.to_str().unwrap(),
+            "--at",
+            &(last + 5).to_string(),
+            "--out",
+        ],
+        &dir.join("x.png"),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(&format!("step {}", last + 5)) && err.contains(&format!("0 to {last}")),
+        "{err}"
+    );
+    assert!(!dir.join("x.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The views (names, classes, origins), 3D eyes and panel states of the recording's blueprint
+/// (tests/read_rrd.py --blueprint), checked against the layout every recording has: the hand
+/// seen from the top, the wrench space, the angle, quality and phase plots, the blueprint and
+/// selection panels collapsed.
+fn blueprint(rrd: &Path) -> serde_json::Value {
+    let b = json_of(
+        Command::new(python())
+            .arg(root().join("tests/read_rrd.py"))
+            .arg("--blueprint")
+            .arg(rrd),
+    );
+    let views = b["views"].as_array().unwrap();
+    let find = |name: &str| {
+        views
+            .iter()
+            .find(|v| v["name"] == name)
+            .unwrap_or_else(|| panic!("no view {name:?}: {b}"))
+    };
+    for (name, class, origin) in [
+        (HAND, "3D", "/scene"),
+        (WRENCH, "3D", "/wrench_space"),
+        (ANGLES, "TimeSeries", "/timeseries/angles"),
+        (QUALITY, "TimeSeries", "/timeseries/quality"),
+        (PHASE, "TimeSeries", "/timeseries/phase"),
+    ] {
+        let v = find(name);
+        assert_eq!(
+            (v["class"].as_str(), v["origin"].as_str()),
+            (Some(class), Some(origin)),
+            "{v}"
+        );
+    }
+    // The hand is seen from the top: the eye above the hand frame's origin, looking at it.
+    let eye = &b["eyes"][HAND];
+    let at = |k: &str| -> Vec<f64> {
+        eye[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (p, t) = (at("position"), at("look_target"));
+    assert!(
+        p[0].abs() < 1e-6 && p[1].abs() < 1e-6 && p[2] > 0.1,
+        "{eye}"
+    );
+    assert_eq!(t, vec![0.0, 0.0, 0.0], "{eye}");
+    assert_eq!(b["panels"]["selection_panel"], "collapsed", "{b}");
+    assert_eq!(b["panels"]["blueprint_panel"], "collapsed", "{b}");
+    b
+}
+
+/// The names of the blueprint's views.
+fn view_names(b: &serde_json::Value) -> Vec<String> {
+    b["views"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["name"].as_str().unwrap_or_default().to_string())
+        .collect()
+}
+
+/// The views' names (visualizer/src/blueprint.rs).
+const HAND: &str = "Hand and object (top view)";
+const WRENCH: &str = "Wrench space: GWS green, alpha OWS gold";
+const ANGLES: &str = "Angles (deg): object (white), fingertips";
+const QUALITY: &str = "Quality: alpha* (green) vs alpha (red)";
+const PHASE: &str = "Phase: 1 rolling, 2 attach, 3 detach, 4 done";
+const LATENCY: &str = "Latency (us)";
+
+/// `icrflow ARGS OUT` (the test venv's viewer through ICRFLOW_PYTHON).
+fn icrflow(args: &[&str], out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(args)
+        .arg(out)
+        .env("ICRFLOW_PYTHON", python())
+        .current_dir(root())
+        .output()
+        .unwrap()
+}
+
+/// `icrflow render RRD --at AT --out PNG`, which must succeed and write the picture.
+fn render(rrd: &Path, at: &str, png: &Path) {
+    let out = icrflow(&["render", rrd.to_str().unwrap(), "--at", at, "--out"], png);
+    assert!(
+        out.status.success(),
+        "render --at {at}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.is_file(), "{}", png.display());
+}
+
+/// tests/read_rrd.py --png: the picture's size and colours, and how much of it differs from
+/// `other`.
+fn png_stats(png: &Path, other: Option<&Path>) -> serde_json::Value {
+    let mut command = Command::new(python());
+    command
         .arg(root().join("tests/read_rrd.py"))
         .arg("--png")
-        .arg(&shot)
-        .output()
-        .unwrap();
-    let png: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(png["colours"].as_u64().unwrap() > 100, "{png}");
+        .arg(png);
+    if let Some(other) = other {
+        command.arg(other);
+    }
+    json_of(&mut command)
+}
+
+#[test]
+fn render_refuses_bad_input_by_name() {
+    let dir = scratch("visualizer-render-bad");
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("x.png");
+    let run = |args: &[&str], env_path: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_icrflow"));
+        c.args(args).arg("--out").arg(&png).current_dir(root());
+        match env_path {
+            Some(p) => {
+                c.env("PATH", p).env_remove("ICRFLOW_PYTHON");
+            }
+            None => {
+                c.env("ICRFLOW_PYTHON", python());
+            }
+        }
+        let out = c.output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let missing = dir.join("missing.rrd");
+    let err = run(&["render", missing.to_str().unwrap()], None);
+    assert!(
+        err.contains("no recording at") && err.contains("missing.rrd"),
+        "{err}"
+    );
+    // Any file will do for the argument checks: they come before the viewer starts.
+    let rrd = dir.join("some.rrd");
+    std::fs::write(&rrd, b"not a recording").unwrap();
+    let rrd = rrd.to_str().unwrap();
+    let err = run(&["render", rrd, "--size", "1280"], None);
+    assert!(
+        err.contains("--size") && err.contains("WIDTHxHEIGHT"),
+        "{err}"
+    );
+    let err = run(&["render", rrd, "--at", "last"], None);
+    assert!(err.contains("--at") && err.contains("END"), "{err}");
+    let err = run(&["render", rrd], Some(dir.to_str().unwrap()));
+    assert!(
+        err.contains("no Rerun viewer") && err.contains("rerun-sdk==0.36.3"),
+        "{err}"
+    );
+    assert!(!png.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -369,6 +532,9 @@ fn a_plan_records_every_step_with_its_regions() {
             .any(|x| x.as_str().unwrap().contains("latency")),
         "{entities:?}"
     );
+    // The paper's layout, without the latency row.
+    let b = blueprint(&rrd);
+    assert!(!view_names(&b).contains(&LATENCY.to_string()), "{b}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -96,12 +96,13 @@ pub fn reduced(w: &[Real], space: Space) -> P3 {
     }
 }
 
-/// The convex hull of `points` (in the shown coordinates) as a triangle mesh; empty when the
-/// points span less than three dimensions.
+/// The convex hull of `points` (in the shown coordinates) as a triangle mesh. Points that
+/// span a plane of two coordinates only (a sphere's object wrenches have no torque) give
+/// their flat hull in that plane, fanned into triangles; fewer dimensions give no mesh.
 pub fn hull_mesh(points: &[P3]) -> Mesh {
     let flat: Vec<Real> = points.iter().flatten().map(|&c| c as Real).collect();
     let Ok(hull) = Hull::new(&flat, 3) else {
-        return Mesh::default();
+        return flat_hull_mesh(points);
     };
     let mut triangles = Vec::new();
     for f in 0..hull.facet_count() {
@@ -137,6 +138,72 @@ pub fn hull_mesh(points: &[P3]) -> Mesh {
     }
 }
 
+/// The hull of `points` that lie in a plane of two coordinates (the third constant), fanned
+/// into triangles; empty otherwise, or when they span less than a plane.
+fn flat_hull_mesh(points: &[P3]) -> Mesh {
+    let range = |k: usize| {
+        let (lo, hi) = points
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p[k]), hi.max(p[k]))
+            });
+        hi - lo
+    };
+    let ranges = [range(0), range(1), range(2)];
+    let big = ranges.iter().copied().fold(0.0f32, f32::max);
+    // Not finite or all one point: no plane.
+    if big.is_nan() || big <= 0.0 {
+        return Mesh::default();
+    }
+    let Some(k) = (0..3).find(|&k| ranges[k] <= 1e-6 * big) else {
+        return Mesh::default();
+    };
+    let (u, v) = match k {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    // Andrew's monotone chain over (p[u], p[v]).
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| {
+        (points[a][u], points[a][v])
+            .partial_cmp(&(points[b][u], points[b][v]))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let cross = |o: usize, a: usize, b: usize| {
+        let (o, a, b) = (points[o], points[a], points[b]);
+        (a[u] - o[u]) * (b[v] - o[v]) - (a[v] - o[v]) * (b[u] - o[u])
+    };
+    let mut chain: Vec<usize> = Vec::new();
+    for pass in 0..2 {
+        let start = chain.len();
+        let sweep: Vec<usize> = if pass == 0 {
+            order.clone()
+        } else {
+            order.iter().rev().copied().collect()
+        };
+        for i in sweep {
+            while chain.len() >= start + 2
+                && cross(chain[chain.len() - 2], chain[chain.len() - 1], i) <= 0.0
+            {
+                chain.pop();
+            }
+            chain.push(i);
+        }
+        chain.pop();
+    }
+    if chain.len() < 3 {
+        return Mesh::default();
+    }
+    let triangles = (1..chain.len() - 1)
+        .map(|j| [chain[0] as u32, chain[j] as u32, chain[j + 1] as u32])
+        .collect();
+    Mesh {
+        positions: points.to_vec(),
+        triangles,
+    }
+}
+
 /// The object wrench space (all its facets' wrenches) scaled by `alpha`, in the shown
 /// coordinates: the set the grasp's wrench space must contain (paper eq. 6).
 pub fn scaled_ows(problem: &GraspProblem, alpha: Real) -> Vec<P3> {
@@ -157,6 +224,56 @@ pub fn candidate_wrenches(problem: &GraspProblem, i: usize) -> Vec<P3> {
         .chunks_exact(dim)
         .map(|w| reduced(w, problem.space()))
         .collect()
+}
+
+/// How far outside the surface the ICR points are drawn, as a fraction of rho (the torque
+/// length, the object's largest radius by default).
+pub const ICR_OFFSET: Real = 0.1;
+
+/// How long the friction-cone edges are drawn (m): longer than a fingertip's radius (the
+/// paper's are 2.5 cm), so that they show beyond the fingertip they start under.
+pub const CONE_LENGTH: Real = 0.04;
+
+/// The surface's colour, per vertex: twelve 30-degree sectors of longitude around the centre
+/// of mass (about the body's z axis), alternately light and dark grey, the first (0 to 30
+/// degrees, starting at the body's x axis) painted white, so that the object's turn shows.
+pub fn object_colours(object: &Object) -> Vec<u32> {
+    object
+        .vertices
+        .iter()
+        .map(|v| {
+            let d = v - object.centre_of_mass;
+            let longitude = d.y.atan2(d.x).to_degrees().rem_euclid(360.0);
+            match (longitude / 30.0) as u32 {
+                0 => 0xf2f2f2ff,
+                k if k % 2 == 0 => 0x9da3abff,
+                _ => 0x5b6169ff,
+            }
+        })
+        .collect()
+}
+
+/// The radius (m) around the hand frame's origin within which the hand and the object lie:
+/// the farthest finger base, joint or fingertip (at the home joint angles) plus the
+/// fingertip's radius, and at least the object's radius `object`.
+pub fn hand_radius(hand: &icrflow_plan::hand::Hand, object: Real) -> Real {
+    let mut r = object;
+    for f in &hand.fingers {
+        r = r.max(f.base.translation.vector.xy().norm());
+        if f.home.len() == f.dof() && f.home.iter().all(|q| q.is_finite()) {
+            let pose = f.fk(&f.home);
+            for p in pose.joints.iter().chain([&pose.tip_centre]) {
+                r = r.max(p.xy().norm() + f.tip_radius);
+            }
+        }
+    }
+    r
+}
+
+/// `angle` (deg) moved by whole turns to within half a turn of `previous`: a continuous
+/// angle where `atan2` jumps at +-180 degrees.
+pub fn unwrap_deg(previous: f64, angle: f64) -> f64 {
+    previous + (angle - previous + 180.0).rem_euclid(360.0) - 180.0
 }
 
 /// The angle (deg) of a hand-frame point around the object's centre, in the hand's plane.
@@ -193,9 +310,20 @@ mod tests {
             let n = (v(t[1]) - v(t[0])).cross(&(v(t[2]) - v(t[0])));
             assert!(n.dot(&v(t[0])) > 0.0, "{t:?}");
         }
-        // Flat input: no mesh, no panic.
+        // Flat input: its hull in its plane (a square and its centre: two triangles).
+        let square = [
+            [0.0, 0.0, 0.5],
+            [1.0, 0.0, 0.5],
+            [0.5, 0.5, 0.5],
+            [1.0, 1.0, 0.5],
+            [0.0, 1.0, 0.5],
+        ];
+        let flat = hull_mesh(&square);
+        assert_eq!(flat.triangles.len(), 2, "{flat:?}");
+        assert!(flat.triangles.iter().flatten().all(|&i| i != 2));
+        // A segment: no mesh, no panic.
         assert!(
-            hull_mesh(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+            hull_mesh(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
                 .triangles
                 .is_empty()
         );
@@ -227,6 +355,33 @@ mod tests {
         let p = t + r * Vec3::new(0.05, 0.0, 0.0);
         assert!((p - Vec3::new(0.1, 0.05, 0.0)).norm() < 1e-12, "{p}");
         assert!((angle_deg(&p, &Vec3::new(0.1, 0.0, 0.0)) - 90.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn unwrapped_angles_do_not_jump_at_half_a_turn() {
+        let mut last = 170.0;
+        let mut seen = vec![last];
+        for raw in [178.0, -178.0, -170.0, 179.0, 10.0] {
+            last = unwrap_deg(last, raw);
+            seen.push(last);
+        }
+        assert_eq!(seen, vec![170.0, 178.0, 182.0, 190.0, 179.0, 10.0]);
+        assert_eq!(unwrap_deg(720.0, 5.0), 725.0);
+    }
+
+    #[test]
+    fn the_object_is_painted_by_sectors_of_longitude() {
+        let sphere = Object::sphere(0.05, 24, 12).unwrap();
+        let colours = object_colours(&sphere);
+        assert_eq!(colours.len(), sphere.vertices.len());
+        let distinct: std::collections::BTreeSet<u32> = colours.iter().copied().collect();
+        assert_eq!(distinct.len(), 3, "{distinct:x?}");
+        for (v, c) in sphere.vertices.iter().zip(&colours) {
+            let lon = v.y.atan2(v.x).to_degrees();
+            if (1.0..29.0).contains(&lon) && v.xy().norm() > 1e-3 {
+                assert_eq!(*c, 0xf2f2f2ff, "{v}");
+            }
+        }
     }
 
     #[test]

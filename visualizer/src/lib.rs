@@ -16,9 +16,11 @@
 
 #![warn(missing_docs)]
 
+pub mod blueprint;
 pub mod geometry;
 pub mod plan;
 pub mod record;
+pub mod render;
 
 /// The Rerun SDK, as this crate uses it.
 pub use rerun;
@@ -82,17 +84,29 @@ impl State {
     }
 }
 
-/// What a recording of `setup` with the margin `alpha` shows from the start.
-pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64) -> Statics {
+/// What a recording of `setup` with the margin `alpha` shows from the start; `run`: of a
+/// pipeline run (else of a plan).
+pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64, run: bool) -> Statics {
+    let radius = setup.object.max_radius();
     Statics {
         recording_id: id.to_string(),
         object: geometry::object_mesh(&setup.object),
+        object_colours: geometry::object_colours(&setup.object),
+        marker: (
+            p3(&setup.object.centre_of_mass),
+            [1.35 * radius as f32, 0.0, 0.0],
+        ),
         ows: geometry::hull_mesh(&geometry::scaled_ows(&setup.problem, alpha)),
         alpha,
         axis: (
             p3(&setup.object.centre_of_mass),
-            [0.0, 0.0, 1.5 * setup.object.max_radius() as f32],
+            [0.0, 0.0, 1.5 * radius as f32],
         ),
+        fingers: setup.hand.fingers.iter().map(|f| f.id).collect(),
+        layout: blueprint::Layout {
+            hand_radius: geometry::hand_radius(&setup.hand, radius) as f32,
+            run,
+        },
     }
 }
 
@@ -113,7 +127,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
-    let statics = statics(setup, id, alpha);
+    let statics = statics(setup, id, alpha, true);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
     let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);
@@ -121,7 +135,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let recorder = std::thread::Builder::new()
         .name("recording".into())
         .spawn(move || -> Result<u64> {
-            let rec = match record::open(&target, &statics.recording_id, footer)
+            let rec = match record::open(&target, &statics.recording_id, footer, &statics.layout)
                 .and_then(|rec| record::statics(&rec, &statics).map(|()| rec))
             {
                 Ok(rec) => {
@@ -311,11 +325,17 @@ pub(crate) fn step_frame(
 ) -> Frame {
     let candidates = problem.candidates();
     let count = candidates.points.len();
+    // Drawn a little outside the surface, so that they show over the object's silhouette
+    // seen from the top (a planar grasp's candidates lie on its equator).
+    let out = geometry::ICR_OFFSET * problem.frame().rho();
     let points = |region: &[u32]| -> Vec<P3> {
         region
             .iter()
             .filter(|&&i| (i as usize) < count)
-            .map(|&i| p3(&candidates.points[i as usize]))
+            .map(|&i| {
+                let i = i as usize;
+                p3(&(candidates.points[i] + out * candidates.normals[i]))
+            })
             .collect()
     };
     let mut icrs = Vec::new();
@@ -366,7 +386,7 @@ pub(crate) fn contacts_view(
             grasp.model.mu(),
             grasp.model.edges(),
             grasp.space,
-            0.02,
+            geometry::CONE_LENGTH,
         ));
     }
     (points, cones)

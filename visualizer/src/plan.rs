@@ -50,8 +50,9 @@ pub fn run(config: &Path, trajectory: &Path, launch: &RecordingLaunch) -> Result
         .iter()
         .map(|step| frames(step, &config, &setup))
         .collect::<Result<Vec<_>>>()?;
-    let rec = record::open(&recording, &id, true)?;
-    record::statics(&rec, &crate::statics(&setup, &id, alpha))?;
+    let statics = crate::statics(&setup, &id, alpha, false);
+    let rec = record::open(&recording, &id, true, &statics.layout)?;
+    record::statics(&rec, &statics)?;
     let logged = record::log_frames(&rec, alpha, frames.into_iter().flatten())?;
     rec.flush_with_timeout(std::time::Duration::from_secs(10))
         .map_err(|e| anyhow::anyhow!("flushing the recording: {e}"))?;

@@ -4,11 +4,10 @@
 
 use std::time::Duration;
 
+use crate::blueprint::Layout;
+use crate::geometry::{Mesh, P3};
 use anyhow::{Context as _, Result, anyhow};
 use icrflow_scenario::Recording;
-use rerun::blueprint::{Blueprint, Horizontal, Spatial3DView, TimeSeriesView, Vertical};
-
-use crate::geometry::{Mesh, P3};
 
 /// The entity paths of the recording (documented in the crate's README).
 pub mod paths {
@@ -16,8 +15,10 @@ pub mod paths {
     pub const SCENE: &str = "/scene";
     /// The object's pose (its children are in its body frame).
     pub const OBJECT: &str = "/scene/object";
-    /// The object's surface.
+    /// The object's surface, painted by sectors of longitude.
     pub const OBJECT_MESH: &str = "/scene/object/mesh";
+    /// The object's body x axis, turning with it.
+    pub const OBJECT_MARKER: &str = "/scene/object/x_axis";
     /// Each finger's ICR (`/scene/object/icr/finger_<n>`), of the current plan step.
     pub const ICR: &str = "/scene/object/icr";
     /// The ICR a free finger attaches into during a switch (the rendezvous region), in each
@@ -39,6 +40,8 @@ pub mod paths {
     pub const OWS: &str = "/wrench_space/ows_alpha";
     /// The contacts' primitive wrenches.
     pub const PRIMITIVE: &str = "/wrench_space/primitive_wrenches";
+    /// The axes `f_x`, `f_y`, `tau_z / rho`, labelled.
+    pub const WRENCH_AXES: &str = "/wrench_space/axes";
     /// The primitive wrenches of the ICR points.
     pub const CANDIDATES: &str = "/wrench_space/icr_wrenches";
     /// Angles (deg): `object` and `finger_<n>`.
@@ -126,43 +129,20 @@ pub struct Statics {
     pub recording_id: String,
     /// The object's surface (body frame).
     pub object: Mesh,
+    /// Its colour per vertex.
+    pub object_colours: Vec<u32>,
+    /// The body x axis marker: origin and vector (body frame).
+    pub marker: (P3, P3),
     /// The object wrench space scaled by alpha (its hull).
     pub ows: Mesh,
     /// The margin.
     pub alpha: f64,
     /// The desired rotation axis (hand frame) and where to draw it.
     pub axis: (P3, P3),
-}
-
-/// The layout the viewer opens with.
-pub fn blueprint() -> Blueprint {
-    Blueprint::new(
-        Horizontal::new([
-            Spatial3DView::new("Hand and object")
-                .with_origin(paths::SCENE)
-                .into(),
-            Vertical::new([
-                Spatial3DView::new("Wrench space (f_x, f_y, tau_z / rho)")
-                    .with_origin(paths::WRENCH)
-                    .into(),
-                TimeSeriesView::new("Angles (deg)")
-                    .with_origin(paths::ANGLES)
-                    .into(),
-                TimeSeriesView::new("Quality alpha* vs alpha")
-                    .with_origin(paths::QUALITY)
-                    .into(),
-                TimeSeriesView::new("Phase")
-                    .with_origin(paths::PHASE)
-                    .into(),
-                TimeSeriesView::new("Latency (us)")
-                    .with_origin(paths::LATENCY)
-                    .into(),
-            ])
-            .with_row_shares([3.0, 2.0, 2.0, 1.0, 2.0])
-            .into(),
-        ])
-        .with_column_shares([3.0, 2.0]),
-    )
+    /// The hand's fingers (their numbers).
+    pub fingers: Vec<u32>,
+    /// The viewer's layout.
+    pub layout: Layout,
 }
 
 /// The most recorded data Rerun's SDK holds before it blocks (the recording's memory bound).
@@ -172,17 +152,31 @@ pub const MAX_BYTES_IN_FLIGHT: u64 = 1 << 20;
 /// an entry per chunk in memory until the file is closed, ~1.3 GB an hour at the run's frame
 /// rate; without it the file is still a valid recording, and `rerun rrd optimize` adds the
 /// index afterwards).
-pub fn open(recording: &Recording, id: &str, footer: bool) -> Result<rerun::RecordingStream> {
+pub fn open(
+    recording: &Recording,
+    id: &str,
+    footer: bool,
+    layout: &Layout,
+) -> Result<rerun::RecordingStream> {
+    let rec = open_stream(recording, id, footer)?;
+    // First in the stream, as `RecordingStreamBuilder::with_blueprint` sends it.
+    crate::blueprint::send(&rec, APP, id, layout)?;
+    Ok(rec)
+}
+
+/// The application id of every icrflow recording (the viewer keys blueprints by it).
+pub const APP: &str = "icrflow";
+
+fn open_stream(recording: &Recording, id: &str, footer: bool) -> Result<rerun::RecordingStream> {
     // Rerun's queues are bounded by the bytes in flight: a viewer that lags then blocks this
     // thread, and the node drops frames, after at most this much memory.
     let batching = rerun::log::ChunkBatcherConfig {
         max_bytes_in_flight: MAX_BYTES_IN_FLIGHT,
         ..rerun::log::ChunkBatcherConfig::DEFAULT
     };
-    let builder = rerun::RecordingStreamBuilder::new("icrflow")
+    let builder = rerun::RecordingStreamBuilder::new(APP)
         .recording_id(id)
-        .batcher_config(batching)
-        .with_blueprint(blueprint());
+        .batcher_config(batching);
     match recording {
         Recording::Rrd(path) => {
             if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -265,42 +259,128 @@ fn mesh(m: &Mesh, rgba: u32) -> rerun::Mesh3D {
         .with_albedo_factor(rerun::Rgba32::from_u32(rgba))
 }
 
-/// Colour of finger `n`'s things.
-fn finger_colour(n: u32) -> u32 {
+/// Colour of finger `n`'s things (bright enough for the viewer's dark background).
+pub fn finger_colour(n: u32) -> u32 {
     const COLOURS: [u32; 8] = [
-        0xe6194bff, 0x3cb44bff, 0x4363d8ff, 0xf58231ff, 0x911eb4ff, 0x42d4f4ff, 0xf032e6ff,
+        0xff5c5cff, 0x5cd65cff, 0x5ca8ffff, 0xffa53dff, 0xd67cffff, 0x42d4f4ff, 0xf032e6ff,
         0xbfef45ff,
     ];
-    COLOURS[n as usize % COLOURS.len()]
+    COLOURS[n.saturating_sub(1) as usize % COLOURS.len()]
 }
+
+/// Colours of the wrench space (paper Fig. 9) and of the series, on the dark background.
+pub mod colours {
+    /// The grasp wrench space's hull: translucent green.
+    pub const GWS: u32 = 0x3cc85a70;
+    /// The alpha-scaled object wrench space: opaque gold, inside the GWS.
+    pub const OWS: u32 = 0xffd23fff;
+    /// The contacts' primitive wrenches.
+    pub const PRIMITIVE: u32 = 0xff5c5cff;
+    /// The ICR points' wrenches.
+    pub const CANDIDATES: u32 = 0x42d4f4c0;
+    /// The object's rotation in the angle plot.
+    pub const OBJECT: u32 = 0xf5f5f5ff;
+    /// alpha* in the quality plot.
+    pub const ALPHA_STAR: u32 = 0x5cd65cff;
+    /// alpha in the quality plot.
+    pub const ALPHA: u32 = 0xff5c5cff;
+    /// The phase plot.
+    pub const PHASE: u32 = 0x8ab4ffff;
+    /// The friction cones.
+    pub const CONES: u32 = 0xffa53dff;
+    /// The contacts.
+    pub const CONTACTS: u32 = 0xffffffff;
+    /// The rendezvous region and the rotation axis.
+    pub const RENDEZVOUS: u32 = 0xffd23fff;
+}
+
+/// The latency series, in the order of a frame's latencies.
+const LATENCY_NAMES: [&str; 7] = [
+    "end_to_end",
+    "hop_joint_state",
+    "hop_grasp_state",
+    "hop_wrench_space",
+    "compute_estimator",
+    "compute_wrench",
+    "compute_command",
+];
 
 /// Logs the recording's static part.
 pub fn statics(rec: &rerun::RecordingStream, s: &Statics) -> Result<()> {
     rec.log_static(paths::SCENE, &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
-    rec.log_static(paths::OBJECT_MESH, &mesh(&s.object, 0xb0b0b0c0))?;
+    rec.log_static(
+        paths::OBJECT_MESH,
+        &rerun::Mesh3D::new(s.object.positions.iter().copied())
+            .with_triangle_indices(s.object.triangles.iter().copied())
+            .with_vertex_colors(s.object_colours.iter().copied()),
+    )?;
+    rec.log_static(
+        paths::OBJECT_MARKER,
+        &rerun::Arrows3D::from_vectors([s.marker.1])
+            .with_origins([s.marker.0])
+            .with_radii([0.0015])
+            .with_colors([0xf2f2f2ff]),
+    )?;
     rec.log_static(
         paths::AXIS,
         &rerun::Arrows3D::from_vectors([s.axis.1])
             .with_origins([s.axis.0])
-            .with_colors([0xffd700ff]),
+            .with_colors([colours::RENDEZVOUS]),
     )?;
-    rec.log_static(paths::OWS, &mesh(&s.ows, 0x4363d860))?;
-    let series = |path: &str, name: &str, rgba: u32| -> Result<()> {
+    rec.log_static(paths::OWS, &mesh(&s.ows, colours::OWS))?;
+    rec.log_static(
+        paths::WRENCH_AXES,
+        &rerun::Arrows3D::from_vectors([[1.2, 0.0, 0.0], [0.0, 1.2, 0.0], [0.0, 0.0, 0.6]])
+            .with_radii([0.006])
+            .with_colors([0xff8080ff, 0x80ff80ff, 0x80b0ffff])
+            .with_labels(["f_x", "f_y", "tau_z / rho"])
+            .with_show_labels(true),
+    )?;
+    let series = |path: &str, name: &str, rgba: u32, width: f32| -> Result<()> {
         rec.log_static(
             path,
             &rerun::SeriesLines::new()
                 .with_names([name])
-                .with_colors([rerun::Color::from_u32(rgba)]),
+                .with_colors([rerun::Color::from_u32(rgba)])
+                .with_widths([width]),
         )?;
         Ok(())
     };
     series(
         &format!("{}/alpha_star", paths::QUALITY),
         "alpha*",
-        0x3cb44bff,
+        colours::ALPHA_STAR,
+        2.0,
     )?;
-    series(&format!("{}/alpha", paths::QUALITY), "alpha", 0xe6194bff)?;
-    series(&format!("{}/object", paths::ANGLES), "object", 0x000000ff)?;
+    series(
+        &format!("{}/alpha", paths::QUALITY),
+        "alpha",
+        colours::ALPHA,
+        1.5,
+    )?;
+    series(
+        &format!("{}/object", paths::ANGLES),
+        "object",
+        colours::OBJECT,
+        2.5,
+    )?;
+    for &f in &s.fingers {
+        series(
+            &format!("{}/finger_{f}", paths::ANGLES),
+            &format!("finger {f}"),
+            finger_colour(f),
+            1.5,
+        )?;
+    }
+    series(paths::PHASE, "phase", colours::PHASE, 2.0)?;
+    if s.layout.run {
+        const LATENCY: [u32; 7] = [
+            0xf5f5f5ff, 0xff5c5cff, 0x5cd65cff, 0x5ca8ffff, 0xffa53dff, 0xd67cffff, 0x42d4f4ff,
+        ];
+        for (name, rgba) in LATENCY_NAMES.iter().zip(LATENCY) {
+            series(&format!("{}/{name}", paths::LATENCY), name, rgba, 1.5)?;
+        }
+    }
     Ok(())
 }
 
@@ -314,6 +394,8 @@ pub fn log_frames(
     let mut logged = 0;
     let mut step = 0i64;
     let mut phase = u32::MAX;
+    // Each fingertip's last angle, so that its series is continuous (unwrapped).
+    let mut angles = std::collections::HashMap::<u32, f64>::new();
     for frame in frames {
         match frame {
             Frame::Tick {
@@ -342,12 +424,14 @@ pub fn log_frames(
                 rec.log(
                     paths::CONTACTS,
                     &rerun::Points3D::new(contacts)
-                        .with_radii([0.002])
-                        .with_colors([0xff0000ff]),
+                        .with_radii([0.0025])
+                        .with_colors([colours::CONTACTS]),
                 )?;
                 rec.log(
                     paths::CONES,
-                    &rerun::LineStrips3D::new(cones).with_colors([0xffa500ff]),
+                    &rerun::LineStrips3D::new(cones)
+                        .with_radii([0.0009])
+                        .with_colors([colours::CONES]),
                 )?;
                 for f in &fingers {
                     let base = format!("{}/finger_{}", paths::FINGERS, f.finger);
@@ -357,15 +441,21 @@ pub fn log_frames(
                             .with_radii([0.003])
                             .with_colors([finger_colour(f.finger)]),
                     )?;
+                    // Translucent: the contact, its cone and the ICR show through.
                     rec.log(
                         format!("{base}/tip"),
                         &rerun::Ellipsoids3D::from_centers_and_radii([f.tip.0], [f.tip.1])
-                            .with_colors([finger_colour(f.finger)])
+                            .with_colors([finger_colour(f.finger) & 0xffffff00 | 0x50])
                             .with_fill_mode(rerun::FillMode::Solid),
                     )?;
+                    let angle = match angles.get(&f.finger) {
+                        Some(&last) => crate::geometry::unwrap_deg(last, f.angle_deg),
+                        None => f.angle_deg,
+                    };
+                    angles.insert(f.finger, angle);
                     rec.log(
                         format!("{}/finger_{}", paths::ANGLES, f.finger),
-                        &rerun::Scalars::single(f.angle_deg),
+                        &rerun::Scalars::single(angle),
                     )?;
                 }
                 rec.log(
@@ -383,16 +473,7 @@ pub fn log_frames(
                     )?;
                 }
                 if let Some(l) = latency {
-                    const NAMES: [&str; 7] = [
-                        "end_to_end",
-                        "hop_joint_state",
-                        "hop_grasp_state",
-                        "hop_wrench_space",
-                        "compute_estimator",
-                        "compute_wrench",
-                        "compute_command",
-                    ];
-                    for (name, us) in NAMES.iter().zip(l) {
+                    for (name, us) in LATENCY_NAMES.iter().zip(l) {
                         rec.log(
                             format!("{}/{name}", paths::LATENCY),
                             &rerun::Scalars::single(us),
@@ -431,7 +512,7 @@ pub fn log_frames(
                         rec.log(
                             path,
                             &rerun::Points3D::new(points.iter().copied())
-                                .with_radii([0.0015])
+                                .with_radii([0.0028])
                                 .with_colors([finger_colour(*finger)]),
                         )?;
                     } else {
@@ -443,8 +524,8 @@ pub fn log_frames(
                         rec.log(
                             paths::RENDEZVOUS,
                             &rerun::Points3D::new(points)
-                                .with_radii([0.0025])
-                                .with_colors([0xffd700ff]),
+                                .with_radii([0.0035])
+                                .with_colors([colours::RENDEZVOUS]),
                         )?;
                         rec.log(
                             paths::EVENTS,
@@ -455,18 +536,18 @@ pub fn log_frames(
                     }
                     None => rec.log(paths::RENDEZVOUS, &rerun::Clear::flat())?,
                 }
-                rec.log(paths::GWS, &mesh(&gws, 0x3cb44b90))?;
+                rec.log(paths::GWS, &mesh(&gws, colours::GWS))?;
                 rec.log(
                     paths::PRIMITIVE,
                     &rerun::Points3D::new(primitive)
-                        .with_radii([0.01])
-                        .with_colors([0xff0000ff]),
+                        .with_radii([0.02])
+                        .with_colors([colours::PRIMITIVE]),
                 )?;
                 rec.log(
                     paths::CANDIDATES,
                     &rerun::Points3D::new(candidates)
-                        .with_radii([0.004])
-                        .with_colors([0x80808080]),
+                        .with_radii([0.008])
+                        .with_colors([colours::CANDIDATES]),
                 )?;
             }
         }
