@@ -2,6 +2,7 @@
 
 mod analyze;
 mod cli;
+mod exit;
 mod monitor;
 mod output;
 mod plan;
@@ -16,7 +17,7 @@ fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let after = cli.progress_after;
     let result = match cli.command {
-        cli::Command::Analyze { config, json } => analyze::run(&config, json, after).map(|()| 0),
+        cli::Command::Analyze { config, json } => analyze::run(&config, json, after),
         cli::Command::Plan {
             config,
             out,
@@ -36,7 +37,7 @@ fn main() -> ExitCode {
             },
             after,
         ),
-        cli::Command::Validate { config } => plan::validate(&config, after).map(|()| 0),
+        cli::Command::Validate { config } => plan::validate(&config, after),
         cli::Command::Monitor {
             connect,
             rig,
@@ -47,6 +48,7 @@ fn main() -> ExitCode {
             config,
             live,
             summary_json,
+            verbose,
             rrd,
             spawn_viewer,
             connect_viewer,
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
             &config,
             live,
             summary_json,
+            verbose,
             run::Viewer {
                 rrd,
                 spawn: spawn_viewer,
