@@ -656,10 +656,19 @@ impl Watch {
     }
 }
 
-/// The cause of a hold, from its reason: the text before its details (`grasp state is stale`
-/// of `grasp state is stale: 12.1 ms old, limit 10.0 ms`), numbers as `N`.
+/// The cause of a hold, from its reason: the text before its details, the parts up to the
+/// first with a number (`grasp state: stale` of `grasp state: stale: 12.1 ms old, limit
+/// 10.0 ms`), numbers in the first part as `N`.
 pub(super) fn cause(reason: &str) -> String {
-    let head = reason.split(':').next().unwrap_or(reason).trim();
+    let mut parts = reason.split(':');
+    let mut head = parts.next().unwrap_or(reason).trim().to_string();
+    if !head.chars().any(|c| c.is_ascii_digit()) {
+        for part in parts.take_while(|p| !p.chars().any(|c| c.is_ascii_digit())) {
+            head.push(':');
+            head.push_str(part);
+        }
+    }
+    let head = head.trim();
     let mut out = String::with_capacity(head.len());
     let mut in_number = false;
     for ch in head.chars() {
@@ -706,6 +715,10 @@ mod tests {
         assert_eq!(
             cause("grasp state is stale: 12.1 ms old, limit 10.0 ms"),
             "grasp state is stale"
+        );
+        assert_eq!(
+            cause("grasp state: stale: 3.2 ms old, limit 0.0 ms"),
+            "grasp state: stale"
         );
         assert_eq!(
             cause("the estimate is off: pose innovation 3.20 deg over the bound 2.00 deg"),
