@@ -540,9 +540,7 @@ impl Watch {
         let short = self.rotation < l.goal - 0.5f64.to_radians();
         // Before the first plan step the planner node plans: however long that takes, it is
         // no stall (a planner node that fails is the supervisor's, and said).
-        let Some((step, since)) = self.progress.map(|(step, t)| (step, t.elapsed())) else {
-            return None;
-        };
+        let (step, since) = self.progress.map(|(step, t)| (step, t.elapsed()))?;
         if (!self.done || short) && self.holding.is_none() && since >= l.max_hold {
             return Some(if self.done {
                 StopReason::PlanEndedShort {
