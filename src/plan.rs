@@ -192,7 +192,8 @@ pub fn run(
     let plan = match planned {
         Ok(p) => p,
         Err(e) if crate::exit::is_grasp_answer(&e) => {
-            eprintln!("plan: cannot plan: {e} (nothing written)");
+            // The words of the Python binding's error (`cannot plan: ...`); nothing written.
+            eprintln!("plan: cannot plan: {e}");
             return Ok(crate::exit::INCOMPLETE);
         }
         Err(e) => return Err(anyhow::Error::new(e).context("cannot plan")),
