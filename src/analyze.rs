@@ -31,6 +31,14 @@ pub struct Report {
     pub quality: Real,
     pub epsilon: Real,
     pub hull_facets: usize,
+    /// Which candidates the contacts were snapped to: "section" (the object's section in the
+    /// hand's plane: planar analysis, and what validate, plan and run evaluate) or "facets"
+    /// (the mesh's facets: spatial analysis).
+    pub contacts_on: &'static str,
+    /// Spatial analysis: alpha* of the same contacts on the object's section in the hand's
+    /// plane, the grasp validate, plan and run evaluate (`None`: planar analysis, whose grasp
+    /// is that one, or the contacts do not lie in the hand's plane).
+    pub section_quality: Option<Real>,
     /// Why the regions were not computed, if they were not.
     pub icr_status: Option<String>,
     pub contacts: Vec<ContactReport>,
@@ -65,10 +73,68 @@ pub struct IcrReport {
     /// [0, 360), end >= start (an interval across 0 degrees ends above 360).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_intervals_deg: Option<Vec<[Real; 2]>>,
+    /// Spatial problems: where the region lies, seen from the centre of mass.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extent: Option<Extent>,
 }
 
-/// Runs the verb.
-pub fn run(path: &Path, json: bool, progress_after: std::time::Duration) -> Result<()> {
+/// Where a region of facets lies on the object, seen from its centre of mass (body frame,
+/// z up: azimuth in the hand's plane from +x, elevation above it).
+#[derive(Debug, Serialize)]
+pub struct Extent {
+    /// Azimuth of the region's facet centres, `[from, to]` in degrees, from in [0, 360), to
+    /// >= from (a region across 0 degrees ends above 360), as the planar intervals.
+    pub azimuth_deg: [Real; 2],
+    /// Elevation of the facet centres above the hand's plane, `[lowest, highest]` in degrees.
+    pub elevation_deg: [Real; 2],
+    /// The largest distance of a facet centre from the contact (m).
+    pub radius: Real,
+    /// The region's surface area (m^2).
+    pub area: Real,
+}
+
+/// The extent of the region `members` (candidate facets) around `contact`, seen from `com`.
+fn extent(
+    members: &[u32],
+    contact: usize,
+    cands: &icrflow_grasp::object::SurfaceSamples,
+    com: &icrflow_grasp::math::Vec3,
+) -> Extent {
+    let direction = |p: &icrflow_grasp::math::Vec3| {
+        let d = p - com;
+        (
+            d.y.atan2(d.x).to_degrees(),
+            d.z.atan2(d.x.hypot(d.y)).to_degrees(),
+        )
+    };
+    let (around, _) = direction(&cands.points[contact]);
+    let (mut az, mut el) = (
+        [Real::INFINITY, Real::NEG_INFINITY],
+        [Real::INFINITY, Real::NEG_INFINITY],
+    );
+    let (mut radius, mut area) = (0.0 as Real, 0.0 as Real);
+    for &m in members {
+        let m = m as usize;
+        let (a, e) = direction(&cands.points[m]);
+        // Relative to the contact's azimuth, in (-180, 180]: a region across 180 stays whole.
+        let rel = (a - around + 540.0).rem_euclid(360.0) - 180.0;
+        az = [az[0].min(rel), az[1].max(rel)];
+        el = [el[0].min(e), el[1].max(e)];
+        radius = radius.max((cands.points[m] - cands.points[contact]).norm());
+        area += cands.areas[m];
+    }
+    let from = (around + az[0]).rem_euclid(360.0);
+    Extent {
+        azimuth_deg: [from, from + (az[1] - az[0])],
+        elevation_deg: el,
+        radius,
+        area,
+    }
+}
+
+/// Runs the verb; returns the exit status: [`crate::exit::INCOMPLETE`] when the grasp is not
+/// force closure or its quality is below the margin (no regions).
+pub fn run(path: &Path, json: bool, progress_after: std::time::Duration) -> Result<u8> {
     let config = Config::load(path)?;
     let mut shown = crate::progress::Shown::new(progress_after);
     let report = analyze(&config, &mut shown)?;
@@ -80,7 +146,11 @@ pub fn run(path: &Path, json: bool, progress_after: std::time::Duration) -> Resu
     } else {
         print_text(&mut out, &report)?;
     }
-    Ok(())
+    Ok(if report.force_closure && report.quality >= report.alpha {
+        crate::exit::DONE
+    } else {
+        crate::exit::INCOMPLETE
+    })
 }
 
 /// Analyses the configured grasp.
@@ -110,6 +180,32 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
         snaps.push(snap);
     }
     let eval = problem.evaluate(&indices)?;
+    // A spatial analysis snaps the contacts to the mesh's facets; validate, plan and run take
+    // them on the section in the hand's plane: that grasp's quality too, so both are said.
+    let section_quality = match g.space {
+        Space::Planar => None,
+        Space::Spatial if object.section.samples.is_empty() => None,
+        Space::Spatial => {
+            let section = GraspProblem::new_with(
+                &object.facets,
+                object.section.samples.clone(),
+                frame,
+                g.model,
+                progress,
+            )?;
+            let on: Result<Vec<usize>> = g
+                .contacts
+                .iter()
+                .enumerate()
+                .map(|(i, c)| snap_contact(&object, &section, true, i, c).map(|(k, _)| k))
+                .collect();
+            match on {
+                Ok(on) => section.evaluate(&on).ok().map(|e| e.quality),
+                // Off the hand's plane: no grasp there to compare with.
+                Err(_) => None,
+            }
+        }
+    };
     let regions = match problem.icrs(&indices, &eval, g.alpha) {
         Ok(r) => Ok(r),
         Err(e @ (IcrError::NotForceClosure | IcrError::MarginAboveQuality { .. })) => Err(e),
@@ -143,6 +239,9 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
                             .map(|&m| to3(&cands.points[m as usize]))
                             .collect(),
                         angle_intervals_deg: angles.as_ref().map(|a| angle_intervals(members, a)),
+                        extent: angles
+                            .is_none()
+                            .then(|| extent(members, q, cands, &object.centre_of_mass)),
                     }
                 }),
             }
@@ -168,6 +267,11 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
         quality: eval.quality,
         epsilon: eval.epsilon,
         hull_facets: eval.hull.as_ref().map_or(0, |h| h.facet_count()),
+        contacts_on: match g.space {
+            Space::Planar => "section",
+            Space::Spatial => "facets",
+        },
+        section_quality,
         icr_status: regions.as_ref().err().map(|e| e.to_string()),
         contacts,
         warnings: object.warnings.iter().map(|w| w.to_string()).collect(),
@@ -252,6 +356,22 @@ fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
             "quality   alpha* = {:.6} {verdict} alpha = {} ({} hull facets)",
             r.quality, r.alpha, r.hull_facets
         )?;
+        if r.contacts_on == "facets" {
+            writeln!(
+                out,
+                "          with the contacts on the nearest mesh facets (spatial analysis, its ICRs too);"
+            )?;
+            match r.section_quality {
+                Some(q) => writeln!(
+                    out,
+                    "          on the section in the hand's plane (validate, plan, run): alpha* = {q:.6}"
+                )?,
+                None => writeln!(
+                    out,
+                    "          (off the hand's plane, where validate, plan and run take the contacts)"
+                )?,
+            }
+        }
     } else {
         writeln!(
             out,
@@ -263,22 +383,51 @@ fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
     match &r.icr_status {
         Some(why) => writeln!(out, "ICRs      not computed: {why}")?,
         None => {
-            for c in &r.contacts {
-                let Some(icr) = &c.icr else { continue };
-                let span = match &icr.angle_intervals_deg {
-                    Some(iv) => iv
-                        .iter()
-                        .map(|[a, b]| format!("{a:.1} .. {:.1} deg", b % 360.0))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    None => String::new(),
-                };
+            if r.contacts
+                .iter()
+                .any(|c| c.icr.as_ref().is_some_and(|i| i.extent.is_some()))
+            {
                 writeln!(
                     out,
-                    "ICR       finger {}: {} points {span}",
-                    c.finger,
-                    icr.indices.len()
+                    "ICRs      where they lie, from the centre of mass: azimuth in the hand's plane from +x,"
                 )?;
+                writeln!(
+                    out,
+                    "          elevation above it; within: the farthest facet from the contact"
+                )?;
+            }
+            for c in &r.contacts {
+                let Some(icr) = &c.icr else { continue };
+                match (&icr.angle_intervals_deg, &icr.extent) {
+                    (Some(iv), _) => writeln!(
+                        out,
+                        "ICR       finger {}: {} points, {}",
+                        c.finger,
+                        icr.indices.len(),
+                        iv.iter()
+                            .map(|[a, b]| format!("{a:.1} .. {:.1} deg", b % 360.0))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )?,
+                    (None, Some(e)) => writeln!(
+                        out,
+                        "ICR       finger {}: {} facets, {:.1} mm^2, azimuth {:.1} .. {:.1}, elevation {:.1} .. {:.1} deg, within {:.1} mm",
+                        c.finger,
+                        icr.indices.len(),
+                        e.area * 1e6,
+                        e.azimuth_deg[0],
+                        e.azimuth_deg[1] % 360.0,
+                        e.elevation_deg[0],
+                        e.elevation_deg[1],
+                        e.radius * 1e3
+                    )?,
+                    (None, None) => writeln!(
+                        out,
+                        "ICR       finger {}: {} points",
+                        c.finger,
+                        icr.indices.len()
+                    )?,
+                }
             }
         }
     }

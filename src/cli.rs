@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 
 /// In-hand rolling manipulation with independent contact regions and a quality margin.
 #[derive(Debug, Parser)]
-#[command(name = "icrflow", version, about)]
+#[command(name = "icrflow", version, about, after_help = crate::exit::HELP)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]
@@ -27,7 +27,8 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Analyse the grasp in CONFIG: force closure, quality alpha*, epsilon, and each contact's
-    /// independent contact region for the margin alpha.
+    /// independent contact region for the margin alpha. Exit status 2: not force closure, or
+    /// alpha* below alpha (no regions).
     Analyze {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,
@@ -37,8 +38,9 @@ pub enum Command {
     },
     /// Run the pipeline on CONFIG: every node its own process on a private iceoryx2 bus,
     /// supervised, closed loop on the simulated hand, until the goal rotation (or Ctrl-C with
-    /// --live); prints a summary. Exit status 2: the goal was not reached (a --live run stopped
-    /// by Ctrl-C exits 0).
+    /// --live), saying what it does on stderr; prints a summary. Exit status 2: the initial
+    /// grasp is not force closure or below alpha, or the goal was not reached (a --live run
+    /// stopped by Ctrl-C exits 0).
     Run {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,
@@ -48,6 +50,10 @@ pub enum Command {
         /// Also write the summary as JSON to this file.
         #[arg(long)]
         summary_json: Option<PathBuf>,
+        /// Also print each process's memory, scheduling and steady-state allocations, and
+        /// the latency's parts.
+        #[arg(long, short)]
+        verbose: bool,
         /// Save the Rerun recording to this file (default: `visualizer.rrd` of the config,
         /// else out/<config name>.rrd).
         #[arg(long, conflicts_with_all = ["spawn_viewer", "connect_viewer", "no_visualizer"])]
@@ -64,8 +70,9 @@ pub enum Command {
         no_visualizer: bool,
     },
     /// Watch a running pipeline over Zenoh (from this or another machine): phase, rotation,
-    /// quality against alpha, contacts, node health and latency, redrawn in place on a
-    /// terminal, one line per second otherwise. Read-only. Stops on Ctrl-C.
+    /// quality against alpha, contacts, node health and restarts, latency, redrawn in place on
+    /// a terminal, one line per second otherwise. Read-only. Waits for a run to appear; stops
+    /// on Ctrl-C.
     Monitor {
         /// The Zenoh endpoint of the pipeline's bridge (`zenoh.listen` of its config).
         #[arg(long, default_value = "tcp/127.0.0.1:7447")]
@@ -83,7 +90,8 @@ pub enum Command {
     },
     /// Check CONFIG and every file it names (mesh, URDF), build the object and the hand, and
     /// check the initial grasp (force closure, quality >= alpha, every finger reaching its
-    /// contact). Exit status 1 with the first problem named; nothing is started or written.
+    /// contact). Exit status 1 with the first problem named, 2 when the grasp is not force
+    /// closure or below alpha; nothing is started or written.
     Validate {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,
@@ -92,7 +100,8 @@ pub enum Command {
     /// fingers at their limits, until the object has turned by plan.rotation_deg. Writes
     /// trajectory.csv and trajectory.json and prints a summary; with --rrd, --spawn-viewer or
     /// --connect-viewer, also records the plan for Rerun, step by step. Exit status 2: the
-    /// planner stopped before the goal (the files say why).
+    /// initial grasp is not force closure or below alpha (nothing written), or the planner
+    /// stopped before the goal (the files say why).
     Plan {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,

@@ -2,6 +2,7 @@
 
 mod analyze;
 mod cli;
+mod exit;
 mod monitor;
 mod output;
 mod plan;
@@ -17,7 +18,7 @@ fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let after = cli.progress_after;
     let result = match cli.command {
-        cli::Command::Analyze { config, json } => analyze::run(&config, json, after).map(|()| 0),
+        cli::Command::Analyze { config, json } => analyze::run(&config, json, after),
         cli::Command::Plan {
             config,
             out,
@@ -38,7 +39,7 @@ fn main() -> ExitCode {
             after,
         ),
         cli::Command::Render { rrd, at, out, size } => render::run(&rrd, &at, &out, &size),
-        cli::Command::Validate { config } => plan::validate(&config, after).map(|()| 0),
+        cli::Command::Validate { config } => plan::validate(&config, after),
         cli::Command::Monitor {
             connect,
             rig,
@@ -49,6 +50,7 @@ fn main() -> ExitCode {
             config,
             live,
             summary_json,
+            verbose,
             rrd,
             spawn_viewer,
             connect_viewer,
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
             &config,
             live,
             summary_json,
+            verbose,
             run::Viewer {
                 rrd,
                 spawn: spawn_viewer,

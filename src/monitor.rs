@@ -1,15 +1,18 @@
 //! `icrflow monitor`: a live view of a running pipeline over Zenoh, from this or another
 //! machine. It subscribes to the rig's monitoring key expressions (`icrflow/<rig>/**`, JSON,
 //! see `icrflow_bridge::json`), and shows phase, rotation, quality against alpha, contacts,
-//! node health and latency: redrawn in place on a terminal, one plain line per second
-//! otherwise. Objects that are not monitoring JSON of our schema are ignored, with an error
-//! on stderr (once per key expression and reason).
+//! node health and restarts, and latency: redrawn in place on a terminal, one plain line per
+//! second otherwise. Objects that are not monitoring JSON of our schema are ignored, with an
+//! error on stderr (once per key expression and reason).
+//!
+//! It waits for a run to appear at the endpoint (saying so), and warns when nothing arrives for
+//! its rig while other rigs publish there (a wrong `--rig`), or nothing at all does.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
-use anyhow::{Result, anyhow};
+use anyhow::{Context as _, Result, anyhow};
 use icrflow_bridge::json::{
     GraspStateJson, HandCommandJson, NodeHealthJson, PlanStepJson, WrenchSpaceJson, envelope,
 };
@@ -26,6 +29,19 @@ const LINE: Duration = Duration::from_secs(1);
 const SILENT: Duration = Duration::from_secs(1);
 /// Latencies kept for the percentiles.
 const WINDOW: usize = 1000;
+/// How long the monitor waits for its rig's first message before it warns.
+const RIG_WARN: Duration = Duration::from_secs(3);
+/// How often it tries again to reach an endpoint where no run answers yet.
+const RETRY: Duration = Duration::from_secs(1);
+
+/// A node's last health report, when it came, and its restarts (new processes) seen.
+struct NodeSeen {
+    health: NodeHealthJson,
+    when: Instant,
+    restarts: u32,
+    /// When the last restart was seen.
+    restarted: Option<Instant>,
+}
 
 /// What the monitor knows of the pipeline.
 #[derive(Default)]
@@ -34,7 +50,9 @@ struct View {
     grasp: Option<GraspStateJson>,
     wrench: Option<WrenchSpaceJson>,
     command: Option<HandCommandJson>,
-    health: BTreeMap<String, (NodeHealthJson, Instant)>,
+    health: BTreeMap<String, NodeSeen>,
+    /// Messages for other rigs than the one watched, by rig.
+    others: BTreeMap<String, u64>,
     latencies: std::collections::VecDeque<f64>,
     received: u64,
     ignored: u64,
@@ -61,7 +79,29 @@ impl View {
             }
             "node_health" => {
                 let h: NodeHealthJson = serde_json::from_slice(bytes).map_err(parse)?;
-                self.health.insert(h.node.clone(), (h, Instant::now()));
+                let now = Instant::now();
+                match self.health.get_mut(&h.node) {
+                    Some(seen) => {
+                        // A new process of the node: the supervisor restarted it.
+                        if seen.health.pid != h.pid {
+                            seen.restarts += 1;
+                            seen.restarted = Some(now);
+                        }
+                        seen.health = h;
+                        seen.when = now;
+                    }
+                    None => {
+                        self.health.insert(
+                            h.node.clone(),
+                            NodeSeen {
+                                health: h,
+                                when: now,
+                                restarts: 0,
+                                restarted: None,
+                            },
+                        );
+                    }
+                }
             }
             _ => {}
         }
@@ -93,7 +133,13 @@ impl View {
                 "NO DATA for {:.1} s: the last state received follows",
                 d.as_secs_f64()
             )),
-            None => out.push("waiting for data".into()),
+            None if self.others.is_empty() => {
+                out.push(format!("waiting for data of rig {rig} (icrflow/{rig}/*)"))
+            }
+            None => out.push(format!(
+                "waiting for data of rig {rig}; other rigs publish here: {} (--rig?)",
+                self.others.keys().cloned().collect::<Vec<_>>().join(", ")
+            )),
             Some(_) => {}
         }
         out.push(match &self.plan {
@@ -121,20 +167,45 @@ impl View {
             ),
             None => "quality   (no wrench space yet)".into(),
         });
+        // Planar (a 3D wrench space) or before the first wrench space: where the contact
+        // lies on the object as an angle about its origin in the hand's plane; spatial: the
+        // point, in mm (body frame both).
+        let planar = self.wrench.as_ref().is_none_or(|w| w.dim <= 3);
         out.push(match &self.grasp {
             Some(g) => {
                 let c: Vec<String> = g
                     .contacts
                     .iter()
                     .map(|c| {
-                        if c.in_contact {
-                            format!("{}@{}", c.finger, c.candidate)
+                        let [x, y, z] = c.point;
+                        if !c.in_contact {
+                            format!("finger {} free", c.finger)
+                        } else if planar {
+                            format!(
+                                "finger {} at {:.1} deg",
+                                c.finger,
+                                y.atan2(x).to_degrees().rem_euclid(360.0)
+                            )
                         } else {
-                            format!("{} free", c.finger)
+                            format!(
+                                "finger {} at ({:.1}, {:.1}, {:.1}) mm",
+                                c.finger,
+                                1e3 * x,
+                                1e3 * y,
+                                1e3 * z
+                            )
                         }
                     })
                     .collect();
-                format!("contacts  {}", c.join("  "))
+                format!(
+                    "contacts  {} ({}, object frame)",
+                    c.join(", "),
+                    if planar {
+                        "angle about the object's origin"
+                    } else {
+                        "contact point"
+                    }
+                )
             }
             None => "contacts  -".into(),
         });
@@ -153,13 +224,22 @@ impl View {
         let nodes: Vec<String> = self
             .health
             .iter()
-            .map(|(name, (h, when))| {
-                if when.elapsed() > SILENT {
-                    format!("{name} SILENT")
-                } else if h.state == "degraded" {
-                    format!("{name} degraded ({})", h.message)
+            .map(|(name, seen)| {
+                let h = &seen.health;
+                let state = if seen.when.elapsed() > SILENT {
+                    format!("{name} SILENT {:.0} s", seen.when.elapsed().as_secs_f64())
+                } else if h.state == "degraded" || (h.state == "starting" && !h.message.is_empty())
+                {
+                    format!("{name} {} ({})", h.state, h.message)
                 } else {
                     format!("{name} {}", h.state)
+                };
+                match (seen.restarts, seen.restarted) {
+                    (0, _) | (_, None) => state,
+                    (n, Some(t)) => format!(
+                        "{state} (restarted {n}x, last {:.0} s ago)",
+                        t.elapsed().as_secs_f64()
+                    ),
                 }
             })
             .collect();
@@ -175,8 +255,10 @@ impl View {
     }
 }
 
-/// Runs the monitor until Ctrl-C, or for `seconds` if given.
+/// Runs the monitor until Ctrl-C, or for `seconds` if given; returns the exit status
+/// ([`crate::exit::INCOMPLETE`] if nothing came for the rig).
 pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) -> Result<u8> {
+    icrflow_scenario::check_endpoint("--connect", endpoint)?;
     let password = match user {
         None => None,
         Some(u) => Some(std::env::var(PASSWORD_ENV).map_err(|_| {
@@ -184,28 +266,84 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
         })?),
     };
     let login = user.zip(password.as_deref());
-    let session = icrflow_bridge::open(
-        icrflow_bridge::client_config(endpoint, login)?,
-        &format!("connect {endpoint}"),
-    )?;
-    // The monitoring topics (one chunk each; a split pipeline's `link/` topics are not JSON).
-    let keys = icrflow_interfaces::topics::service(rig, "*");
+    let started = Instant::now();
+    let end = seconds.map(|s| started + Duration::from_secs_f64(s.max(0.0)));
+    let config = || {
+        icrflow_bridge::client_config(endpoint, login)
+            .with_context(|| format!("--connect {endpoint}"))
+    };
+    // Until a run's bridge answers at the endpoint: waited for, said once.
+    let mut waiting = false;
+    let session = loop {
+        match icrflow_bridge::open(config()?, &format!("connect {endpoint}")) {
+            Ok(s) => break s,
+            Err(e) => {
+                if !waiting {
+                    waiting = true;
+                    eprintln!(
+                        "monitor: no run answers at {endpoint} yet ({e:#}){}; waiting for one (Ctrl-C to stop)",
+                        if user.is_some() {
+                            ", or it refused the login"
+                        } else {
+                            ""
+                        }
+                    );
+                }
+                let now = Instant::now();
+                if end.is_some_and(|e| now >= e) {
+                    eprintln!(
+                        "monitor: no run appeared at {endpoint} in {:.1} s",
+                        now.duration_since(started).as_secs_f64()
+                    );
+                    return Ok(crate::exit::INCOMPLETE);
+                }
+                let rest = end.map_or(RETRY, |e| e.saturating_duration_since(now));
+                std::thread::sleep(RETRY.min(rest));
+            }
+        }
+    };
+    let connected = Instant::now();
+    if waiting {
+        eprintln!(
+            "monitor: connected to {endpoint} after {:.1} s",
+            connected.duration_since(started).as_secs_f64()
+        );
+    }
+    // Every rig's monitoring topics (one chunk each; a split pipeline's `link/` topics are not
+    // JSON), so that a wrong --rig is said: only `rig`'s are shown.
+    let keys = icrflow_interfaces::topics::service("*", "*");
     let subscriber = session
         .declare_subscriber(&keys)
         .wait()
-        .map_err(|e| anyhow!("subscribing to {keys}: {e}"))?;
+        .map_err(|e| anyhow!("subscribing to {keys}: {}", icrflow_bridge::words(&e)))?;
     let terminal = std::io::stdout().is_terminal();
     let every = if terminal { REFRESH } else { LINE };
-    let started = Instant::now();
-    let end = seconds.map(|s| started + Duration::from_secs_f64(s.max(0.0)));
     let mut view = View::default();
     let mut reported = BTreeSet::new();
+    let mut warned = false;
     let mut next = Instant::now() + every;
     let mut out = std::io::stdout().lock();
     loop {
         let now = Instant::now();
         if end.is_some_and(|e| now >= e) {
             break;
+        }
+        if !warned && view.received == 0 && now.duration_since(connected) >= RIG_WARN {
+            warned = true;
+            if view.others.is_empty() {
+                eprintln!(
+                    "monitor: connected to {endpoint}, but nothing has arrived in {} s, for rig {rig:?} or any other: is a run up there with zenoh.enabled, and is its run past its start-up?",
+                    RIG_WARN.as_secs()
+                );
+            } else {
+                let others: Vec<&str> = view.others.keys().map(String::as_str).collect();
+                eprintln!(
+                    "monitor: nothing has arrived for rig {rig:?} in {} s, but rig(s) {} publish at {endpoint}: --rig {}? (pipeline.rig of the run's config)",
+                    RIG_WARN.as_secs(),
+                    others.join(", "),
+                    others[0]
+                );
+            }
         }
         if now >= next {
             next += every;
@@ -230,13 +368,19 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
         let wait = next.saturating_duration_since(Instant::now());
         let Some(sample) = subscriber
             .recv_timeout(wait)
-            .map_err(|e| anyhow!("zenoh subscriber: {e}"))?
+            .map_err(|e| anyhow!("zenoh subscriber: {}", icrflow_bridge::words(&e)))?
         else {
             continue;
         };
         let key = sample.key_expr().as_str().to_string();
+        // icrflow/<rig>/<topic>
+        let mut parts = key.split('/').skip(1);
+        let (of, topic) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
+        if of != rig {
+            *view.others.entry(of.to_string()).or_default() += 1;
+            continue;
+        }
         let bytes = sample.payload().to_bytes();
-        let topic = key.rsplit('/').next().unwrap_or("");
         let checked = envelope(&bytes)
             .map_err(|e| e.to_string())
             .and_then(|_| view.take(topic, &bytes));
@@ -248,5 +392,9 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
             }
         }
     }
-    Ok(0)
+    if view.received == 0 {
+        eprintln!("monitor: nothing arrived for rig {rig:?} at {endpoint}");
+        return Ok(crate::exit::INCOMPLETE);
+    }
+    Ok(crate::exit::DONE)
 }

@@ -16,9 +16,6 @@ use icrflow_scenario::{Config, HandSpec, Recording, Setup};
 
 use crate::run::Viewer;
 
-/// Exit status of a plan that stopped before its goal (files written, `completed: false`).
-pub const EXIT_INCOMPLETE: u8 = 2;
-
 /// What `trajectory.json` holds.
 #[derive(Serialize)]
 struct Trajectory<'a> {
@@ -32,13 +29,19 @@ struct Trajectory<'a> {
     plan: &'a Plan,
 }
 
-/// `icrflow validate CONFIG`: everything `plan` and `run` check before starting.
-pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<()> {
+/// `icrflow validate CONFIG`: everything `plan` and `run` check before starting. Returns the
+/// exit status: [`crate::exit::INCOMPLETE`] when the initial grasp is not force closure or
+/// below the margin (said on stderr), the config being valid otherwise.
+pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> {
     let config = Config::load(path)?;
     let mut shown = crate::progress::Shown::new(progress_after);
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
-    let (contacts, quality) = setup.scenario(&config).start().context("cannot start")?;
+    let started = match setup.scenario(&config).start() {
+        Ok(s) => Ok(s),
+        Err(e) if crate::exit::is_grasp_answer(&e) => Err(e),
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot start")),
+    };
     let surface = setup.surface();
     if let Ok(s) = &surface {
         crate::run::slip(&config, s)?;
@@ -82,13 +85,23 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<()> 
             HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
         }
     )?;
-    writeln!(
-        o,
-        "grasp      {} contacts (fingers {:?}), force closure, alpha* = {quality:.6} >= alpha = {}",
-        contacts.len(),
-        contacts.iter().map(|c| c.finger).collect::<Vec<_>>(),
-        config.grasp.alpha
-    )?;
+    let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
+    match &started {
+        Ok((_, quality)) => writeln!(
+            o,
+            "grasp      {} contacts (fingers {fingers:?}), force closure, alpha* = {quality:.6} >= alpha = {}",
+            fingers.len(),
+            config.grasp.alpha
+        )?,
+        Err(e) => writeln!(
+            o,
+            "grasp      {} contacts (fingers {fingers:?}): {e}",
+            fingers.len()
+        )?,
+    }
+    for line in section_note(&config) {
+        writeln!(o, "           {line}")?;
+    }
     if config.pipeline.split() {
         let links = icrflow_interfaces::topics::links(&config.pipeline.nodes);
         writeln!(
@@ -99,7 +112,29 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<()> 
             links.import
         )?;
     }
-    Ok(())
+    Ok(match started {
+        Ok(_) => crate::exit::DONE,
+        Err(e) => {
+            drop(o);
+            eprintln!("validate: cannot start: {e}");
+            crate::exit::INCOMPLETE
+        }
+    })
+}
+
+/// Which grasp `validate`, `plan` and `run` evaluate, in lines under the quality: the contacts
+/// on the object's section in the hand's plane (where the fingertips roll), and, for a
+/// spatial analysis, how `analyze` differs.
+pub fn section_note(config: &Config) -> &'static [&'static str] {
+    match config.grasp.space {
+        icrflow_grasp::wrench::Space::Planar => {
+            &["the contacts on the object's section in the hand's plane (as analyze, plan, run)"]
+        }
+        icrflow_grasp::wrench::Space::Spatial => &[
+            "the contacts on the object's section in the hand's plane, where the fingertips roll",
+            "(as plan and run); analyze also snaps them to the nearest mesh facets: another alpha*",
+        ],
+    }
 }
 
 /// Runs the verb; returns the process exit code.
@@ -149,29 +184,20 @@ pub fn run(
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
     let scenario = setup.scenario(&config);
-    let goal = config.plan.goal;
-    let bar = std::io::stderr().is_terminal().then(|| {
-        let bar = indicatif::ProgressBar::new(goal.to_degrees().ceil() as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "planning {bar:40} {pos:>4}/{len} deg rotated, {elapsed_precise}",
-            )
-            .expect("the template is valid"),
-        );
-        bar
-    });
+    let mut shown = Planning::new(config.plan.goal, progress_after);
     let started = Instant::now();
-    let plan = scenario
-        .plan(&mut |theta| {
-            if let Some(b) = &bar {
-                b.set_position(theta.to_degrees().round() as u64);
-            }
-        })
-        .context("cannot plan")?;
+    let planned = scenario.plan(&mut |theta| shown.at(theta));
     let elapsed = started.elapsed();
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
+    shown.finish();
+    let plan = match planned {
+        Ok(p) => p,
+        Err(e) if crate::exit::is_grasp_answer(&e) => {
+            // The words of the Python binding's error (`cannot plan: ...`); nothing written.
+            eprintln!("plan: cannot plan: {e}");
+            return Ok(crate::exit::INCOMPLETE);
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot plan")),
+    };
     let trajectory = Trajectory {
         config: path.display().to_string(),
         object: config.object.describe(),
@@ -201,6 +227,7 @@ pub fn run(
             path,
             &config,
             s,
+            plan.steps.first().map_or(0.0, |st| st.quality),
             &dir,
             elapsed,
             recording
@@ -208,15 +235,87 @@ pub fn run(
                 .map(|r| (r, recorded.as_deref().unwrap_or_default())),
         )?;
     }
-    Ok(if s.completed { 0 } else { EXIT_INCOMPLETE })
+    Ok(if s.completed {
+        crate::exit::DONE
+    } else {
+        crate::exit::INCOMPLETE
+    })
 }
 
-/// The plan's summary `s` as text on stdout: the plan of config `path` written in `dir`,
-/// planned in `elapsed`, recorded to `recording` (with its id).
+/// The progress of planning on stderr, once it has taken `--progress-after`: a bar on a
+/// terminal, else a line every [`PLANNING_LINE`] (`planning   45 % (162 of 360 deg), 2.0 s`).
+struct Planning {
+    goal: Real,
+    start: Instant,
+    after: std::time::Duration,
+    bar: Option<indicatif::ProgressBar>,
+    terminal: bool,
+    last_line: Option<Instant>,
+}
+
+/// How often a plain line of the planning's progress is printed (not on a terminal).
+const PLANNING_LINE: std::time::Duration = std::time::Duration::from_secs(2);
+
+impl Planning {
+    fn new(goal: Real, after: std::time::Duration) -> Self {
+        Self {
+            goal,
+            start: Instant::now(),
+            after,
+            bar: None,
+            terminal: std::io::stderr().is_terminal(),
+            last_line: None,
+        }
+    }
+
+    /// The plan has turned the object by `theta` (rad).
+    fn at(&mut self, theta: Real) {
+        let now = Instant::now();
+        if now.duration_since(self.start) < self.after {
+            return;
+        }
+        let goal = self.goal.to_degrees();
+        let done = theta.to_degrees().clamp(0.0, goal.max(0.0));
+        if self.terminal {
+            let bar = self.bar.get_or_insert_with(|| {
+                let bar = indicatif::ProgressBar::new(goal.ceil() as u64);
+                if let Ok(style) = indicatif::ProgressStyle::with_template(
+                    "planning {bar:40} {pos:>4}/{len} deg rotated, {elapsed_precise}",
+                ) {
+                    bar.set_style(style);
+                }
+                bar
+            });
+            bar.set_position(done.round() as u64);
+        } else if self
+            .last_line
+            .is_none_or(|t| now.duration_since(t) >= PLANNING_LINE)
+        {
+            self.last_line = Some(now);
+            eprintln!(
+                "planning   {:.0} % ({done:.0} of {goal:.0} deg), {:.1} s",
+                100.0 * done / goal.max(1e-9),
+                now.duration_since(self.start).as_secs_f64()
+            );
+        }
+    }
+
+    /// Clears the bar.
+    fn finish(&mut self) {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
+}
+
+/// The plan's summary `s` as text on stdout: the plan of config `path`, its initial grasp of
+/// quality `start_quality`, written in `dir`, planned in `elapsed`, recorded to `recording`
+/// (with its id).
 fn print_text(
     path: &Path,
     config: &Config,
     s: &icrflow_plan::planner::Summary,
+    start_quality: Real,
     dir: &Path,
     elapsed: std::time::Duration,
     recording: Option<(&Recording, &str)>,
@@ -245,11 +344,14 @@ fn print_text(
     )?;
     writeln!(
         o,
-        "quality    minimum alpha* = {:.6} {} alpha = {}",
+        "quality    alpha* = {start_quality:.6} at the start, minimum {:.6} {} alpha = {}",
         s.min_quality,
         if s.min_quality >= s.alpha { ">=" } else { "<" },
         s.alpha
     )?;
+    for line in section_note(config) {
+        writeln!(o, "           {line}")?;
+    }
     writeln!(
         o,
         "rolling    largest residual |r_f dgamma + s| = {:.3e} m",

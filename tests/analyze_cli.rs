@@ -5,9 +5,15 @@ mod common;
 use common::{icrflow, root, scratch};
 
 fn json(args: &[&str]) -> serde_json::Value {
+    json_exiting(args, 0)
+}
+
+/// `analyze --json`'s object, the verb having exited with `status`.
+fn json_exiting(args: &[&str], status: i32) -> serde_json::Value {
     let out = icrflow(args);
-    assert!(
-        out.status.success(),
+    assert_eq!(
+        out.status.code(),
+        Some(status),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
@@ -62,7 +68,8 @@ fn paper_sphere_json_has_the_documented_keys_and_regions() {
 
 #[test]
 fn the_papers_own_friction_is_reported_as_not_force_closure() {
-    let v = json(&["analyze", "config/paper_sphere_mu003.toml", "--json"]);
+    // An answer, not an error: exit status 2 (0 done, 1 error).
+    let v = json_exiting(&["analyze", "config/paper_sphere_mu003.toml", "--json"], 2);
     assert_eq!(v["force_closure"], false);
     assert_eq!(v["quality"], 0.0);
     assert!(v["epsilon"].as_f64().unwrap() < 0.0);
@@ -79,6 +86,7 @@ fn the_papers_own_friction_is_reported_as_not_force_closure() {
         );
     }
     let out = icrflow(&["analyze", "config/paper_sphere_mu003.toml"]);
+    assert_eq!(out.status.code(), Some(2));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("NOT force closure"), "{text}");
     assert!(text.contains("epsilon"), "{text}");

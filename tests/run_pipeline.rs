@@ -36,6 +36,56 @@ fn turned_to_the_goal_above_the_margin(s: &serde_json::Value) {
     );
 }
 
+/// What a run that reached its goal said while it worked (stderr `err`): the processes it
+/// starts, the planner node's progress, the plan's coming, a status line, the goal; and no
+/// hold of the start-up (the hand waiting for the plan) reported as a hold, in its text
+/// (stdout `out`) or its summary `s` either, whose lines fit in 100 columns.
+fn said_what_it_did(err: &str, out: &str, s: &serde_json::Value) {
+    for line in [
+        "run: starting ",
+        "run: the planner node is planning: 0 % (0 of 360 deg)",
+        "run: the plan is ready after ",
+        " of 360.0 deg | ",
+        "run: goal reached: ",
+    ] {
+        assert!(err.contains(line), "{line:?} not said: {err}");
+    }
+    // In that order: starting, planning, the plan, the goal.
+    let at = |t: &str| err.find(t).unwrap();
+    assert!(at("run: starting ") < at("run: the planner node is planning"));
+    assert!(at("run: the planner node is planning") < at("run: the plan is ready"));
+    assert!(at("run: the plan is ready") < at("run: goal reached"));
+    assert!(!err.contains("no plan step yet"), "{err}");
+    // The hand held its grasp while the planner node planned: start-up, not holds.
+    assert!(s["startup_holds"].as_u64().unwrap() > 0, "{s}");
+    assert!(s["planned_after_s"].as_f64().unwrap() > 0.0, "{s}");
+    let causes: u64 = s["hold_causes"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|n| n.as_u64().unwrap())
+        .sum();
+    assert_eq!(causes, s["holds"].as_u64().unwrap(), "{s}");
+    assert!(s["hold_causes"].get("no plan step yet").is_none(), "{s}");
+    for line in [
+        "outcome    goal reached",
+        "rotation   ",
+        "quality    ",
+        "holds      ",
+        "start-up   ",
+        "restarts   0",
+        "latency    ",
+    ] {
+        assert!(out.contains(line), "{line:?} not in the summary: {out}");
+    }
+    for line in out.lines() {
+        assert!(
+            line.chars().count() <= 100 || line.contains('/'),
+            "too wide: {line}"
+        );
+    }
+}
+
 /// A run that completed (summary `s`, stderr `err`) without a restart, with no fingertip or
 /// link through the object (the plant reports every one that goes), and left nothing of its
 /// iceoryx2 bus behind.
@@ -87,6 +137,12 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     );
     let s = json(&std::fs::read(&summary).unwrap());
     assert_eq!(s["completed"], true, "{s}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    said_what_it_did(&err, &out, &s);
+    // The per-process counters are for --verbose (and the JSON).
+    for verbose in ["memory     ", "allocs     "] {
+        assert!(!out.contains(verbose), "{out}");
+    }
     // The loops of the loop's nodes ran at the default real-time priority where this machine
     // allows it (as root, or with CAP_SYS_NICE or an RLIMIT_RTPRIO), the others at normal
     // priority; elsewhere all at normal priority, and the run said why.
@@ -110,7 +166,9 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     // Every tracking command carries the whole trace of the measurement that caused it, so
     // the end-to-end latency and each of its parts have one sample per tracking command.
     let l = &s["latency_us"];
-    let tracked = s["commands"].as_u64().unwrap() - s["holds"].as_u64().unwrap();
+    let tracked = s["commands"].as_u64().unwrap()
+        - s["holds"].as_u64().unwrap()
+        - s["startup_holds"].as_u64().unwrap();
     assert!(tracked > 1000, "{s}");
     let mut parts = Vec::new();
     for (group, key) in [
@@ -191,11 +249,24 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
     assert!(offline.status.success());
     let offline = json(&offline.stdout);
     let summary = dir.join("summary.json");
-    let o = icrflow(&["run", config, "--summary-json", summary.to_str().unwrap()]);
+    let o = icrflow(&[
+        "run",
+        config,
+        "--verbose",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "run failed: {err}");
     let s = json(&std::fs::read(&summary).unwrap());
     completed_cleanly(&s, &err);
+    // Its plan takes seconds in the planner node: the run says how far it has got, and does
+    // not take the wait for a hold.
+    let out = String::from_utf8_lossy(&o.stdout);
+    said_what_it_did(&err, &out, &s);
+    for verbose in ["memory     ", "allocs     ", "commands   "] {
+        assert!(out.contains(verbose), "--verbose: {verbose:?} not in {out}");
+    }
     like_offline(&s, &offline);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -512,8 +583,15 @@ fn a_run_whose_hand_cannot_go_on_gives_up_with_the_reason() {
     );
     // Nothing but holds: the command node reads its clock after its inputs, so every input
     // (at least one hop old) is older than 1 us at the decision.
+    // The start-up's holds (the hand waiting for the plan) are counted apart.
     assert!(s["holds"].as_u64().unwrap() > 0, "{s}");
-    assert_eq!(s["holds"], s["commands"], "{s}");
+    assert_eq!(
+        s["holds"].as_u64().unwrap() + s["startup_holds"].as_u64().unwrap(),
+        s["commands"].as_u64().unwrap(),
+        "{s}"
+    );
+    let causes = s["hold_causes"].as_object().unwrap();
+    assert!(causes.keys().any(|k| k.contains("stale")), "{s}");
     assert_eq!(shm_left(&s), Vec::<String>::new());
     let _ = std::fs::remove_dir_all(&dir);
 }

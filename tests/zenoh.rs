@@ -518,5 +518,81 @@ fn a_killed_bridge_is_restarted_and_the_monitor_reconnects() {
         late > early + 20.0,
         "no progress seen after the kill: {text}"
     );
+    // And it shows the bridge's restart (a new process of the node), not "running" throughout.
+    assert!(
+        text.lines()
+            .last()
+            .unwrap_or_default()
+            .contains("(restarted 1x"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `icrflow monitor` started before any run waits for one (saying so) and then shows it; one
+/// given another rig than the run's warns, naming the rig that does publish there, and exits
+/// with status 2 (nothing came for its rig).
+#[test]
+fn the_monitor_waits_for_a_run_and_warns_of_a_wrong_rig() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-wait");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let monitor = |rig: &str, seconds: &str| {
+        Command::new(env!("CARGO_BIN_EXE_icrflow"))
+            .args(["monitor", "--connect", &endpoint, "--rig", rig])
+            .args(["--seconds", seconds])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    // Nothing listens at the endpoint yet.
+    let early = monitor("sim", "14");
+    std::thread::sleep(Duration::from_secs(2));
+    let config = paper_config(&dir, "wait", &format!("[zenoh]\nlisten = [\"{endpoint}\"]"));
+    let (run, summary) = spawn_run(&config);
+    std::thread::sleep(Duration::from_secs(2));
+    let wrong = monitor("not-this-rig", "6");
+    let early = early.wait_with_output().unwrap();
+    let wrong = wrong.wait_with_output().unwrap();
+    let run = run.wait_with_output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(read_summary(&summary)["completed"], true);
+    let err = String::from_utf8_lossy(&early.stderr);
+    let text = String::from_utf8_lossy(&early.stdout);
+    assert_eq!(early.status.code(), Some(0), "{err}\n{text}");
+    assert!(
+        err.contains(&format!("monitor: no run answers at {endpoint} yet"))
+            && err.contains("waiting for one"),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("monitor: connected to {endpoint} after")),
+        "{err}"
+    );
+    // It showed the run once it came: a rotation, and the contacts as angles.
+    assert!(
+        text.split("rotation  ")
+            .skip(1)
+            .any(|rest| rest.starts_with(|c: char| c.is_ascii_digit())),
+        "{text}"
+    );
+    assert!(
+        text.contains("finger 1 at ") && text.contains(" deg"),
+        "{text}"
+    );
+    assert!(!text.contains("1@"), "{text}");
+    let err = String::from_utf8_lossy(&wrong.stderr);
+    assert_eq!(wrong.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("nothing has arrived for rig \"not-this-rig\"")
+            && err.contains("rig(s) sim publish at")
+            && err.contains("--rig sim?"),
+        "{err}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -120,7 +120,7 @@ pub fn session_config(z: &ZenohSpec, rig: &str, imports: &[TopicId]) -> Result<z
     let mut c = zenoh::Config::default();
     let mut set = |key: &str, value: serde_json::Value| -> Result<()> {
         c.insert_json5(key, &value.to_string())
-            .map_err(|e| anyhow!("zenoh setting {key}: {e}"))
+            .map_err(|e| anyhow!("Zenoh refused the setting {key} = {value}: {}", words(&e)))
     };
     set("mode", serde_json::json!(z.mode))?;
     set("listen/endpoints", serde_json::json!(z.listen))?;
@@ -176,17 +176,48 @@ pub fn client_config(endpoint: &str, login: Option<(&str, &str)>) -> Result<zeno
                 &format!("transport/auth/usrpwd/{key}"),
                 &serde_json::json!(value).to_string(),
             )
-            .map_err(|e| anyhow!("zenoh setting transport/auth/usrpwd/{key}: {e}"))?;
+            .map_err(|e| {
+                anyhow!(
+                    "Zenoh refused the setting transport/auth/usrpwd/{key}: {}",
+                    words(&e)
+                )
+            })?;
         }
     }
     Ok(c)
 }
 
-/// Opens a Zenoh session, naming the endpoints when that fails.
+/// Opens a Zenoh session, naming the endpoints (`what`) when that fails, in our words.
 pub fn open(config: zenoh::Config, what: &str) -> Result<zenoh::Session> {
     zenoh::open(config)
         .wait()
-        .map_err(|e| anyhow!("cannot open the Zenoh session ({what}): {e}"))
+        .map_err(|e| anyhow!("cannot open the Zenoh session ({what}): {}", words(&e)))
+}
+
+/// A Zenoh error's message as a user reads it: its text without the source location Zenoh
+/// appends (` at /root/.cargo/registry/.../orchestrator.rs:447.`), and, for a configuration
+/// value Zenoh could not parse (`Json5Err(Message { msg: "...", location: ... })`), the
+/// message alone.
+pub fn words(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let text = match text.find("msg: \"") {
+        Some(i) => {
+            let rest = &text[i + 6..];
+            rest.find('"').map_or(rest, |end| &rest[..end]).to_string()
+        }
+        None => text,
+    };
+    let cut = text
+        .find(" at /")
+        .or_else(|| text.find(" at src/"))
+        .unwrap_or(text.len());
+    // Zenoh's debug form of an endpoint list: `[Single(tcp/127.0.0.1:7447)]`.
+    text[..cut]
+        .trim()
+        .trim_end_matches(['.', '!'])
+        .trim()
+        .replace("[Single(", "[")
+        .replace(")]", "]")
 }
 
 /// A monitored topic's local subscriber: its messages drained as monitoring JSON.
@@ -360,4 +391,32 @@ pub fn run(ctx: &Context<Config>) -> Result<()> {
     .context("bridge loop");
     let stopped = importer.map_or(Ok(()), link::Importer::stop);
     stopped.and(served)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zenohs_errors_are_said_without_its_internals() {
+        let raw = "Json5Err(Message { msg: \"invalid endpoint metadata\", location: Some(Position { line: 1, column: 2 }) })";
+        assert_eq!(words(&raw), "invalid endpoint metadata");
+        let raw = "Unable to connect to any of [tcp/127.0.0.1:7447]!  at /root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/zenoh-1.10.2/src/net/runtime/orchestrator.rs:447.";
+        assert_eq!(
+            words(&raw),
+            "Unable to connect to any of [tcp/127.0.0.1:7447]"
+        );
+        assert_eq!(words(&"plain"), "plain");
+    }
+
+    #[test]
+    fn a_bad_endpoint_is_refused_in_our_words() {
+        let e = client_config("tcp/127.0.0.1:7447#=x", None)
+            .err()
+            .map(|e| format!("{e:#}"));
+        if let Some(e) = e {
+            assert!(e.starts_with("Zenoh refused the setting"), "{e}");
+            assert!(!e.contains("Json5Err") && !e.contains(".cargo"), "{e}");
+        }
+    }
 }

@@ -206,12 +206,30 @@ pub fn run(ctx: &Context) -> Result<()> {
     let (setup, config) = (&ctx.scenario.setup, &ctx.scenario.config);
     let log_steps = ctx.launch.log.contacts;
     let tolerances = Tolerances::new(config.pipeline.joint_noise);
-    let mut follower = Follower::new(
+    // Health first: its `Starting` reports say how far the plan has got (`icrflow run` shows
+    // them), every HEALTH_PERIOD while it plans.
+    let mut health = Health::new(ctx)?;
+    let goal = config.plan.goal.to_degrees();
+    let planning = |health: &mut Health, theta: f64, now: bool| {
+        let done = theta.to_degrees().clamp(0.0, goal.max(0.0));
+        health.starting(
+            format_args!(
+                "planning: {:.0} % ({done:.0} of {goal:.0} deg)",
+                100.0 * done / goal.max(1e-9)
+            ),
+            now,
+        )
+    };
+    planning(&mut health, 0.0, true)?;
+    let mut follower = Follower::new_with(
         setup.scenario(config),
         setup.surface()?,
         CLEARANCE,
         tolerances,
         &mut |note| eprintln!("icrflow-planner: {note}"),
+        &mut |theta| {
+            let _ = planning(&mut health, theta, false);
+        },
     )
     .context("planning")?;
     let (problem, alpha) = (&setup.problem, config.grasp.alpha);
@@ -219,7 +237,6 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut step_regions = regions(follower.targets(), problem, alpha);
     let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
     let out = ctx.bus.slice_publisher(topics::PLAN_STEP)?;
-    let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last_grasp = 0;
     // The header of the newest grasp state and when it was taken off the bus.

@@ -843,7 +843,20 @@ impl<'a> Follower<'a> {
         tolerances: Tolerances,
         note: &mut dyn FnMut(String),
     ) -> Result<Self, PlanError> {
-        let plan = scenario.plan(&mut |_| {})?;
+        Self::new_with(scenario, surface, clearance, tolerances, note, &mut |_| {})
+    }
+
+    /// [`Follower::new`], reporting the planning's progress to `progress` (the rotation
+    /// planned so far, rad, as [`Scenario::plan`] does).
+    pub fn new_with(
+        scenario: Scenario<'a>,
+        surface: &'a Surface,
+        clearance: Real,
+        tolerances: Tolerances,
+        note: &mut dyn FnMut(String),
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<Self, PlanError> {
+        let plan = scenario.plan(progress)?;
         let targets = targets(&plan.steps, scenario.hand, surface, clearance, note);
         Ok(Self {
             scenario,

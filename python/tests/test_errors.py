@@ -136,8 +136,9 @@ def test_a_missing_config_file(tmp_path):
 def test_a_refused_scenario_has_the_cli_message(cli):
     path = CONFIG / "paper_sphere_mu003.toml"
     p = cli("plan", path, "--out", "/tmp/icrflow-py-test-refused", check=False)
-    assert p.returncode == 1
-    message = p.stderr.strip().removeprefix("error: ")
+    # Not force closure is an answer, exit status 2 (0 done, 1 error), said on stderr.
+    assert p.returncode == 2
+    message = p.stderr.strip().removeprefix("plan: ")
     assert "not force closure" in message
     with pytest.raises(icrflow.IcrflowError) as e:
         icrflow.plan(path)

@@ -99,6 +99,33 @@ impl Health {
         self.report(state)
     }
 
+    /// Publishes a `Starting` report whose message says what the node does meanwhile
+    /// (`planning: 45 % (162 of 360 deg)`), if the last report is [`HEALTH_PERIOD_NS`] old or
+    /// `now`. A node that starts up reports so: `icrflow run` shows it, and does not take the
+    /// pause between two such reports for a hang.
+    pub fn starting(&mut self, doing: std::fmt::Arguments<'_>, now: bool) -> Result<()> {
+        let t = now_ns();
+        if !now && t.saturating_sub(self.reported.0) < HEALTH_PERIOD_NS {
+            return Ok(());
+        }
+        self.reported.0 = t;
+        let mut h = NodeHealth {
+            header: Header::new(Kind::NodeHealth, self.sequence.advance(), 0, 0),
+            state: NodeState::Starting as u32,
+            pid: std::process::id(),
+            processed: self.processed,
+            refused: self.refused,
+            allocations: allocations(),
+            ..Default::default()
+        };
+        write_text(&mut h.node, self.name);
+        write_text(&mut h.message, &std::fmt::format(doing));
+        self.publisher
+            .publish(h)
+            .context("publishing health")
+            .map(|_| ())
+    }
+
     /// Publishes a report.
     pub fn report(&mut self, state: NodeState) -> Result<()> {
         let mut h = NodeHealth {

@@ -957,19 +957,7 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
     }
     let endpoints = |key: &str, list: Vec<String>| -> Result<Vec<String>> {
         for e in &list {
-            let Some((proto, address)) = e.split_once('/') else {
-                bail!("{key}: {e:?} is not an endpoint like \"tcp/127.0.0.1:7447\"");
-            };
-            if proto != "tcp" {
-                bail!("{key}: {e:?}: only tcp endpoints are built in, got {proto:?}");
-            }
-            let address = address.split('#').next().unwrap_or(address);
-            let ok = address
-                .rsplit_once(':')
-                .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok());
-            if !ok {
-                bail!("{key}: {e:?}: expected tcp/HOST:PORT");
-            }
+            check_endpoint(key, e)?;
         }
         Ok(list)
     };
@@ -1163,6 +1151,26 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
             .or("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?
             .to_radians(),
     })
+}
+
+/// Checks a Zenoh endpoint given under `key` (a config key, or a flag such as `--connect`):
+/// `tcp/HOST:PORT` (TCP is the only transport built in), so that a typo is named in our words
+/// rather than in Zenoh's.
+pub fn check_endpoint(key: &str, e: &str) -> Result<()> {
+    let Some((proto, address)) = e.split_once('/') else {
+        bail!("{key}: {e:?} is not an endpoint like \"tcp/127.0.0.1:7447\"");
+    };
+    if proto != "tcp" {
+        bail!("{key}: {e:?}: only tcp endpoints are built in, got {proto:?}");
+    }
+    let address = address.split('#').next().unwrap_or(address);
+    let ok = address
+        .rsplit_once(':')
+        .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok());
+    if !ok {
+        bail!("{key}: {e:?}: expected tcp/HOST:PORT");
+    }
+    Ok(())
 }
 
 #[cfg(test)]

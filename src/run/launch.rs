@@ -16,6 +16,7 @@ use icrflow_runtime::launch::{Launch, Log, RecordingLaunch};
 use icrflow_runtime::supervise::{Event, NodeSpec, RestartPolicy, Supervisor};
 use icrflow_scenario::{Config, Recording};
 
+use super::status::say;
 use super::track::Hangup;
 
 /// coreutils' `nice`, which starts the visualizer at a lower CPU priority.
@@ -74,7 +75,7 @@ fn realtime(config: &Config, nodes: &[NodeRole]) -> Option<u8> {
     match icrflow_runtime::node::realtime_allowed(p) {
         Ok(()) => Some(p),
         Err(why) => {
-            eprintln!(
+            say!(
                 "run: pipeline.realtime_priority = {p} is not available here ({why:#}); the loop's nodes run at normal priority"
             );
             None
@@ -134,7 +135,7 @@ impl Launching<'_> {
         }
         if config.pipeline.split() {
             let links = topics::links(&config.pipeline.nodes);
-            eprintln!(
+            say!(
                 "run: this host runs {}; the others are joined over Zenoh (sending {:?}, taking {:?})",
                 config.pipeline.nodes.join(", "),
                 links.export,
@@ -316,11 +317,11 @@ pub(super) fn start_visualizer(
     })?;
     let waited = waited.unwrap_or(VisualizerStart::Interrupted);
     match waited {
-        VisualizerStart::Late => eprintln!(
+        VisualizerStart::Late => say!(
             "run: the visualizer is not listening after {} s; the loop starts without it (its recording may miss the first plan steps)",
             VISUALIZER_READY.as_secs()
         ),
-        VisualizerStart::Exited => eprintln!(
+        VisualizerStart::Exited => say!(
             "run: the visualizer exited before it listened; the loop starts without it (the supervisor restarts it)"
         ),
         VisualizerStart::Listening | VisualizerStart::Interrupted => {}
@@ -332,17 +333,17 @@ pub(super) fn start_visualizer(
 pub(super) fn report(e: &Event) {
     match e {
         Event::Started { name, pid, attempt } if *attempt > 0 => {
-            eprintln!("run: restarted {name} (pid {pid}, restart {attempt})")
+            say!("run: restarted {name} (pid {pid}, restart {attempt})")
         }
         Event::Started { .. } => {}
         Event::Exited {
             name,
             status,
             cleaned,
-        } => eprintln!("run: node {name} exited ({status}); cleaned {cleaned} dead iceoryx2 nodes"),
-        Event::GaveUp { name, reason } if name == NodeRole::Bridge.name() => eprintln!(
-            "run: giving up on {name}: {reason}; the run goes on without Zenoh monitoring"
-        ),
-        Event::GaveUp { name, reason } => eprintln!("run: giving up on {name}: {reason}"),
+        } => say!("run: node {name} exited ({status}); cleaned {cleaned} dead iceoryx2 nodes"),
+        Event::GaveUp { name, reason } if name == NodeRole::Bridge.name() => {
+            say!("run: giving up on {name}: {reason}; the run goes on without Zenoh monitoring")
+        }
+        Event::GaveUp { name, reason } => say!("run: giving up on {name}: {reason}"),
     }
 }

@@ -6,11 +6,13 @@
 //! | [`launch`] | what each process is started with, the run's bus, the visualizer started first |
 //! | [`watch`] | the run's event loop: what it takes off the bus, and why it stops ([`stop::StopReason`]) |
 //! | [`measure`] | latencies, rates, steady-state allocations, `/proc` samples |
+//! | [`status`] | what the run says on stderr as it goes: its messages and one status line |
 //! | [`track`] | the state machines the watch feeds: heartbeats, the estimate against the truth, re-plans, SIGHUP |
 //! | [`summary`] | what the run prints at the end and writes with `--summary-json` |
 
 pub(crate) mod launch;
 pub(crate) mod measure;
+pub(crate) mod status;
 pub(crate) mod stop;
 pub(crate) mod summary;
 pub(crate) mod track;
@@ -110,7 +112,13 @@ pub fn slip(config: &Config, surface: &Surface) -> Result<()> {
 }
 
 /// Runs the verb; returns the exit code.
-pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewer) -> Result<u8> {
+pub fn run(
+    path: &Path,
+    live: bool,
+    summary_json: Option<PathBuf>,
+    verbose: bool,
+    viewer: Viewer,
+) -> Result<u8> {
     // From the start: a hang-up while the config loads stops the run as one later would.
     let hangup = Hangup::install()?;
     crate::output::check(&crate::output::run(&summary_json, &viewer.rrd))?;
@@ -118,7 +126,15 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
     slip(&config, setup.surface()?)?;
-    setup.scenario(&config).start().context("cannot start")?;
+    match setup.scenario(&config).start() {
+        Ok(_) => {}
+        // An answer about the grasp, as validate and plan give it (exit status 2).
+        Err(e) if crate::exit::is_grasp_answer(&e) => {
+            eprintln!("run: cannot start: {e} (nothing started)");
+            return Ok(crate::exit::INCOMPLETE);
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot start")),
+    }
     let config_path = std::fs::canonicalize(path)
         .with_context(|| format!("cannot resolve {}", path.display()))?;
     let recording_id = format!(
@@ -171,7 +187,7 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
                 .map(|r| (target_name(r), recording_id.clone())),
         },
     );
-    summary.print(&config_path, &config, recording.as_ref())?;
+    summary.print(&config_path, &config, recording.as_ref(), verbose)?;
     if let Some(p) = summary_json {
         let text = serde_json::to_string_pretty(&summary)?;
         std::fs::write(&p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
@@ -179,8 +195,8 @@ pub fn run(path: &Path, live: bool, summary_json: Option<PathBuf>, viewer: Viewe
     // A live run ends by Ctrl-C: that is success if nothing failed.
     let interrupted = live && by_signal;
     Ok(if summary.completed || interrupted {
-        0
+        crate::exit::DONE
     } else {
-        2
+        crate::exit::INCOMPLETE
     })
 }

@@ -121,8 +121,18 @@ pub struct RunSummary {
     pub alpha: f64,
     /// Node restarts by the supervisor.
     pub restarts: u32,
-    /// Hand commands that held.
+    /// Hand commands that held after the start-up (the start-up's are `startup_holds`).
     pub holds: u64,
+    /// `holds` by cause: the reason's text before its details, numbers as `N`
+    /// (`"grasp state is stale"`, `"the estimate is off"`).
+    pub hold_causes: std::collections::BTreeMap<String, u64>,
+    /// Hand commands that held in the start-up: before the hand first tracked, for an input
+    /// not there yet (the plan, while the planner node plans). They are not holds of the run,
+    /// and do not count towards `pipeline.max_hold_s`.
+    pub startup_holds: u64,
+    /// Seconds from the start of the loop's processes to the first plan step (`None`: none
+    /// came).
+    pub planned_after_s: Option<f64>,
     /// Hand commands sent (one per joint measurement that reached the command node; holds
     /// when none came for three periods).
     pub commands: u64,
@@ -272,6 +282,9 @@ impl RunSummary {
             alpha: facts.alpha,
             restarts: facts.restarts,
             holds: seen.holds,
+            hold_causes: seen.hold_causes,
+            startup_holds: seen.startup_holds,
+            planned_after_s: seen.planned_after,
             commands: seen.sent,
             measurements: seen.measurements,
             measurement_rate_hz: seen.measurement_rate_hz,
@@ -297,119 +310,175 @@ impl RunSummary {
     }
 
     /// Prints the summary of the run of `config_path` on stdout (`recording`: where the
-    /// recording went).
+    /// recording went): what a researcher looks for first (the goal, the rotation, the
+    /// switches, the quality, the holds and their causes, restarts, latency), in lines of at
+    /// most ~100 columns; `verbose` adds the rates, the latency's parts, the plan stream and
+    /// each process's memory, scheduling and allocations.
     pub(super) fn print(
         &self,
         config_path: &Path,
         config: &Config,
         recording: Option<&Recording>,
+        verbose: bool,
     ) -> Result<()> {
-        let summary = self;
+        let s = self;
         let mut o = std::io::stdout().lock();
+        writeln!(o, "run        {}", config_path.display())?;
         writeln!(
             o,
-            "run        {} ({})",
-            config_path.display(),
-            summary.reason
+            "outcome    {} after {:.1} s",
+            if s.completed {
+                "goal reached"
+            } else {
+                "goal NOT reached"
+            },
+            s.seconds
         )?;
+        if !s.completed || s.reason != "goal reached" {
+            for line in wrap(&s.reason, 89) {
+                writeln!(o, "           {line}")?;
+            }
+        }
         writeln!(
             o,
-            "rotation   {:.1} deg of {:.1} deg, {} plan steps, {} finger switches{}",
-            summary.rotation_deg,
-            summary.goal_deg,
-            summary.steps,
-            summary.switches,
-            match summary.replans {
+            "rotation   {:.1} of {:.1} deg, {} finger switches, {} plan steps{}",
+            s.rotation_deg,
+            s.goal_deg,
+            s.switches,
+            s.steps,
+            match s.replans {
                 0 => String::new(),
-                n => format!(", planned again from the estimate {n} time(s)"),
+                n => format!(", planned again {n}x"),
             }
         )?;
-        if config
+        let here = config
             .pipeline
             .nodes
             .iter()
-            .any(|n| n == NodeRole::Command.name())
-        {
-            summary.print_loop(&mut o, config)?;
+            .any(|n| n == NodeRole::Command.name());
+        if here {
+            s.print_loop(&mut o, config, verbose)?;
         } else {
             writeln!(
                 o,
                 "commands   none here: the hand command node runs on another host (its run reports them)"
             )?;
+            writeln!(o, "restarts   {}", s.restarts)?;
         }
-        summary.print_rest(&mut o, recording)
+        if verbose {
+            s.print_processes(&mut o)?;
+        }
+        s.print_recording(&mut o, recording)
     }
 
     /// The lines on the loop's commands (when the hand command node runs here).
-    fn print_loop(&self, o: &mut impl Write, config: &Config) -> Result<()> {
-        let summary = self;
+    fn print_loop(&self, o: &mut impl Write, config: &Config, verbose: bool) -> Result<()> {
+        let s = self;
         writeln!(
             o,
-            "quality    minimum alpha* while tracking = {:.6} (alpha = {})",
-            summary.min_quality, summary.alpha
+            "quality    minimum alpha* while tracking {:.6} {} alpha = {}",
+            s.min_quality,
+            if s.min_quality >= s.alpha { ">=" } else { "<" },
+            s.alpha
         )?;
-        if let Some(e) = &summary.estimate {
+        let causes: Vec<String> = s
+            .hold_causes
+            .iter()
+            .map(|(cause, n)| format!("{n} {cause}"))
+            .collect();
+        if causes.is_empty() {
+            writeln!(o, "holds      none")?;
+        } else {
+            let text = format!("{}: {}", s.holds, causes.join(", "));
+            for (i, line) in wrap_at(&text, ", ", 89).iter().enumerate() {
+                writeln!(
+                    o,
+                    "{}{line}",
+                    if i == 0 { "holds      " } else { "           " }
+                )?;
+            }
+        }
+        match s.planned_after_s {
+            Some(t) => writeln!(
+                o,
+                "start-up   the plan came after {t:.1} s; the hand held its grasp meanwhile ({} commands)",
+                s.startup_holds
+            )?,
+            None => writeln!(
+                o,
+                "start-up   no plan step came; the hand held its grasp ({} commands)",
+                s.startup_holds
+            )?,
+        }
+        writeln!(o, "restarts   {}", s.restarts)?;
+        let l = &s.latency_us;
+        writeln!(
+            o,
+            "latency    measurement to command p50 {:.0} us, p99 {:.0} us, max {:.0} us ({} commands)",
+            l.end_to_end.p50, l.end_to_end.p99, l.end_to_end.max, l.end_to_end.samples
+        )?;
+        if let Some(e) = &s.estimate {
             writeln!(
                 o,
-                "estimate   off the plant's truth p50 {:.2} / p99 {:.2} / max {:.2} deg; {} tracking commands beyond the bound ({:.1} deg), {} holds for the estimate",
+                "estimate   off the truth p50 {:.2} / p99 {:.2} / max {:.2} deg; {} tracked beyond {:.1} deg",
                 e.rotation_deg.p50,
                 e.rotation_deg.p99,
                 e.rotation_deg.max,
                 e.tracked_off_truth,
                 config.pipeline.max_pose_innovation.to_degrees(),
-                summary.estimate_holds
             )?;
         }
-        writeln!(
-            o,
-            "commands   {} sent ({:.0} Hz; {:.0} Hz of joint measurements), {} holds; {} node restarts; {:.1} s",
-            summary.commands,
-            summary.command_rate_hz,
-            summary.measurement_rate_hz,
-            summary.holds,
-            summary.restarts,
-            summary.seconds
-        )?;
-        let l = &summary.latency_us;
-        writeln!(
-            o,
-            "latency    joint measurement to hand command p50 {:.0} us, p99 {:.0} us, max {:.0} us ({} commands)",
-            l.end_to_end.p50, l.end_to_end.p99, l.end_to_end.max, l.end_to_end.samples
-        )?;
-        writeln!(
-            o,
-            "           hops p50 {:.0} / {:.0} / {:.0} us, compute p50 {:.0} / {:.0} / {:.0} us (estimator, wrench space, command)",
-            l.transport.joint_state.p50,
-            l.transport.grasp_state.p50,
-            l.transport.wrench_space.p50,
-            l.compute.estimator.p50,
-            l.compute.wrench.p50,
-            l.compute.command.p50
-        )?;
+        if verbose {
+            writeln!(
+                o,
+                "commands   {} sent ({:.0} Hz; joint measurements {:.0} Hz), {} stale-tracked",
+                s.commands, s.command_rate_hz, s.measurement_rate_hz, s.stale_tracked
+            )?;
+            writeln!(
+                o,
+                "           hops p50 {:.0} / {:.0} / {:.0} us, compute p50 {:.0} / {:.0} / {:.0} us",
+                l.transport.joint_state.p50,
+                l.transport.grasp_state.p50,
+                l.transport.wrench_space.p50,
+                l.compute.estimator.p50,
+                l.compute.wrench.p50,
+                l.compute.command.p50
+            )?;
+            writeln!(
+                o,
+                "           (hops: plant, estimator, wrench space; compute: estimator, wrench, command)"
+            )?;
+        }
         Ok(())
     }
 
-    /// The plan stream, the processes and the recording.
-    fn print_rest(&self, o: &mut impl Write, recording: Option<&Recording>) -> Result<()> {
-        let summary = self;
+    /// The plan stream and each process's memory, scheduling and allocations (`--verbose`).
+    fn print_processes(&self, o: &mut impl Write) -> Result<()> {
+        let s = self;
         writeln!(
             o,
             "plan       {} plan steps published, {:.0} Hz",
-            summary.plan_steps.published, summary.plan_steps.rate_hz
+            s.plan_steps.published, s.plan_steps.rate_hz
         )?;
-        let grew: Vec<String> = summary
+        let grew: Vec<String> = s
             .memory_kib
             .iter()
             .map(|(n, m)| format!("{n} {}->{} KiB", m.first, m.last))
             .collect();
-        writeln!(o, "memory     {}", grew.join(", "))?;
-        let realtime: Vec<&str> = summary
+        for (i, line) in wrap_at(&grew.join(", "), ", ", 89).iter().enumerate() {
+            writeln!(
+                o,
+                "{}{line}",
+                if i == 0 { "memory     " } else { "           " }
+            )?;
+        }
+        let realtime: Vec<&str> = s
             .scheduling
             .iter()
             .filter(|(_, p)| p.starts_with("fifo") || p.starts_with("rr"))
             .map(|(n, _)| n.as_str())
             .collect();
-        if let Some(policy) = realtime.first().and_then(|n| summary.scheduling.get(*n)) {
+        if let Some(policy) = realtime.first().and_then(|n| s.scheduling.get(*n)) {
             writeln!(
                 o,
                 "priority   {} at SCHED_{}",
@@ -417,52 +486,99 @@ impl RunSummary {
                 policy.to_uppercase()
             )?;
         }
-        let allocs: Vec<String> = summary
+        let allocs: Vec<String> = s
             .allocations
             .iter()
             .map(|(n, a)| format!("{n} {} in {:.0} s", a.steady, a.seconds))
             .collect();
-        writeln!(
-            o,
-            "allocs     steady state (from {} s after each start): {}",
+        let text = format!(
+            "steady state (from {} s after each start): {}",
             WARM_UP.as_secs(),
             allocs.join(", ")
-        )?;
-        if let Some(r) = &summary.recording {
-            let open = match &recording {
-                Some(Recording::Rrd(p)) => {
-                    let names: Vec<String> = icrflow_scenario::rrd_parts(p)
-                        .iter()
-                        .map(|f| f.display().to_string())
-                        .collect();
-                    if names.is_empty() {
-                        format!(
-                            "none: the visualizer wrote no {} (see its messages above)",
-                            p.display()
-                        )
-                    } else {
-                        format!(
-                            "saved to {} (open it: rerun {})",
-                            names.join(", "),
-                            names.join(" ")
-                        )
-                    }
-                }
-                _ => format!("streamed to the {}", r.target),
-            };
+        );
+        for (i, line) in wrap_at(&text, ", ", 89).iter().enumerate() {
             writeln!(
                 o,
-                "recording  {open}; {} frames, {} dropped",
-                r.frames, r.dropped
+                "{}{line}",
+                if i == 0 { "allocs     " } else { "           " }
             )?;
         }
         Ok(())
     }
+
+    /// Where the recording went.
+    fn print_recording(&self, o: &mut impl Write, recording: Option<&Recording>) -> Result<()> {
+        let Some(r) = &self.recording else {
+            return Ok(());
+        };
+        match &recording {
+            Some(Recording::Rrd(p)) => {
+                let names: Vec<String> = icrflow_scenario::rrd_parts(p)
+                    .iter()
+                    .map(|f| f.display().to_string())
+                    .collect();
+                if names.is_empty() {
+                    writeln!(
+                        o,
+                        "recording  none: the visualizer wrote no {} (see its messages above)",
+                        p.display()
+                    )?;
+                } else {
+                    writeln!(o, "recording  saved to {}", names.join(", "))?;
+                    writeln!(o, "           open it: rerun {}", names.join(" "))?;
+                }
+            }
+            _ => writeln!(o, "recording  streamed to the {}", r.target)?,
+        }
+        writeln!(o, "           {} frames, {} dropped", r.frames, r.dropped)?;
+        Ok(())
+    }
+}
+
+/// `text` cut into lines of at most `width` characters at spaces (a longer word stays whole).
+pub(super) fn wrap(text: &str, width: usize) -> Vec<String> {
+    wrap_at(text, " ", width)
+}
+
+/// `text` cut into lines of at most `width` characters where `sep` separates its parts (a
+/// longer part stays whole); `sep` stays at the end of a line, trimmed.
+pub(super) fn wrap_at(text: &str, sep: &str, width: usize) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut line = String::new();
+    for part in text.split(sep) {
+        if !line.is_empty()
+            && line.chars().count() + sep.chars().count() + part.chars().count() > width
+        {
+            line.push_str(sep.trim_end());
+            lines.push(std::mem::take(&mut line));
+        } else if !line.is_empty() {
+            line.push_str(sep);
+        }
+        line.push_str(part);
+    }
+    if !line.is_empty() || lines.is_empty() {
+        lines.push(line);
+    }
+    lines
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn text_is_wrapped_at_spaces_within_the_width() {
+        let text = "bridge 330110 in 11 s, command 11205 in 11 s, estimator 11135 in 11 s, planner 1815 in 11 s";
+        let lines = wrap(text, 40);
+        assert!(lines.len() > 1);
+        assert!(lines.iter().all(|l| l.chars().count() <= 40), "{lines:?}");
+        assert_eq!(lines.join(" "), text);
+        assert_eq!(wrap("", 10), vec![String::new()]);
+        assert_eq!(
+            wrap("averyveryverylongword", 5),
+            vec!["averyveryverylongword"]
+        );
+    }
 
     #[test]
     fn histogram_percentiles_are_within_one_percent_above_the_exact_ones() {

@@ -8,8 +8,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, JointState, NodeHealth, PlanPhase, PlanStepHeader,
-    PlantTruth, TEXT_BYTES, read_text, topics,
+    CommandMode, GraspState, HandCommand, JointState, NodeHealth, NodeState, PlanPhase,
+    PlanStepHeader, PlantTruth, TEXT_BYTES, read_text, topics,
 };
 use icrflow_runtime::bus::{Bus, SliceSub, Sub};
 use icrflow_runtime::event::{Loop, RESYNC};
@@ -18,6 +18,7 @@ use icrflow_scenario::Config;
 
 use super::launch::{VisualizerStart, report, start_visualizer};
 use super::measure::{AllocationTrack, Rate, Timing, resident_kib, scheduling};
+use super::status::{Status, say};
 use super::stop::StopReason;
 use super::summary::{Allocations, Histogram, Latencies, Memory, PlanStream};
 use super::track::{EstimateError, Hangup, Heartbeats, ReplanProgress, Silence, TruthTrack};
@@ -29,7 +30,8 @@ const HOLD_REPORT: Duration = Duration::from_secs(1);
 /// `Hold::Estimate`).
 const ESTIMATE_OFF: &str = "the estimate is off";
 
-/// How long a run to the goal may take.
+/// How long a run to the goal may take, from its first plan step (and how long it waits for
+/// that one).
 const TIMEOUT: Duration = Duration::from_secs(600);
 
 /// How long after a node process starts its allocations are not counted as steady state
@@ -49,6 +51,9 @@ pub(super) struct Seen {
     pub steps: usize,
     pub min_quality: f64,
     pub holds: u64,
+    pub startup_holds: u64,
+    pub hold_causes: BTreeMap<String, u64>,
+    pub planned_after: Option<f64>,
     pub sent: u64,
     pub measurements: u64,
     pub measurement_rate_hz: f64,
@@ -107,6 +112,8 @@ struct Limits {
     max_age_ns: u64,
     /// `pipeline.max_hold_s`.
     max_hold: Duration,
+    /// The margin.
+    alpha: f64,
 }
 
 /// The run's watch: the state it keeps across wake-ups.
@@ -139,7 +146,14 @@ pub(super) struct Watch {
     replans: BTreeSet<u64>,
     min_quality: f64,
     rotation: f64,
+    /// Holds after the start-up (see [`Watch::command`]), and by cause.
     holds: u64,
+    hold_causes: BTreeMap<String, u64>,
+    /// Holds of the start-up: before the hand first tracked, for an input not there yet
+    /// (the plan, while the planner node plans).
+    startup_holds: u64,
+    /// Whether a tracking command has come.
+    tracked: bool,
     sent: u64,
     stale_tracked: u64,
     done: bool,
@@ -147,8 +161,19 @@ pub(super) struct Watch {
     /// Since when the hand holds, when that was last reported, and the last hold's reason.
     holding: Option<(Instant, Instant)>,
     hold_reason: [u8; TEXT_BYTES],
-    /// The newest plan step and since when (the plan goes on while its steps advance).
-    progress: (u64, Instant),
+    /// The newest plan step and since when (the plan goes on while its steps advance); `None`
+    /// before the first.
+    progress: Option<(u64, Instant)>,
+    /// When the first plan step came.
+    first_plan: Option<Instant>,
+    /// The planner node's last word while it plans (its `Starting` health report).
+    planning: Option<String>,
+    /// What `run` says on stderr as it goes.
+    status: Status,
+    /// Whether the goal's reaching was said.
+    goal_said: bool,
+    /// Node restarts so far.
+    restarts: u32,
     plan_published: u64,
     plan_compute: Histogram,
     memory: BTreeMap<String, Memory>,
@@ -169,6 +194,11 @@ pub(super) fn watch(
 ) -> Result<Seen> {
     let ports = Ports::new(bus)?;
     let now = Instant::now();
+    say!(
+        "run: starting {} processes: {}",
+        names.len(),
+        names.join(", ")
+    );
     let mut w = Watch::new(config, live, names, hangup, now);
     // The visualizer listens before the loop begins, or its recording would miss the first
     // plan steps (it starts at a lower priority, and sets up as long as a node).
@@ -204,10 +234,14 @@ pub(super) fn watch(
         Ok(None) => Ok(StopReason::Signal),
         Err(e) => Ok(StopReason::WaitFailed(format!("{e:#}"))),
     };
+    w.status.clear();
+    if let Ok(stop) = &stop {
+        say!("run: stopping the processes: {stop}");
+    }
     // The grace period lets the visualizer write the end of its recording.
     let killed = supervisor.shutdown(Duration::from_secs(5));
     if !killed.is_empty() {
-        eprintln!("run: killed after the grace period: {killed:?}");
+        say!("run: killed after the grace period: {killed:?}");
     }
     // The visualizer's last report, as it stopped.
     ports.healths.drain(|h| {
@@ -231,6 +265,7 @@ impl Watch {
                 estimate_bound: p.max_pose_innovation,
                 max_age_ns: (p.max_input_age * 1e9) as u64 + 10_000_000,
                 max_hold: Duration::from_secs_f64(p.max_hold),
+                alpha: config.grasp.alpha,
             },
             hangup,
             names,
@@ -253,13 +288,21 @@ impl Watch {
             min_quality: f64::INFINITY,
             rotation: 0.0,
             holds: 0,
+            hold_causes: BTreeMap::new(),
+            startup_holds: 0,
+            tracked: false,
             sent: 0,
             stale_tracked: 0,
             done: false,
             timing: Timing::new(),
             holding: None,
             hold_reason: [0; TEXT_BYTES],
-            progress: (0, now),
+            progress: None,
+            first_plan: None,
+            planning: None,
+            status: Status::default(),
+            goal_said: false,
+            restarts: 0,
             plan_published: 0,
             plan_compute: Histogram::new(),
             memory: BTreeMap::new(),
@@ -287,10 +330,58 @@ impl Watch {
             return Ok(Some(stop));
         }
         let l = &self.limits;
-        if self.done && !l.live && self.rotation >= l.goal - 0.5f64.to_radians() {
+        let at_goal = self.done && self.rotation >= l.goal - 0.5f64.to_radians();
+        if at_goal && !self.goal_said {
+            self.goal_said = true;
+            self.status.clear();
+            say!(
+                "run: goal reached: {:.1} of {:.1} deg, {} finger switches, after {:.1} s{}",
+                self.rotation.to_degrees(),
+                l.goal.to_degrees(),
+                self.attaches.len(),
+                l.started.elapsed().as_secs_f64(),
+                if l.live {
+                    "; --live: the hand holds the object there until Ctrl-C"
+                } else {
+                    ""
+                }
+            );
+        }
+        if at_goal && !l.live {
             return Ok(Some(StopReason::GoalReached));
         }
         Ok(None)
+    }
+
+    /// The status line: what the planner node does until the first plan step, then how far
+    /// the run has got (`now`: drawn now, whatever the period).
+    fn show(&mut self, now: bool) {
+        if !self.status.due(now) {
+            return;
+        }
+        let l = &self.limits;
+        let elapsed = l.started.elapsed().as_secs_f64();
+        let text = match (&self.first_plan, &self.planning) {
+            (None, Some(doing)) => format!("run: the planner node is {doing}, {elapsed:.1} s"),
+            // The processes' start: said once it takes a while.
+            (None, None) if !now && elapsed < super::status::LINE_EVERY.as_secs_f64() => return,
+            (None, None) => format!("run: waiting for the first plan step, {elapsed:.1} s"),
+            (Some(_), _) => format!(
+                "run: {:.1} of {:.1} deg | {} switches | min alpha* {} (alpha {}) | {} holds | {} restarts | {elapsed:.1} s",
+                self.rotation.to_degrees(),
+                l.goal.to_degrees(),
+                self.attaches.len(),
+                if self.min_quality.is_finite() {
+                    format!("{:.4}", self.min_quality)
+                } else {
+                    "-".into()
+                },
+                l.alpha,
+                self.holds,
+                self.restarts
+            ),
+        };
+        self.status.update(now, || text);
     }
 
     /// A plan step.
@@ -300,13 +391,23 @@ impl Watch {
             self.plan_compute
                 .add(published.saturating_sub(*taken) as f64 * 1e-3);
         }
+        if self.first_plan.is_none() {
+            let now = Instant::now();
+            self.first_plan = Some(now);
+            self.status.clear();
+            say!(
+                "run: the plan is ready after {:.1} s (the hand held the initial grasp meanwhile); the hand follows it",
+                now.duration_since(self.limits.started).as_secs_f64()
+            );
+            self.show(true);
+        }
         if p.phase == PlanPhase::Done as u32 {
             self.done = true;
             return;
         }
         self.last_step = self.last_step.max(p.step);
-        if p.step != self.progress.0 {
-            self.progress = (p.step, Instant::now());
+        if self.progress.is_none_or(|(step, _)| step != p.step) {
+            self.progress = Some((p.step, Instant::now()));
         }
         if p.phase == PlanPhase::Attach as u32 {
             self.attaches.insert(p.step);
@@ -324,10 +425,11 @@ impl Watch {
     fn command(&mut self, c: &HandCommand) {
         self.sent += 1;
         if c.mode == CommandMode::Track as u32 {
+            self.tracked = true;
             if let Some((since, _)) = self.holding.take()
                 && since.elapsed() >= HOLD_REPORT
             {
-                eprintln!(
+                say!(
                     "run: the hand tracks again after holding {:.1} s",
                     since.elapsed().as_secs_f64()
                 );
@@ -344,13 +446,22 @@ impl Watch {
             }
             return;
         }
+        let reason = read_text(&c.reason);
+        // The start-up: the hand holds its initial grasp until every input has come (the
+        // plan, while the planner node plans): not a hold of the run, and no reason to give
+        // up (the planner node's failure is the supervisor's).
+        if !self.tracked && reason.starts_with("no ") && reason.ends_with(" yet") {
+            self.startup_holds += 1;
+            return;
+        }
         self.holds += 1;
+        *self.hold_causes.entry(cause(&reason)).or_default() += 1;
         self.hold_reason = c.reason;
         if c.reason.starts_with(ESTIMATE_OFF.as_bytes()) {
             self.estimate_holds += 1;
             // Said at once, once a spell: the loop noticed its estimate is wrong.
             if !self.doubting {
-                eprintln!("run: the hand holds: {}", read_text(&c.reason));
+                say!("run: the hand holds: {reason}");
             }
             self.doubting = true;
         } else {
@@ -362,10 +473,9 @@ impl Watch {
         let (since, reported) = self.holding.get_or_insert((now, now));
         if now.duration_since(*reported) >= HOLD_REPORT {
             *reported = now;
-            eprintln!(
-                "run: the hand has held for {:.1} s: {}",
-                now.duration_since(*since).as_secs_f64(),
-                read_text(&c.reason)
+            say!(
+                "run: the hand has held for {:.1} s: {reason}",
+                now.duration_since(*since).as_secs_f64()
             );
         }
     }
@@ -393,6 +503,8 @@ impl Watch {
         for e in supervisor.poll(Instant::now())? {
             report(&e);
         }
+        self.restarts = supervisor.restarts();
+        self.show(false);
         let (restart, restart_s) = (self.limits.hung_restart, self.limits.hung_restart_s);
         for s in self
             .beats
@@ -410,7 +522,7 @@ impl Watch {
         if let Some(n) = supervisor.failed() {
             return Ok(Some(StopReason::NodeFailed(n.to_string())));
         }
-        if self.limits.started.elapsed() > TIMEOUT {
+        if self.first_plan.unwrap_or(self.limits.started).elapsed() > TIMEOUT {
             return Ok(Some(StopReason::TimedOut(TIMEOUT)));
         }
         Ok(self.stalled())
@@ -426,7 +538,9 @@ impl Watch {
             return None;
         }
         let short = self.rotation < l.goal - 0.5f64.to_radians();
-        let (step, since) = (self.progress.0, self.progress.1.elapsed());
+        // Before the first plan step the planner node plans: however long that takes, it is
+        // no stall (a planner node that fails is the supervisor's, and said).
+        let (step, since) = self.progress.map(|(step, t)| (step, t.elapsed()))?;
         if (!self.done || short) && self.holding.is_none() && since >= l.max_hold {
             return Some(if self.done {
                 StopReason::PlanEndedShort {
@@ -474,6 +588,18 @@ impl Watch {
     /// process).
     fn take_health(&mut self, h: &NodeHealth, now: Instant) {
         let node = read_text(&h.node);
+        if h.state == NodeState::Starting as u32 {
+            // A node that says it starts up (the planner node planning) is not watched for
+            // hangs until it runs; what it does is shown.
+            if node == icrflow_interfaces::topics::NodeRole::Planner.name() {
+                let doing = read_text(&h.message);
+                if self.planning.is_none() {
+                    say!("run: the planner node is {doing}");
+                }
+                self.planning = Some(doing);
+            }
+            return;
+        }
         self.beats.beat(&node, h.pid, now);
         if node == icrflow_interfaces::topics::NodeRole::Visualizer.name() {
             self.frames.insert(h.pid, (h.processed, h.refused));
@@ -495,6 +621,11 @@ impl Watch {
             steps: self.last_step as usize,
             min_quality: self.min_quality,
             holds: self.holds,
+            startup_holds: self.startup_holds,
+            hold_causes: self.hold_causes,
+            planned_after: self
+                .first_plan
+                .map(|t| t.duration_since(self.limits.started).as_secs_f64()),
             sent: self.sent,
             measurements: self.measurements,
             stale_tracked: self.stale_tracked,
@@ -523,23 +654,81 @@ impl Watch {
     }
 }
 
+/// The cause of a hold, from its reason: the text before its details, the parts up to the
+/// first with a number (`grasp state: stale` of `grasp state: stale: 12.1 ms old, limit
+/// 10.0 ms`), numbers in the first part as `N`.
+pub(super) fn cause(reason: &str) -> String {
+    let mut parts = reason.split(':');
+    let mut head = parts.next().unwrap_or(reason).trim().to_string();
+    if !head.chars().any(|c| c.is_ascii_digit()) {
+        for part in parts.take_while(|p| !p.chars().any(|c| c.is_ascii_digit())) {
+            head.push(':');
+            head.push_str(part);
+        }
+    }
+    let head = head.trim();
+    let mut out = String::with_capacity(head.len());
+    let mut in_number = false;
+    for ch in head.chars() {
+        if ch.is_ascii_digit() || (in_number && ch == '.') {
+            if !in_number {
+                out.push('N');
+            }
+            in_number = true;
+        } else {
+            in_number = false;
+            out.push(ch);
+        }
+    }
+    out
+}
+
 /// Says what a node's silence is, and kills a hung node (the supervisor restarts it).
 fn silence(s: &Silence, supervisor: &mut Supervisor, restart_s: f64) {
     match s {
-        Silence::Silent { name, pid, since } => eprintln!(
+        Silence::Silent { name, pid, since } => say!(
             "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: hung or stopped? (restarted after {restart_s} s: pipeline.hung_restart_s)",
             since.as_secs_f64()
         ),
         Silence::Hung { name, pid, since } => {
             supervisor.kill(name);
-            eprintln!(
+            say!(
                 "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: killed, to be restarted",
                 since.as_secs_f64()
             );
         }
-        Silence::Back { name, after } => eprintln!(
+        Silence::Back { name, after } => say!(
             "run: node {name} sends heartbeats again after {:.1} s",
             after.as_secs_f64()
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_holds_cause_is_its_reason_without_the_details() {
+        assert_eq!(
+            cause("grasp state is stale: 12.1 ms old, limit 10.0 ms"),
+            "grasp state is stale"
+        );
+        assert_eq!(
+            cause("grasp state: stale: 3.2 ms old, limit 0.0 ms"),
+            "grasp state: stale"
+        );
+        assert_eq!(
+            cause("the estimate is off: pose innovation 3.20 deg over the bound 2.00 deg"),
+            "the estimate is off"
+        );
+        assert_eq!(
+            cause("no wrench space for 31.5 ms"),
+            "no wrench space for N ms"
+        );
+        assert_eq!(
+            cause("quality alpha* = 0.0812 below the margin alpha = 0.1"),
+            "quality alpha* = N below the margin alpha = N"
+        );
     }
 }
