@@ -23,6 +23,18 @@ pub fn run(rrd: &Path, at: &str, out: &Path, size: &str) -> Result<u8> {
         bail!("--size {size:?}: expected WIDTHxHEIGHT, e.g. 1280x720 (64 to 8192 each)");
     }
     let viewer = viewer()?;
+    // A file the viewer cannot read would leave it waiting for data until the render's
+    // time-out: refuse it by its header (every Rerun 0.36 file starts with `RRF2`).
+    let mut head = [0u8; 4];
+    let read = std::fs::File::open(rrd)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok();
+    if !read || &head != b"RRF2" {
+        bail!(
+            "{} is not a Rerun recording: it does not start with the RRF2 header of Rerun 0.36 files",
+            rrd.display()
+        );
+    }
     let program =
         crate::run::launch::node_program(icrflow_interfaces::topics::NodeRole::Visualizer)?;
     let status = Command::new(&program)

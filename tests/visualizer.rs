@@ -394,7 +394,7 @@ fn render_refuses_bad_input_by_name() {
         err.contains("no recording at") && err.contains("missing.rrd"),
         "{err}"
     );
-    // Any file will do for the argument checks: they come before the viewer starts.
+    // Any file will do for the argument checks: they come before the file is read.
     let rrd = dir.join("some.rrd");
     std::fs::write(&rrd, b"not a recording").unwrap();
     let rrd = rrd.to_str().unwrap();
@@ -408,6 +408,11 @@ fn render_refuses_bad_input_by_name() {
     let err = run(&["render", rrd], Some(dir.to_str().unwrap()));
     assert!(
         err.contains("no Rerun viewer") && err.contains("rerun-sdk==0.36.3"),
+        "{err}"
+    );
+    let err = run(&["render", rrd], None);
+    assert!(
+        err.contains("is not a Rerun recording") && err.contains("some.rrd"),
         "{err}"
     );
     assert!(!png.exists());
