@@ -367,7 +367,7 @@ fn print_text(
         let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
         writeln!(
             o,
-            "switching  rendezvous candidates over all switches: {} exact (brute force, used), {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
+            "switching  rendezvous candidates over all switches: {} exact (brute force, used),\n           {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
             s.brute_force_candidates,
             s.lp_region_candidates,
             pct(s.lp_region_candidates),
