@@ -11,7 +11,7 @@ use icrflow_grasp::quality::{Closure, GraspProblem};
 use icrflow_grasp::wrench::{Space, WrenchFrame};
 use serde::Serialize;
 
-use icrflow_scenario::{Config, Snap, snap_contact};
+use icrflow_scenario::{Config, Snap, section_problem, snap_contact};
 
 /// The JSON report (and the data behind the text one).
 #[derive(Debug, Serialize)]
@@ -186,13 +186,7 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
         Space::Planar => None,
         Space::Spatial if object.section.samples.is_empty() => None,
         Space::Spatial => {
-            let section = GraspProblem::new_with(
-                &object.facets,
-                object.section.samples.clone(),
-                frame,
-                g.model,
-                progress,
-            )?;
+            let section = section_problem(&object, frame, g.model, progress)?;
             let on: Result<Vec<usize>> = g
                 .contacts
                 .iter()

@@ -109,25 +109,20 @@ impl Health {
             return Ok(());
         }
         self.reported.0 = t;
-        let mut h = NodeHealth {
-            header: Header::new(Kind::NodeHealth, self.sequence.advance(), 0, 0),
-            state: NodeState::Starting as u32,
-            pid: std::process::id(),
-            processed: self.processed,
-            refused: self.refused,
-            allocations: allocations(),
-            ..Default::default()
-        };
-        write_text(&mut h.node, self.name);
+        let mut h = self.health(NodeState::Starting);
         write_text(&mut h.message, &std::fmt::format(doing));
-        self.publisher
-            .publish(h)
-            .context("publishing health")
-            .map(|_| ())
+        self.send(h)
     }
 
     /// Publishes a report.
     pub fn report(&mut self, state: NodeState) -> Result<()> {
+        let mut h = self.health(state);
+        write_text(&mut h.message, &self.last_problem);
+        self.send(h)
+    }
+
+    /// A report of `state`, without its message.
+    fn health(&mut self, state: NodeState) -> NodeHealth {
         let mut h = NodeHealth {
             header: Header::new(Kind::NodeHealth, self.sequence.advance(), 0, 0),
             state: state as u32,
@@ -138,7 +133,11 @@ impl Health {
             ..Default::default()
         };
         write_text(&mut h.node, self.name);
-        write_text(&mut h.message, &self.last_problem);
+        h
+    }
+
+    /// Publishes `h`.
+    fn send(&mut self, h: NodeHealth) -> Result<()> {
         self.publisher
             .publish(h)
             .context("publishing health")

@@ -14,4 +14,4 @@ mod raw;
 mod setup;
 
 pub use config::*;
-pub use setup::{Loaded, Setup, Snap, snap_contact, surface_tolerance};
+pub use setup::{Loaded, Setup, Snap, section_problem, snap_contact, surface_tolerance};

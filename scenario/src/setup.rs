@@ -3,8 +3,9 @@
 use anyhow::{Context, Result, bail};
 use icrflow_grasp::math::Real;
 use icrflow_grasp::object::Object;
-use icrflow_grasp::quality::GraspProblem;
-use icrflow_grasp::wrench::WrenchFrame;
+use icrflow_grasp::progress::Progress;
+use icrflow_grasp::quality::{GraspError, GraspProblem};
+use icrflow_grasp::wrench::{ContactModel, WrenchFrame};
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
 use icrflow_plan::rolling::{Surface, SurfaceError};
@@ -65,13 +66,7 @@ impl Setup {
                 object.section.height
             );
         }
-        let problem = GraspProblem::new_with(
-            &object.facets,
-            object.section.samples.clone(),
-            frame,
-            g.model,
-            progress,
-        )?;
+        let problem = section_problem(&object, frame, g.model, progress)?;
         let hand = config.hand.build()?;
         let mut initial = Vec::with_capacity(g.contacts.len());
         for (i, c) in g.contacts.iter().enumerate() {
@@ -147,6 +142,24 @@ pub enum Snap {
     /// From the configured point (or, for an angle, its point of the section) to the
     /// candidate (m).
     Distance(Real),
+}
+
+/// The grasp problem whose candidates are `object`'s section in the hand's plane, where the
+/// fingertips roll: the one the planner, `validate`, `plan` and `run` evaluate (a spatial
+/// `analyze` evaluates the facets and this one beside them).
+pub fn section_problem(
+    object: &Object,
+    frame: WrenchFrame,
+    model: ContactModel,
+    progress: &mut dyn Progress,
+) -> Result<GraspProblem, GraspError> {
+    GraspProblem::new_with(
+        &object.facets,
+        object.section.samples.clone(),
+        frame,
+        model,
+        progress,
+    )
 }
 
 /// Snaps contact `i` of the config to a candidate of `problem`, whose candidates are the

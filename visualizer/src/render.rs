@@ -168,6 +168,18 @@ pub fn run(req: &Request) -> Result<()> {
     }
     let rrd = std::fs::canonicalize(&req.rrd)
         .with_context(|| format!("cannot read {}", req.rrd.display()))?;
+    // A file the viewer cannot read would leave it waiting for data until PATIENCE: refuse it
+    // by its header (every Rerun 0.36 file starts with `RRF2`).
+    let mut head = [0u8; 4];
+    let read = std::fs::File::open(&rrd)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok();
+    if !read || &head != b"RRF2" {
+        bail!(
+            "{} is not a Rerun recording: it does not start with the RRF2 header of Rerun 0.36 files",
+            rrd.display()
+        );
+    }
     let out = absolute(&req.out)?;
     if let Some(dir) = out.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
