@@ -30,7 +30,7 @@ command -v python3 >/dev/null 2>&1 || { log "python3 not found on PATH"; exit 1;
 want=$(sha256sum "$req" | cut -d' ' -f1)
 
 if [[ -x "$py" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]] \
-    && "$py" -c 'import numpy, scipy.spatial, zenoh, rerun, pytest, trimesh, maturin' >/dev/null 2>&1; then
+    && "$py" -c 'import numpy, scipy.spatial, zenoh, rerun, pytest, trimesh, maturin, mujoco' >/dev/null 2>&1; then
     log "venv up to date: $venv"
     printf '%s\n' "$py"
     exit 0
@@ -46,7 +46,7 @@ fi
 log "installing $req"
 rm -f "$stamp"
 "$py" -m pip install --disable-pip-version-check --quiet -r "$req" >&2
-"$py" -c 'import numpy, scipy.spatial, zenoh, rerun, pytest, trimesh, maturin' >&2
+"$py" -c 'import numpy, scipy.spatial, zenoh, rerun, pytest, trimesh, maturin, mujoco' >&2
 printf '%s\n' "$want" > "$stamp"
 log "done: numpy $("$py" -c 'import numpy; print(numpy.__version__)'), scipy $("$py" -c 'import scipy; print(scipy.__version__)'), eclipse-zenoh $("$py" -c 'import importlib.metadata as m; print(m.version("eclipse-zenoh"))'), rerun-sdk $("$py" -c 'import importlib.metadata as m; print(m.version("rerun-sdk"))')"
 printf '%s\n' "$py"

@@ -7,6 +7,9 @@
 #   eclipse-zenoh for the external Zenoh client of the tests (tests/zenoh_client.py), and
 #   rerun-sdk (with the `rerun` viewer) to read back and render the visualizer's recordings,
 #   and pytest, trimesh and maturin for the Python package's tests.
+# - MuJoCo for the plant (icrflow-physics, mujoco-rs): links in the repository's .mujoco/lib
+#   (`libmujoco.so` for the build, `libmujoco.so.3.17.0` for the loader) to the library of the
+#   venv's PyPI `mujoco` wheel; .cargo/config.toml points MUJOCO_DYNAMIC_LINK_DIR there.
 # - The Python package `icrflow` (python/) built and installed into that venv, skipped when
 #   its sources are unchanged since the last install (see python/README.md).
 set -euo pipefail
@@ -27,6 +30,14 @@ fi
 # machine talk to no address beyond loopback.
 py="$("$root/scripts/setup-python.sh" | tail -n 1)"
 "$(dirname "$py")/rerun" analytics disable >/dev/null 2>&1 || true
+
+# MuJoCo's library from the wheel, where mujoco-rs's build looks for it.
+mujoco_lib="$("$py" -c 'import mujoco, os; print(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so." + mujoco.__version__))')"
+[[ -f "$mujoco_lib" ]] || { echo "setup: the mujoco wheel has no $mujoco_lib" >&2; exit 1; }
+mkdir -p "$root/.mujoco/lib"
+for name in libmujoco.so "$(basename "$mujoco_lib")"; do
+    [[ "$(readlink "$root/.mujoco/lib/$name" 2>/dev/null)" == "$mujoco_lib" ]] || ln -sfn "$mujoco_lib" "$root/.mujoco/lib/$name"
+done
 
 # The Python package: `pip install ./python` with the venv's maturin (no build isolation, so
 # nothing is downloaded), into CARGO_TARGET_DIR like every other build. Skipped when the stamp

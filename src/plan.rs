@@ -12,7 +12,7 @@ use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::Plan;
 use serde::Serialize;
 
-use icrflow_scenario::{Config, HandSpec, Recording, Setup};
+use icrflow_scenario::{Config, HandSpec, PlantKind, Recording, Setup};
 
 use crate::run::Viewer;
 
@@ -46,6 +46,16 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
     if let Ok(s) = &surface {
         crate::run::slip(&config, s)?;
     }
+    // MuJoCo builds the model (and says why not) before the config is called valid.
+    let mass = match config.plant.kind {
+        PlantKind::Mujoco => {
+            let contacts = started.as_ref().map_or(&[][..], |(c, _)| &c[..]);
+            Some(icrflow_physics::configured::check(
+                &config, &setup, contacts,
+            )?)
+        }
+        PlantKind::Kinematic => None,
+    };
     let mut o = std::io::stdout().lock();
     writeln!(o, "config     {} is valid", path.display())?;
     writeln!(
@@ -74,6 +84,29 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
             }
         )?,
         Err(e) => writeln!(o, "warning    `run` cannot take this object: {e:#}")?,
+    }
+    let pl = &config.plant;
+    match mass {
+        Some(mass) => writeln!(
+            o,
+            "plant      MuJoCo {}: the object {mass:.3} kg, timestep {} ms, gravity [{}, {}, {}] m/s^2; {}squeeze {} mm, friction margin {}",
+            icrflow_physics::sim::MUJOCO_VERSION,
+            pl.timestep * 1e3,
+            pl.gravity[0],
+            pl.gravity[1],
+            pl.gravity[2],
+            if pl.feedforward {
+                "force targets fed forward, "
+            } else {
+                "no force feed-forward, "
+            },
+            pl.squeeze * 1e3,
+            pl.friction_margin
+        )?,
+        None => writeln!(
+            o,
+            "plant      kinematic (our quasi-static model: fingertips roll by the rolling kinematics, nothing slips)"
+        )?,
     }
     writeln!(
         o,

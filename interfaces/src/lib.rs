@@ -384,7 +384,7 @@ pub struct ObjectPose {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlantTruth.v5")]
+#[type_name("icrflow.PlantTruth.v6")]
 #[repr(C)]
 pub struct PlantTruth {
     /// Header ([`Kind::PlantTruth`]); `source_time_ns` is the time of the state it gives.
@@ -397,12 +397,32 @@ pub struct PlantTruth {
     pub rotation: f64,
     /// Fingers in use.
     pub finger_count: u32,
-    /// Padding (zero).
-    pub reserved: u32,
+    /// The plant ([`PlantEngine`] as `u32`).
+    pub engine: u32,
     /// Finger number of each slot.
     pub finger_ids: [u32; MAX_FINGERS],
     /// 1 where the finger of the slot is in contact with the object, 0 not.
     pub in_contact: [u32; MAX_FINGERS],
+    /// Where each finger in contact touches the object (hand frame, m; zero when not in
+    /// contact).
+    pub contact_points: [[f64; 3]; MAX_FINGERS],
+    /// The object's outward unit normal there (hand frame).
+    pub contact_normals: [[f64; 3]; MAX_FINGERS],
+    /// The force each fingertip applies to the object (hand frame, N; zero from a plant
+    /// that simulates no forces).
+    pub contact_forces: [[f64; 3]; MAX_FINGERS],
+    /// Tangential slip speed at each contact (m/s; 0 rolling).
+    pub slip_speeds: [f64; MAX_FINGERS],
+}
+
+/// Which plant a [`PlantTruth`] comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum PlantEngine {
+    /// The kinematic plant: contacts from the rolling kinematics, no forces.
+    Kinematic = 0,
+    /// MuJoCo.
+    Mujoco = 1,
 }
 
 /// One finger's contact in a [`GraspState`].

@@ -18,9 +18,9 @@
 //! A tracking command's joint targets are the plan step's, clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
-//! steps, and the fingertips follow the planned rolling), and its forces balance zero external
-//! wrench inside
-//! the exact friction cones with the configured minimum normal force
+//! steps, and the fingertips follow the planned rolling), and its forces balance the object's
+//! weight (`plant.gravity`, none by default) inside the exact friction cones narrowed by
+//! `plant.friction_margin`, with the configured minimum normal force
 //! ([`icrflow_plan::forces::ForceSolver`], kept across commands so a new contact set costs no
 //! allocation; infeasible holds).
 //!
@@ -310,9 +310,11 @@ impl Tracker<'_> {
                 count += 1;
             }
         }
-        // The forces in the object's frame, solved once per contact set: with no external
-        // load the problem is invariant under rotation (cones, equilibrium, and the least
-        // squared force alike), so the hand-frame forces are these rotated.
+        // The forces in the object's frame, solved once per contact set: the load is the
+        // object's weight (`plant.gravity`, along the hand's z axis, so unchanged by the
+        // object's turning about it), and the problem is invariant under that rotation
+        // (cones, equilibrium, and the least squared force alike), so the hand-frame forces
+        // are these rotated. The cones are narrowed by `plant.friction_margin`.
         if self.solved_for != Some(set) {
             self.solved_for = None;
             self.contacts.clear();
@@ -322,10 +324,15 @@ impl Tracker<'_> {
                     normal: cands.normals[c as usize],
                 });
             }
+            let weight = config.plant.weight(setup.object.volume);
+            let load = Load {
+                force: Vec3::from(weight),
+                ..Load::none()
+            };
             let found = self.solver.solve(
                 &self.contacts,
-                &Load::none(),
-                config.grasp.model.mu(),
+                &load,
+                config.grasp.model.mu() * (1.0 - config.plant.friction_margin),
                 p.min_normal_force,
                 &mut self.forces,
             )?;

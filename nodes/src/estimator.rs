@@ -108,6 +108,9 @@ pub struct Estimator<'a> {
     tips: Vec<Option<(Tip, bool)>>,
     transitions: Vec<Transition>,
     q: Vec<f64>,
+    /// How far the object's centre has moved in the hand's plane (m), from the pose
+    /// measurements' positions: the fingertips are taken about the moved centre.
+    moved: [f64; 2],
 }
 
 impl<'a> Estimator<'a> {
@@ -130,6 +133,7 @@ impl<'a> Estimator<'a> {
             tips: Vec::with_capacity(n),
             transitions: Vec::with_capacity(n),
             q: Vec::with_capacity(8),
+            moved: [0.0; 2],
         }
     }
 
@@ -172,6 +176,20 @@ impl<'a> Estimator<'a> {
         Ok(nu)
     }
 
+    /// Fuses a pose measurement's position: the object's centre moved by `moved` in the
+    /// hand's plane (m) from where it was first measured (a kinematic plant's object never moves; a
+    /// MuJoCo plant's is pushed about by the fingers by a millimetre or so). Smoothed with
+    /// [`GAIN`] like the rotation, without the delay's compensation (the centre moves slowly).
+    pub fn on_position(&mut self, moved: [f64; 2]) -> Result<(), Refusal> {
+        if !moved.iter().all(|x| x.is_finite()) {
+            return Err(Refusal::PoseNotFinite);
+        }
+        for (m, x) in self.moved.iter_mut().zip(moved) {
+            *m += GAIN * (x - *m);
+        }
+        Ok(())
+    }
+
     /// The grasp state of joint measurement `m`, with `header`: the fingers' contacts, the
     /// rotation rolled on by the fingers in contact, and the residuals.
     pub fn on_joints(&mut self, m: &JointState, header: Header) -> Result<GraspState, Refusal> {
@@ -202,7 +220,7 @@ impl<'a> Estimator<'a> {
             self.q.clear();
             self.q.extend_from_slice(&m.positions[k][..f.dof()]);
             g.joints[slot][..self.q.len()].copy_from_slice(&self.q);
-            let t = tip(f, &self.q);
+            let t = tip(f, &self.q).from_moved(self.moved);
             let was = self.contact[slot];
             let gap = surface.contact_of(&t, f, self.theta).gap;
             self.streak[slot] = if gap.abs() <= TOUCH {
@@ -292,6 +310,8 @@ pub fn run(ctx: &Context) -> Result<()> {
         .unwrap_or(0.0);
     let mut estimator = Estimator::new(&ctx.scenario.setup.hand, surface, &object.section, theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
+    // Where the object's centre was measured first: its motion is taken from there.
+    let mut first_position: Option<[f64; 2]> = None;
     let log_contacts = ctx.launch.log.contacts;
     let saved = Checkpoint::new(checkpoint)?;
 
@@ -306,8 +326,13 @@ pub fn run(ctx: &Context) -> Result<()> {
             )
         {
             let [w, _, _, z] = m.orientation;
-            match estimator.on_pose(2.0 * z.atan2(w), m.captured_time_ns) {
-                Ok(_) => health.processed += 1,
+            let start = *first_position.get_or_insert([m.position[0], m.position[1]]);
+            let moved = [m.position[0] - start[0], m.position[1] - start[1]];
+            match estimator
+                .on_pose(2.0 * z.atan2(w), m.captured_time_ns)
+                .and_then(|_| estimator.on_position(moved))
+            {
+                Ok(()) => health.processed += 1,
                 Err(why) => health.refuse(why),
             }
         }

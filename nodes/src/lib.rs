@@ -1,7 +1,7 @@
 //! # icrflow-nodes: the pipeline's loop nodes
 //!
 //! The processes of the loop, each a module with its `run` (what its `icrflow-<name>` binary
-//! runs) on the plumbing of `icrflow-runtime`: the simulated [`plant`], the state
+//! runs) on the plumbing of `icrflow-runtime`: the simulated [`plant`] (our kinematic model, or MuJoCo: [`physical`]), the state
 //! [`estimator`], the [`wrench`]-space node, the ICR [`planner`] node that follows the plan, and
 //! the hand [`command`] node with its [`safety`] gate. The rolling kinematics they share are
 //! the planner crate's (`icrflow_plan::rolling`).
@@ -11,6 +11,7 @@
 pub mod command;
 pub mod estimator;
 pub mod noise;
+pub mod physical;
 pub mod planner;
 pub mod plant;
 pub mod safety;

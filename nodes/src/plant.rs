@@ -41,7 +41,7 @@ use icrflow_interfaces::{
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::Contact;
 use icrflow_plan::rolling::{Surface, tip};
-use icrflow_scenario::PipelineSpec;
+use icrflow_scenario::{PipelineSpec, PlantKind};
 
 use crate::Context;
 use crate::noise::Noise;
@@ -58,18 +58,7 @@ const SAVE_EVERY: u64 = 10;
 /// Rotations kept to measure the pose of the past from (one per tick).
 const HISTORY: usize = 4000;
 
-/// Every finger's joints in the initial grasp `contacts` (a free finger at its home pose).
-pub fn initial_joints(hand: &Hand, contacts: &[Contact]) -> Vec<Vec<f64>> {
-    hand.fingers
-        .iter()
-        .map(|f| {
-            contacts
-                .iter()
-                .find(|c| c.finger == f.id)
-                .map_or_else(|| f.home.clone(), |c| c.q.clone())
-        })
-        .collect()
-}
+pub use icrflow_physics::scene::initial_joints;
 
 /// Something the plant has to say (the node writes it on stderr).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -469,17 +458,74 @@ impl<'a> Plant<'a> {
     }
 }
 
+/// The plant of the config (`plant.kind`).
+enum Any<'a> {
+    Kinematic(Box<Plant<'a>>),
+    Mujoco(Box<crate::physical::Physical<'a>>),
+}
+
+impl Any<'_> {
+    fn tick(&mut self, now_ns: u64, command: Option<&HandCommand>) -> Output {
+        match self {
+            Self::Kinematic(p) => p.tick(now_ns, command),
+            Self::Mujoco(p) => p.tick(now_ns, command),
+        }
+    }
+
+    fn events(&self) -> &[Event] {
+        match self {
+            Self::Kinematic(p) => p.events(),
+            Self::Mujoco(p) => p.events(),
+        }
+    }
+
+    fn ticks(&self) -> u64 {
+        match self {
+            Self::Kinematic(p) => p.ticks(),
+            Self::Mujoco(p) => p.ticks(),
+        }
+    }
+
+    fn save(&self, text: &mut String) {
+        match self {
+            Self::Kinematic(p) => p.save(text),
+            Self::Mujoco(p) => p.save(text),
+        }
+    }
+
+    fn restore(&mut self, text: &str) -> bool {
+        match self {
+            Self::Kinematic(p) => p.restore(text),
+            Self::Mujoco(p) => p.restore(text),
+        }
+    }
+}
+
 /// Runs the plant.
 pub fn run(ctx: &Context) -> Result<()> {
-    let p = &ctx.scenario.config.pipeline;
-    let surface = ctx.scenario.setup.surface()?;
+    let config = &ctx.scenario.config;
+    let setup = &ctx.scenario.setup;
+    let p = &config.pipeline;
     // The true state starts in the initial grasp, as the planner computes it.
-    let (contacts, _) = ctx
-        .scenario
-        .setup
-        .scenario(&ctx.scenario.config)
+    let (contacts, _) = setup
+        .scenario(config)
         .start()
         .context("the initial grasp")?;
+    let mut plant = match config.plant.kind {
+        PlantKind::Kinematic => {
+            let plant = Plant::new(&setup.hand, setup.surface()?, &contacts, p, now());
+            Any::Kinematic(Box::new(plant))
+        }
+        PlantKind::Mujoco => {
+            let physical = crate::physical::Physical::new(config, setup, &contacts, now())?;
+            eprintln!(
+                "icrflow-plant: MuJoCo {}, the object {:.3} kg",
+                physical.version(),
+                physical.sim().object_mass()
+            );
+            Any::Mujoco(Box::new(physical))
+        }
+    };
     let joints = ctx.bus.publisher(topics::JOINT_STATE)?;
     let poses = ctx.bus.publisher(topics::OBJECT_POSE)?;
     let truths = ctx.bus.publisher(topics::PLANT_TRUTH)?;
@@ -489,7 +535,6 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut truth_seq = Sequence::default();
     let log_contacts = ctx.launch.log.contacts;
     let state_file = ctx.bus.config().root.join("plant.state");
-    let mut plant = Plant::new(&ctx.scenario.setup.hand, surface, &contacts, p, now());
     if let Ok(text) = std::fs::read_to_string(&state_file) {
         plant.restore(&text);
     }

@@ -70,6 +70,20 @@ pub struct Tip {
     pub distance: f64,
 }
 
+impl Tip {
+    /// The same fingertip seen from an object whose centre has moved by `by` in the hand's
+    /// plane (m): its centre, angle and distance taken from the moved centre.
+    pub fn from_moved(self, by: [f64; 2]) -> Tip {
+        let centre = [self.centre[0] - by[0], self.centre[1] - by[1]];
+        Tip {
+            centre,
+            psi: centre[1].atan2(centre[0]),
+            phi: self.phi,
+            distance: centre[0].hypot(centre[1]),
+        }
+    }
+}
+
 /// The fingertip of `finger` at joint angles `q`.
 pub fn tip(finger: &Finger, q: &[f64]) -> Tip {
     let (centre, cap) = finger.fk_tip(q);

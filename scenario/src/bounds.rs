@@ -432,6 +432,49 @@ pub const VISUALIZER_QUEUE: Count = Count::new(
     "frames are kept in memory; 4096 is over two minutes at 30 Hz",
 );
 
+/// `plant.timestep_ms`.
+pub const TIMESTEP: Range = Range::closed(
+    0.05,
+    2.5,
+    "ms",
+    "MuJoCo's contacts need at most half their 5 ms time constant; below 0.05 ms the plant cannot keep real time",
+);
+/// `plant.gravity` (each component).
+pub const GRAVITY: Range = Range::closed(-30.0, 30.0, "m/s^2", "up to three times the Earth's");
+/// `plant.density`.
+pub const DENSITY: Range =
+    Range::closed(10.0, 25000.0, "kg/m^3", "from foam to the densest metals");
+/// `plant.link_radius_mm`.
+pub const LINK_RADIUS: Range = Range::closed(
+    0.5,
+    20.0,
+    "mm",
+    "a finger's phalanx; the planner keeps links 5 mm off the object",
+);
+/// `plant.kp`.
+pub const KP: Range = Range::above(
+    0.0,
+    1000.0,
+    "N m/rad",
+    "a dexterous hand's joint servo (the Allegro's are ~1 to 10)",
+);
+/// `plant.kv`.
+pub const KV: Range = Range::closed(0.0, 100.0, "N m s/rad", "the servos' damping");
+/// `plant.squeeze_mm`.
+pub const SQUEEZE: Range = Range::closed(
+    0.0,
+    5.0,
+    "mm",
+    "how far past the surface a pressing fingertip's servos aim; more crushes the grasp",
+);
+/// `plant.friction_margin`.
+pub const FRICTION_MARGIN: Range = Range::below(
+    0.0,
+    1.0,
+    "",
+    "the fraction of mu the force targets leave unused at every contact",
+);
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,6 +13,7 @@ pub struct RawConfig {
     pub hand: Option<RawHand>,
     pub plan: Option<RawPlan>,
     pub pipeline: Option<RawPipeline>,
+    pub plant: Option<RawPlant>,
     pub zenoh: Option<RawZenoh>,
     pub visualizer: Option<RawVisualizer>,
 }
@@ -44,6 +45,22 @@ pub struct RawZenoh {
     pub link_users: Option<Vec<String>>,
     pub user: Option<String>,
     pub monitor: Option<Vec<String>>,
+}
+
+/// `[plant]`: what the pipeline's plant simulates.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RawPlant {
+    pub kind: Option<String>,
+    pub timestep_ms: Option<f64>,
+    pub gravity: Option<[f64; 3]>,
+    pub density: Option<f64>,
+    pub link_radius_mm: Option<f64>,
+    pub kp: Option<f64>,
+    pub kv: Option<f64>,
+    pub squeeze_mm: Option<f64>,
+    pub feedforward: Option<bool>,
+    pub friction_margin: Option<f64>,
 }
 
 /// `[pipeline]`: the processes of `icrflow run`.

@@ -7,11 +7,13 @@
 //! | [`watch`] | the run's event loop: what it takes off the bus, and why it stops ([`stop::StopReason`]) |
 //! | [`measure`] | latencies, rates, steady-state allocations, `/proc` samples |
 //! | [`status`] | what the run says on stderr as it goes: its messages and one status line |
+//! | [`physics`] | the run against MuJoCo's truth: the summary's `physics` |
 //! | [`track`] | the state machines the watch feeds: heartbeats, the estimate against the truth, re-plans, SIGHUP |
 //! | [`summary`] | what the run prints at the end and writes with `--summary-json` |
 
 pub(crate) mod launch;
 pub(crate) mod measure;
+pub(crate) mod physics;
 pub(crate) mod status;
 pub(crate) mod stop;
 pub(crate) mod summary;

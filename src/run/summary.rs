@@ -172,6 +172,9 @@ pub struct RunSummary {
     pub estimate: Option<EstimateError>,
     /// Hold commands because the estimate was off (its residuals over their bounds).
     pub estimate_holds: u64,
+    /// What MuJoCo's truth says of the run (a MuJoCo plant only; see `src/run/physics.rs`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub physics: Option<super::physics::PhysicsSummary>,
 }
 
 /// Latency percentiles of the tracking commands: from the plant's joint measurement to the
@@ -300,6 +303,7 @@ impl RunSummary {
             allocations: seen.allocations,
             estimate: seen.estimate,
             estimate_holds: seen.estimate_holds,
+            physics: seen.physics,
             recording: facts.recording.map(|(target, id)| RecordingSummary {
                 target,
                 id,
@@ -427,6 +431,31 @@ impl RunSummary {
                 e.tracked_off_truth,
                 config.pipeline.max_pose_innovation.to_degrees(),
             )?;
+        }
+        if let Some(p) = &s.physics {
+            writeln!(
+                o,
+                "physics    {}: the object turned {:.1} deg, its centre moved at most {:.2} mm{}",
+                p.engine,
+                p.rotation_deg,
+                p.drift_m * 1e3,
+                if p.dropped { "; DROPPED" } else { "" }
+            )?;
+            writeln!(
+                o,
+                "           contacts planned to roll: slip up to {:.1} mm/s, friction use up to {:.2} of mu, {} lost while planned",
+                p.max_slip_m_s * 1e3,
+                p.max_friction_use,
+                p.unplanned_losses
+            )?;
+            match p.min_true_quality {
+                Some(q) => writeln!(
+                    o,
+                    "           true grasp quality >= {q:.3} (alpha {}) over {} plan steps, {} not in force closure",
+                    config.grasp.alpha, p.steps_evaluated, p.steps_not_closed
+                )?,
+                None => writeln!(o, "           no plan step's true grasp was evaluated")?,
+            }
         }
         if verbose {
             writeln!(

@@ -14,10 +14,11 @@ use icrflow_interfaces::{
 use icrflow_runtime::bus::{Bus, SliceSub, Sub};
 use icrflow_runtime::event::{Loop, RESYNC};
 use icrflow_runtime::supervise::Supervisor;
-use icrflow_scenario::Config;
+use icrflow_scenario::{Config, PlantKind};
 
 use super::launch::{VisualizerStart, report, start_visualizer};
 use super::measure::{AllocationTrack, Rate, Timing, resident_kib, scheduling};
+use super::physics::{PhysicsSummary, PhysicsTrack};
 use super::status::{Status, say};
 use super::stop::StopReason;
 use super::summary::{Allocations, Histogram, Latencies, Memory, PlanStream};
@@ -66,6 +67,7 @@ pub(super) struct Seen {
     pub allocations: BTreeMap<String, Allocations>,
     pub estimate: Option<EstimateError>,
     pub estimate_holds: u64,
+    pub physics: Option<PhysicsSummary>,
 }
 
 /// The topics the run reads.
@@ -136,6 +138,8 @@ pub(super) struct Watch {
     /// restarted after pipeline.hung_restart_s.
     beats: Heartbeats,
     truth: TruthTrack,
+    /// The run against MuJoCo's truth (a MuJoCo plant only).
+    physics: Option<PhysicsTrack>,
     estimate_holds: u64,
     /// Whether the last command was a hold for the estimate.
     doubting: bool,
@@ -199,7 +203,15 @@ pub(super) fn watch(
         names.len(),
         names.join(", ")
     );
+    let physics = match config.plant.kind {
+        PlantKind::Mujoco => Some(PhysicsTrack::new(
+            config,
+            icrflow_physics::sim::MUJOCO_VERSION,
+        )?),
+        PlantKind::Kinematic => None,
+    };
     let mut w = Watch::new(config, live, names, hangup, now);
+    w.physics = physics;
     // The visualizer listens before the loop begins, or its recording would miss the first
     // plan steps (it starts at a lower priority, and sets up as long as a node).
     let mut waited = VisualizerStart::Listening;
@@ -278,6 +290,7 @@ impl Watch {
             frames: BTreeMap::new(),
             beats: Heartbeats::default(),
             truth: TruthTrack::default(),
+            physics: None,
             estimate_holds: 0,
             doubting: false,
             replan_progress: ReplanProgress::default(),
@@ -387,6 +400,9 @@ impl Watch {
     /// A plan step.
     fn plan_step(&mut self, p: &PlanStepHeader) {
         self.plan_published += 1;
+        if let Some(physics) = &mut self.physics {
+            physics.plan_step(p);
+        }
         if let [.., taken, published] = p.header.trace.as_slice() {
             self.plan_compute
                 .add(published.saturating_sub(*taken) as f64 * 1e-3);
@@ -499,7 +515,12 @@ impl Watch {
         }
         let now = Instant::now();
         ports.healths.drain(|h| self.take_health(h, now))?;
-        ports.truths.drain(|t| self.truth.truth(t))?;
+        ports.truths.drain(|t| {
+            self.truth.truth(t);
+            if let Some(p) = &mut self.physics {
+                p.truth(t);
+            }
+        })?;
         for e in supervisor.poll(Instant::now())? {
             report(&e);
         }
@@ -646,6 +667,7 @@ impl Watch {
                 .collect(),
             estimate: self.truth.summary(),
             estimate_holds: self.estimate_holds,
+            physics: self.physics.as_ref().map(PhysicsTrack::summary),
             frames: self
                 .frames
                 .values()

@@ -1,0 +1,50 @@
+//! The model of a config: its hand and object under its `[plant]` settings.
+
+use anyhow::{Result, anyhow};
+use icrflow_grasp::math::{Real, Vec3};
+use icrflow_plan::planner::Contact;
+use icrflow_scenario::{Config, ObjectSpec, Setup};
+
+use crate::scene::{Params, Shape, initial_joints, mjcf};
+use crate::sim::{Controls, Sim};
+
+/// The MJCF of the config's hand and object under its `[plant]` settings.
+pub fn model(config: &Config, setup: &Setup) -> Result<String> {
+    let p = &config.plant;
+    let shape = match config.object {
+        ObjectSpec::Sphere { radius, .. } => Shape::Sphere { radius },
+        ObjectSpec::Ellipsoid { semi_axes, .. } => Shape::Ellipsoid { semi_axes },
+        _ => Shape::Mesh,
+    };
+    let params = Params {
+        timestep: p.timestep,
+        gravity: Vec3::from(p.gravity),
+        density: p.density,
+        friction: config.grasp.model.mu(),
+        link_radius: p.link_radius,
+        kp: p.kp,
+        kv: p.kv,
+    };
+    mjcf(&setup.hand, &setup.object, shape, &params).map_err(|e| anyhow!("plant: {e}"))
+}
+
+/// Whether MuJoCo can build the config's model (for `validate`): its mass, or why not.
+pub fn check(config: &Config, setup: &Setup, contacts: &[Contact]) -> Result<Real> {
+    let xml = model(config, setup)?;
+    let sim = Sim::new(
+        &xml,
+        &setup.hand,
+        &initial_joints(&setup.hand, contacts),
+        controls(config),
+    )
+    .map_err(|e| anyhow!("plant.kind = \"mujoco\": {e}"))?;
+    Ok(sim.object_mass())
+}
+
+/// How the config drives the hand.
+pub fn controls(config: &Config) -> Controls {
+    Controls {
+        feedforward: config.plant.feedforward,
+        squeeze: config.plant.squeeze,
+    }
+}
