@@ -26,7 +26,7 @@ pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 5;
+pub const SCHEMA_VERSION: u32 = 6;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -44,7 +44,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v5`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v6`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -87,7 +87,7 @@ pub enum Kind {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Header.v5")]
+#[type_name("icrflow.Header.v6")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -131,7 +131,7 @@ pub const TRACE_STAMPS: usize = 7;
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Trace.v5")]
+#[type_name("icrflow.Trace.v6")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -326,7 +326,7 @@ messages!(
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.JointState.v5")]
+#[type_name("icrflow.JointState.v6")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -356,7 +356,7 @@ pub struct JointState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.ObjectPose.v5")]
+#[type_name("icrflow.ObjectPose.v6")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -438,7 +438,7 @@ pub enum PlantEngine {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerContact.v5")]
+#[type_name("icrflow.FingerContact.v6")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -470,7 +470,7 @@ pub struct FingerContact {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.GraspState.v5")]
+#[type_name("icrflow.GraspState.v6")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -517,7 +517,7 @@ pub struct GraspState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.WrenchSpaceHeader.v5")]
+#[type_name("icrflow.WrenchSpaceHeader.v6")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -547,7 +547,7 @@ pub struct WrenchSpaceHeader {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Facet.v5")]
+#[type_name("icrflow.Facet.v6")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -585,7 +585,7 @@ pub enum PlanPhase {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerTarget.v5")]
+#[type_name("icrflow.FingerTarget.v6")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -619,7 +619,7 @@ pub struct FingerTarget {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlanStepHeader.v5")]
+#[type_name("icrflow.PlanStepHeader.v6")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -660,7 +660,7 @@ pub enum CommandMode {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.HandCommand.v5")]
+#[type_name("icrflow.HandCommand.v6")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -715,7 +715,7 @@ pub enum NodeState {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.NodeHealth.v5")]
+#[type_name("icrflow.NodeHealth.v6")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -1132,12 +1132,12 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v5");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v5");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v5");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v5");
-        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v5");
-        assert_eq!(SCHEMA_VERSION, 5);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v6");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v6");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v6");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v6");
+        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v6");
+        assert_eq!(SCHEMA_VERSION, 6);
     }
 
     #[test]
@@ -1213,7 +1213,10 @@ mod tests {
         assert_eq!(std::mem::size_of::<Facet>(), 56);
         assert_eq!(std::mem::size_of::<FingerContact>(), 72);
         assert_eq!(std::mem::size_of::<GraspState>(), 104 + 96 + 8 * 72 + 512);
-        assert_eq!(std::mem::size_of::<PlantTruth>(), 104 + 64 + 8 + 64);
+        assert_eq!(
+            std::mem::size_of::<PlantTruth>(),
+            104 + 64 + 8 + 64 + 3 * 192 + 64
+        );
         assert_eq!(std::mem::size_of::<FingerTarget>(), 112);
         assert_eq!(
             std::mem::size_of::<PlanStepHeader>(),
