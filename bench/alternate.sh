@@ -5,7 +5,10 @@
 # benchmark and the Zenoh client.
 # Usage: bench/alternate.sh DIR_A DIR_B [rounds, default 3] [seconds per run, default 65]
 #   DIR_A, DIR_B: folders each holding an `icrflow` binary and its node binaries beside it
-#   (e.g. a copy of target/release of another commit).
+#   (e.g. a copy of target/release of another commit; the same folder twice to compare configs).
+#   CONFIG_A, CONFIG_B: the config each side runs (default config/paper_sphere_3turns.toml for
+#   both), e.g. CONFIG_B=config/paper_sphere_mujoco.toml against CONFIG_A=config/paper_sphere.toml
+#   to compare the plants.
 # Writes each run's summary to $CARGO_TARGET_DIR/alternate/{a,b}-N.json and prints a table.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -15,6 +18,7 @@ if [ $# -lt 2 ]; then
     exit 1
 fi
 a="$1" b="$2" rounds="${3:-3}" seconds="${4:-65}"
+config_a="${CONFIG_A:-config/paper_sphere_3turns.toml}" config_b="${CONFIG_B:-config/paper_sphere_3turns.toml}"
 for d in "$a" "$b"; do
     for bin in icrflow icrflow-plant icrflow-estimator icrflow-wrench icrflow-planner icrflow-command icrflow-bridge icrflow-visualizer; do
         [ -x "$d/$bin" ] || { echo "alternate: $d/$bin is missing or not executable" >&2; exit 1; }
@@ -27,11 +31,11 @@ mkdir -p "$out"
 rm -f "$out"/*.json
 for i in $(seq 1 "$rounds"); do
     for side in a b; do
-        dir="$a"
-        [ "$side" = b ] && dir="$b"
-        echo "== round $i, $side ($dir), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+        dir="$a" config="$config_a"
+        [ "$side" = b ] && dir="$b" config="$config_b"
+        echo "== round $i, $side ($dir, $config), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
         timeout --preserve-status -s INT "$seconds" "$dir/icrflow" run --live \
-            config/paper_sphere_3turns.toml \
+            "$config" \
             --summary-json "$out/$side-$i.json" >/dev/null 2>"$out/$side-$i.log" || true
         [ -s "$out/$side-$i.json" ] || { echo "alternate: run $side-$i wrote no summary:" >&2; tail -5 "$out/$side-$i.log" >&2; exit 1; }
     done

@@ -21,12 +21,13 @@ use std::collections::VecDeque;
 use anyhow::{Result, anyhow};
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
 use icrflow_interfaces::{
-    CommandMode, HandCommand, JointState, MAX_FINGERS, MAX_JOINTS, ObjectPose, PlantEngine,
-    PlantTruth,
+    CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose,
+    PlantEngine, PlantTruth,
 };
 use icrflow_physics::configured::{controls, model};
 use icrflow_physics::scene::initial_joints;
 use icrflow_physics::sim::Sim;
+use icrflow_plan::forces::{Balance, ForceContact, ForceSolver, Load};
 use icrflow_plan::hand::{Hand, wrap};
 use icrflow_plan::planner::Contact;
 use icrflow_scenario::{Config, PipelineSpec, Setup};
@@ -309,54 +310,64 @@ impl<'a> Physical<'a> {
     }
 }
 
+/// A tracking command made at `at_ns` that holds the hand still in the grasp `contacts`: every
+/// finger's joints at that grasp (where [`Physical::new`] starts them) and forces that balance
+/// the object's weight inside the friction cones narrowed by `plant.friction_margin`, each
+/// pressing at least `pipeline.min_normal_force` (for tests and benchmarks of the plant).
+pub fn holding_command(
+    config: &Config,
+    setup: &Setup,
+    contacts: &[Contact],
+    at_ns: u64,
+) -> Result<HandCommand> {
+    let cands = setup.problem.candidates();
+    let points: Vec<ForceContact> = contacts
+        .iter()
+        .map(|c| ForceContact {
+            point: cands.points[c.candidate] - setup.object.centre_of_mass,
+            normal: cands.normals[c.candidate],
+        })
+        .collect();
+    let load = Load {
+        force: Vec3::from(config.plant.weight(setup.object.volume)),
+        ..Load::none()
+    };
+    let mut forces = Vec::new();
+    let found = ForceSolver::new().solve(
+        &points,
+        &load,
+        config.grasp.model.mu() * (1.0 - config.plant.friction_margin),
+        config.pipeline.min_normal_force,
+        &mut forces,
+    )?;
+    if !matches!(found, Balance::Balanced(())) {
+        return Err(anyhow!("the grasp cannot hold the object: {found}"));
+    }
+    let mut cmd = HandCommand {
+        header: Header::new(Kind::HandCommand, 1, 0, 0),
+        mode: CommandMode::Track as u32,
+        finger_count: setup.hand.fingers.len() as u32,
+        ..Default::default()
+    };
+    cmd.header.source_time_ns = at_ns;
+    let joints = initial_joints(&setup.hand, contacts);
+    for (slot, f) in setup.hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+        cmd.finger_ids[slot] = f.id;
+        let dof = f.dof().min(MAX_JOINTS);
+        cmd.joint_targets[slot][..dof].copy_from_slice(&joints[slot][..dof]);
+        if let Some(i) = contacts.iter().position(|c| c.finger == f.id) {
+            cmd.forces[slot] = forces[i].into();
+        }
+    }
+    Ok(cmd)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::testing::paper;
-    use icrflow_interfaces::{Header, Kind};
-    use icrflow_plan::forces::{Balance, ForceContact, ForceSolver, Load};
 
     const T0: u64 = 1_000_000_000_000;
-
-    /// A command holding the initial grasp with balancing forces (hand frame) on `setup`'s
-    /// initial contacts, made at `at`.
-    fn hold_grasp(config: &Config, setup: &Setup, contacts: &[Contact], at: u64) -> HandCommand {
-        let cands = setup.problem.candidates();
-        let mut fc = Vec::new();
-        for c in contacts {
-            fc.push(ForceContact {
-                point: cands.points[c.candidate] - setup.object.centre_of_mass,
-                normal: cands.normals[c.candidate],
-            });
-        }
-        let weight = config.plant.weight(setup.object.volume);
-        let load = Load {
-            force: Vec3::from(weight),
-            ..Load::none()
-        };
-        let mut forces = Vec::new();
-        let mut solver = ForceSolver::new();
-        let found = solver
-            .solve(&fc, &load, config.grasp.model.mu() * 0.8, 1.0, &mut forces)
-            .unwrap();
-        assert!(matches!(found, Balance::Balanced(())), "{found}");
-        let mut cmd = HandCommand {
-            header: Header::new(Kind::HandCommand, 1, 0, 0),
-            mode: CommandMode::Track as u32,
-            ..Default::default()
-        };
-        cmd.header.source_time_ns = at;
-        let joints = initial_joints(&setup.hand, contacts);
-        cmd.finger_count = setup.hand.fingers.len() as u32;
-        for (slot, f) in setup.hand.fingers.iter().enumerate() {
-            cmd.finger_ids[slot] = f.id;
-            cmd.joint_targets[slot][..f.dof()].copy_from_slice(&joints[slot]);
-            if let Some(i) = contacts.iter().position(|c| c.finger == f.id) {
-                cmd.forces[slot] = forces[i].into();
-            }
-        }
-        cmd
-    }
 
     /// Holds the paper sphere in its initial grasp for `seconds`: the object's drift (m) and
     /// the largest friction use seen.
@@ -370,7 +381,7 @@ mod tests {
         let ticks = (seconds * config.pipeline.rate_hz) as u64;
         for k in 1..=ticks {
             let t = T0 + k * dt;
-            let cmd = hold_grasp(config, setup, &contacts, t);
+            let cmd = holding_command(config, setup, &contacts, t).unwrap();
             plant.tick(t, Some(&cmd));
             touching = 0;
             for slot in 0..setup.hand.fingers.len() {
@@ -394,6 +405,7 @@ mod tests {
     fn the_paper_grasp_holds_the_sphere_still_with_its_balancing_forces() {
         let (mut config, setup) = paper();
         config.plant.kind = icrflow_scenario::PlantKind::Mujoco;
+        config.plant.friction_margin = 0.2;
         let (drift, friction_use, touching) = hold(&config, &setup, 1.0);
         assert_eq!(touching, 3);
         assert!(drift < 1e-3, "drift {drift}");
@@ -404,6 +416,7 @@ mod tests {
     fn under_gravity_the_forces_carry_the_weight() {
         let (mut config, setup) = paper();
         config.plant.kind = icrflow_scenario::PlantKind::Mujoco;
+        config.plant.friction_margin = 0.2;
         config.plant.gravity = [0.0, 0.0, -9.81];
         let (drift, friction_use, touching) = hold(&config, &setup, 1.0);
         assert_eq!(touching, 3);
