@@ -146,8 +146,6 @@ impl<'a> Physical<'a> {
     /// whether the commands are followed, then MuJoCo's state ([`Sim::state`]).
     pub fn save(&self, text: &mut String) {
         use std::fmt::Write as _;
-        let mut v = Vec::new();
-        self.sim.state(&mut v);
         let _ = write!(
             text,
             "mujoco {:e} {:e} {}",
@@ -155,7 +153,7 @@ impl<'a> Physical<'a> {
             self.last_yaw,
             u8::from(self.started)
         );
-        for x in v {
+        for x in self.sim.state() {
             let _ = write!(text, " {x:e}");
         }
     }

@@ -102,8 +102,10 @@ pub struct Sim {
     object_qpos: usize,
     controls: Controls,
     hand: Hand,
-    /// Per finger, where its fingertip touches the object this step (None: nowhere).
+    /// Per finger, where its fingertip touches the object this step (None: nowhere), and of
+    /// how many of MuJoCo's contacts that is the mean.
     touching: Vec<Option<TrueContact>>,
+    counts: Vec<usize>,
     /// An external force and torque on the object (hand frame, about its centre of mass)
     /// until a simulation time (s).
     push: Option<([Real; 6], Real)>,
@@ -188,6 +190,7 @@ impl Sim {
         let mut sim = Self {
             data: MjData::new(Box::new(model)),
             touching: vec![None; fingers.len()],
+            counts: vec![0; fingers.len()],
             fingers,
             object_body,
             object_geom,
@@ -329,7 +332,7 @@ impl Sim {
         for t in self.touching.iter_mut() {
             *t = None;
         }
-        let mut counts = [0usize; 16];
+        self.counts.fill(0);
         let object = self.object_geom as i32;
         for i in 0..self.data.contact().len() {
             let c = &self.data.contact()[i];
@@ -358,15 +361,13 @@ impl Sim {
             e.point += point;
             e.normal += outward;
             e.force += force;
-            if slot < counts.len() {
-                counts[slot] += 1;
-            }
+            self.counts[slot] += 1;
         }
         for slot in 0..self.touching.len() {
             let Some(mut c) = self.touching[slot] else {
                 continue;
             };
-            let k = counts.get(slot).copied().unwrap_or(1).max(1) as Real;
+            let k = self.counts[slot].max(1) as Real;
             c.point /= k;
             c.normal = c.normal.try_normalize(1e-12).unwrap_or(c.normal);
             c.normal_force = -c.force.dot(&c.normal);
@@ -391,16 +392,17 @@ impl Sim {
     }
 
     /// The state as numbers: the time, `qpos`, `qvel`, and every finger's commanded targets
-    /// and force (what a restarted plant resumes from, [`Sim::set_state`]).
-    pub fn state(&self, out: &mut Vec<Real>) {
-        out.clear();
-        out.push(self.time());
-        out.extend_from_slice(self.data.qpos());
-        out.extend_from_slice(self.data.qvel());
-        for f in &self.fingers {
-            out.extend_from_slice(&f.target[..f.qpos.len()]);
-            out.extend_from_slice(f.force.as_slice());
-        }
+    /// and force (what a restarted plant resumes from, [`Sim::set_state`]); nothing allocated.
+    pub fn state(&self) -> impl Iterator<Item = Real> + '_ {
+        std::iter::once(self.time())
+            .chain(self.data.qpos().iter().copied())
+            .chain(self.data.qvel().iter().copied())
+            .chain(self.fingers.iter().flat_map(|f| {
+                f.target[..f.qpos.len()]
+                    .iter()
+                    .copied()
+                    .chain(f.force.iter().copied())
+            }))
     }
 
     /// Resumes from a [`Sim::state`] of this model; `false` (nothing changed) if `v` is not one.
