@@ -16,6 +16,7 @@ mod common;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::{python, root, scratch};
@@ -54,6 +55,10 @@ struct Hosts {
     workstation: String,
     robot_if: String,
     children: Vec<Child>,
+    /// Each child's stderr so far, read line by line on a thread of its own from the start
+    /// (so that the test can wait for what a run says, and no run ever blocks on a full
+    /// pipe), and that thread.
+    stderrs: Vec<(Arc<Mutex<String>>, std::thread::JoinHandle<()>)>,
 }
 
 impl Hosts {
@@ -69,6 +74,7 @@ impl Hosts {
             workstation: format!("icr-{tag}-w{id}"),
             robot_if: format!("icr{id}r"),
             children: Vec::new(),
+            stderrs: Vec::new(),
         };
         let ws_if = format!("icr{id}w");
         sh(&["ip", "netns", "add", &hosts.robot])
@@ -127,7 +133,7 @@ impl Hosts {
     /// the path of its summary.
     fn run(&mut self, ns: &str, config: &Path, env: &[(&str, &str)]) -> PathBuf {
         let summary = config.with_extension("json");
-        let child = Command::new("ip")
+        let mut child = Command::new("ip")
             .args(["netns", "exec", ns, "unshare", "-m", "sh", "-c"])
             .arg("mount -t tmpfs icrflow-shm /dev/shm && exec \"$0\" \"$@\"")
             .arg(env!("CARGO_BIN_EXE_icrflow"))
@@ -139,6 +145,19 @@ impl Hosts {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
+        let stderr = child.stderr.take().unwrap();
+        let said = Arc::new(Mutex::new(String::new()));
+        let into = Arc::clone(&said);
+        let reader = std::thread::spawn(move || {
+            use std::io::BufRead as _;
+            for line in std::io::BufReader::new(stderr).lines() {
+                let Ok(line) = line else { break };
+                let mut all = into.lock().unwrap_or_else(|e| e.into_inner());
+                all.push_str(&line);
+                all.push('\n');
+            }
+        });
+        self.stderrs.push((said, reader));
         self.children.push(child);
         summary
     }
@@ -146,12 +165,28 @@ impl Hosts {
     /// Waits for run `k`: its exit success and stderr.
     fn wait(&mut self, k: usize) -> (bool, String) {
         let mut child = self.children.remove(k);
-        let mut err = String::new();
-        if let Some(mut e) = child.stderr.take() {
-            use std::io::Read as _;
-            let _ = e.read_to_string(&mut err);
+        let ok = child.wait().unwrap().success();
+        let (said, reader) = self.stderrs.remove(k);
+        let _ = reader.join();
+        let err = std::mem::take(&mut *said.lock().unwrap_or_else(|e| e.into_inner()));
+        (ok, err)
+    }
+
+    /// Waits until run `k` has said `words` on stderr (at most `limit`); whether it has.
+    fn said(&self, k: usize, words: &str, limit: Duration) -> bool {
+        let start = std::time::Instant::now();
+        while start.elapsed() < limit {
+            if self.stderrs[k]
+                .0
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .contains(words)
+            {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(50));
         }
-        (child.wait().unwrap().success(), err)
+        false
     }
 
     /// Sets the robot's end of the link down or up.
@@ -342,8 +377,13 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
     }
     let (robot_ok, robot_err) = hosts.wait(0);
     let (ws_ok, ws_err) = hosts.wait(0);
-    assert!(robot_ok, "robot: {robot_err}");
-    assert!(ws_ok, "workstation: {ws_err}");
+    // Each host's words on either's failure: what one did explains the other's.
+    assert!(
+        robot_ok && ws_ok,
+        "robot ({}): {robot_err}\nworkstation ({}): {ws_err}",
+        if robot_ok { "ok" } else { "failed" },
+        if ws_ok { "ok" } else { "failed" }
+    );
     let robot_s = summary(&robot_summary);
     let ws_s = summary(&ws_summary);
     assert_eq!(robot_s["bus_prefix"], format!("icr{robot_pid}_"));
@@ -379,15 +419,26 @@ fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     let Some((mut hosts, dir, robot_summary, ws_summary)) = start_pair(test, "cut") else {
         return;
     };
-    // Mid-run (the pair takes ~15 s uncut), the link goes down for 4 s.
-    std::thread::sleep(Duration::from_secs(6));
+    // Mid-run, the link goes down for 4 s: 2 s after the robot's hand has started to follow
+    // the plan (the pair takes ~15 s uncut; how long the workstation takes to plan depends on
+    // the machine's load, so the cut is timed from the run, not from the start).
+    assert!(
+        hosts.said(0, "run: the plan is ready", Duration::from_secs(120)),
+        "the robot's hand never started"
+    );
+    std::thread::sleep(Duration::from_secs(2));
     hosts.link(false);
     std::thread::sleep(Duration::from_secs(4));
     hosts.link(true);
     let (robot_ok, robot_err) = hosts.wait(0);
     let (ws_ok, ws_err) = hosts.wait(0);
-    assert!(robot_ok, "robot: {robot_err}");
-    assert!(ws_ok, "workstation: {ws_err}");
+    // Each host's words on either's failure: what one did explains the other's.
+    assert!(
+        robot_ok && ws_ok,
+        "robot ({}): {robot_err}\nworkstation ({}): {ws_err}",
+        if robot_ok { "ok" } else { "failed" },
+        if ws_ok { "ok" } else { "failed" }
+    );
     let robot_s = summary(&robot_summary);
     let ws_s = summary(&ws_summary);
     assert_completed_together(&robot_s, &ws_s);
