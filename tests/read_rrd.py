@@ -1,6 +1,6 @@
 """Reads a Rerun recording of `icrflow run` or `icrflow plan` back with the Python Rerun SDK of the same version
 as the Rust crate (rerun-sdk, pinned in bench/requirements.txt), no code of ours. Used by
-tests/visualizer.rs.
+tests/visualizer.rs and tests/run_mujoco.rs.
 
     python tests/read_rrd.py RECORDING.rrd [MORE.rrd ...]
     python tests/read_rrd.py --png SCREENSHOT.png [OTHER.png]
@@ -15,6 +15,8 @@ Prints one JSON object:
   rendezvous      [step, points] of every /scene/object/rendezvous row with points
   quality_min     the smallest value logged on /timeseries/quality/alpha_star
   alpha           the values logged on /timeseries/quality/alpha (distinct)
+  true_rotation_max  the largest value logged on /timeseries/angles/object_true (a
+                  simulated plant's true rotation)
   dropped_max     the last count of dropped frames (/timeseries/dropped_frames)
 
 With --png: the picture's width, height and number of distinct colours (a blank one has
@@ -125,6 +127,7 @@ def main() -> int:
     ids, entities = set(), set()
     rows = collections.Counter()
     steps, quality, alpha, dropped, phases, rendezvous = [], [], set(), [], [], []
+    true_rotation = []
     for path in sys.argv[1:]:
         reader = RrdReader(path)
         ids.update(r.recording_id for r in reader.recordings())
@@ -136,6 +139,7 @@ def main() -> int:
         quality += values(store, "/timeseries/quality/alpha_star")
         alpha.update(values(store, "/timeseries/quality/alpha"))
         dropped += values(store, "/timeseries/dropped_frames")
+        true_rotation += values(store, "/timeseries/angles/object_true")
         phases += rows_by_step(store, "/timeseries/phase", SCALARS)
         rendezvous += rows_by_step(store, "/scene/object/rendezvous", POSITIONS)
     print(
@@ -148,6 +152,7 @@ def main() -> int:
                 "phases": sorted(phases),
                 "rendezvous": sorted(rendezvous),
                 "quality_min": min(quality) if quality else None,
+                "true_rotation_max": max(true_rotation) if true_rotation else None,
                 "alpha": sorted(alpha),
                 "dropped_max": max(dropped) if dropped else None,
             }

@@ -12,12 +12,14 @@ static PIPELINE: Mutex<()> = Mutex::new(());
 
 /// `config/NAME` turned `rotation` degrees, giving up after `max_hold` s of holds or of no
 /// progress, with `plant` keys added to its `[plant]`, written into `dir`; run with
-/// `--summary-json`: the summary's text, the JSON, stderr.
+/// `--summary-json`, recorded to `rrd` (else without the visualizer): the summary's text, the
+/// JSON, stderr.
 fn run(
     dir: &std::path::Path,
     name: &str,
     rotation: f64,
     plant: &str,
+    rrd: Option<&std::path::Path>,
 ) -> (String, serde_json::Value, String) {
     let text = std::fs::read_to_string(root().join("config").join(name)).unwrap();
     let mesh = root().join("config/meshes");
@@ -34,13 +36,17 @@ fn run(
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     let summary = dir.join("summary.json");
-    let o = icrflow(&[
+    let mut args = vec![
         "run",
         path.to_str().unwrap(),
-        "--no-visualizer",
         "--summary-json",
         summary.to_str().unwrap(),
-    ]);
+    ];
+    match rrd {
+        Some(rrd) => args.extend(["--rrd", rrd.to_str().unwrap()]),
+        None => args.push("--no-visualizer"),
+    }
+    let o = icrflow(&args);
     let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert_ne!(o.status.code(), Some(1), "run failed: {err}");
     let s = serde_json::from_slice(&std::fs::read(&summary).unwrap()).expect("one JSON object");
@@ -49,12 +55,14 @@ fn run(
 
 /// The loop closes on real physics: the fingertips roll the sphere in MuJoCo (the first 45
 /// degrees of the paper's plan, one finger switch), the estimate follows MuJoCo's true
-/// rotation, the object stays in the hand, and the summary says what the physics did.
+/// rotation, the object stays in the hand, and the summary says what the physics did; the
+/// recording shows the truth beside the estimate.
 #[test]
 fn the_paper_sphere_turns_in_mujoco_as_the_estimate_says() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("mujoco-sphere");
-    let (out, s, _) = run(&dir, "paper_sphere_mujoco.toml", 45.0, "");
+    let rrd = dir.join("run.rrd");
+    let (out, s, _) = run(&dir, "paper_sphere_mujoco.toml", 45.0, "", Some(&rrd));
     let p = &s["physics"];
     assert_eq!(p["engine"], "MuJoCo 3.17.0", "{s}");
     let truth = p["rotation_deg"].as_f64().unwrap();
@@ -78,6 +86,29 @@ fn the_paper_sphere_turns_in_mujoco_as_the_estimate_says() {
         out.contains("physics    MuJoCo 3.17.0: the object turned "),
         "{out}"
     );
+    // Read back by the Rerun SDK: the true contacts and forces beside the estimated ones, and
+    // the true rotation, which reaches what the summary says MuJoCo turned the object.
+    let r = std::process::Command::new(common::python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let entities = r["entities"].to_string();
+    for e in [
+        "/scene/contacts",
+        "/scene/truth/contacts",
+        "/scene/truth/forces",
+        "/timeseries/angles/object_true",
+    ] {
+        assert!(
+            entities.contains(&format!("\"{e}\"")),
+            "{e} missing: {entities}"
+        );
+    }
+    let recorded = r["true_rotation_max"].as_f64().unwrap();
+    assert!((recorded - truth).abs() < 3.0, "{recorded} vs {truth}");
     assert!(!out.contains("DROPPED"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -94,6 +125,7 @@ fn without_force_targets_or_squeeze_the_ellipsoid_falls_and_the_summary_says_so(
         "ellipsoid_mujoco.toml",
         45.0,
         "feedforward = false\nsqueeze_mm = 0.0",
+        None,
     );
     let p = &s["physics"];
     assert_eq!(p["dropped"], true, "{s}");

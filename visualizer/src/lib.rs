@@ -1,7 +1,10 @@
 //! The Rerun visualizer node (`icrflow-visualizer`): one Rerun recording per run, showing what
 //! the paper's figures show, live: the hand and the object with each finger's ICR painted on
 //! it (Fig. 10), the wrench space in `(f_x, f_y, tau_z / rho)` (Fig. 9), and the angles,
-//! quality and phase over time (Fig. 11), plus the pipeline's latency.
+//! quality and phase over time (Fig. 11), plus the pipeline's latency. With MuJoCo as the plant
+//! it also shows the truth beside the estimate (from [`topics::PLANT_TRUTH`], which no node of
+//! the loop reads): where the fingertips truly touch, the true contact forces as arrows, and
+//! the object's true rotation beside the estimated one.
 //!
 //! It is off the control loop: it reads its subscribers on its own 10 ms timer (no node on the
 //! loop wakes it), builds a frame from the newest state at `visualizer.rate_hz`, and hands it to the
@@ -31,7 +34,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, anyhow, bail};
 use icrflow_grasp::math::Vec3;
 use icrflow_interfaces::{
-    CommandMode, GraspState, JointState, PlanStepHeader, TRACE_STAMPS, topics,
+    CommandMode, GraspState, JointState, MAX_FINGERS, PlanStepHeader, PlantTruth, TRACE_STAMPS,
+    topics,
 };
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::Health;
@@ -41,7 +45,7 @@ use icrflow_scenario::Loaded;
 use icrflow_scenario::{Recording, rrd_parts};
 
 use geometry::{P3, p3};
-use record::{FingerView, Frame, Statics};
+use record::{FingerView, Frame, Statics, TruthView};
 
 /// A restarted visualizer must not overwrite what its predecessor wrote: it records into the
 /// first free `STEM.N.rrd` beside the file (same recording id, so the viewer shows them as one:
@@ -64,6 +68,8 @@ struct State {
     quality: Option<f64>,
     latency: Option<[f64; 7]>,
     step: Option<u64>,
+    /// The newest truth of a simulated plant.
+    truth: Option<PlantTruth>,
 }
 
 impl State {
@@ -75,6 +81,7 @@ impl State {
             t,
             g,
             self.joints.as_ref(),
+            self.truth.as_ref(),
             ctx,
             com,
             &mut self.quality,
@@ -127,6 +134,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
+    let truths = ctx.bus.subscriber(topics::PLANT_TRUTH)?;
     let statics = statics(setup, id, alpha, true);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
@@ -221,6 +229,9 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
         }
         if let Some(j) = joints.latest()? {
             state.joints = Some(j);
+        }
+        if let Some(truth) = truths.latest()? {
+            state.truth = Some(truth);
         }
         commands.drain(|c| {
             if c.mode != CommandMode::Track as u32 {
@@ -413,6 +424,22 @@ pub(crate) fn finger_view(
     })
 }
 
+/// What a simulated plant's truth shows: the fingertips touching the object, where, and with
+/// what force.
+fn truth_view(t: &PlantTruth) -> TruthView {
+    let n = (t.finger_count as usize).min(MAX_FINGERS);
+    let touching = (0..n).filter(|&s| t.in_contact[s] != 0);
+    let f32s = |v: &[f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
+    TruthView {
+        contacts: touching
+            .clone()
+            .map(|s| f32s(&t.contact_points[s]))
+            .collect(),
+        forces: touching.map(|s| f32s(&t.contact_forces[s])).collect(),
+        rotation_deg: t.rotation.to_degrees(),
+    }
+}
+
 /// A scene and time-series frame from the newest grasp state and joint readings; takes the
 /// quality and latency gathered since the last one.
 #[allow(clippy::too_many_arguments)]
@@ -420,6 +447,7 @@ fn tick_frame(
     t: f64,
     g: &GraspState,
     joints: Option<&JointState>,
+    truth: Option<&PlantTruth>,
     ctx: &Context<Loaded>,
     com: &Vec3,
     quality: &mut Option<f64>,
@@ -451,6 +479,7 @@ fn tick_frame(
             fingers.extend(finger_view(finger, q, &centre));
         }
     }
+    let truth = truth.map(truth_view);
     let q = rotation.quaternion();
     Frame::Tick {
         t: Some(t),
@@ -462,6 +491,7 @@ fn tick_frame(
         contacts,
         cones,
         fingers,
+        truth,
         quality: quality.take(),
         latency: latency.take(),
         dropped,

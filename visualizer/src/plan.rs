@@ -153,6 +153,7 @@ fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
         fingers,
         quality: Some(step.quality),
         latency: None,
+        truth: None,
         dropped: 0,
     }
 }

@@ -28,6 +28,11 @@ pub mod paths {
     pub const CONTACTS: &str = "/scene/contacts";
     /// The friction-cone edges at the contacts.
     pub const CONES: &str = "/scene/cones";
+    /// With a simulated plant (MuJoCo): where the fingertips truly touch the object.
+    pub const TRUE_CONTACTS: &str = "/scene/truth/contacts";
+    /// With a simulated plant: the true contact forces on the object, as arrows
+    /// ([`super::FORCE_SCALE`] m per N).
+    pub const TRUE_FORCES: &str = "/scene/truth/forces";
     /// Each finger's links and fingertip (`/scene/fingers/finger_<n>/{links,tip}`).
     pub const FINGERS: &str = "/scene/fingers";
     /// The desired rotation axis.
@@ -44,7 +49,8 @@ pub mod paths {
     pub const WRENCH_AXES: &str = "/wrench_space/axes";
     /// The primitive wrenches of the ICR points.
     pub const CANDIDATES: &str = "/wrench_space/icr_wrenches";
-    /// Angles (deg): `object` and `finger_<n>`.
+    /// Angles (deg): `object` (estimated), `object_true` (with a simulated plant) and
+    /// `finger_<n>`.
     pub const ANGLES: &str = "/timeseries/angles";
     /// Quality: `alpha_star` (the grasp's, of the hand commands) and `alpha` (the margin).
     pub const QUALITY: &str = "/timeseries/quality";
@@ -64,6 +70,20 @@ pub mod paths {
 pub const TIME: &str = "time";
 /// The timeline of plan steps.
 pub const STEP: &str = "step";
+
+/// Length of a true contact force's arrow per newton (m).
+pub const FORCE_SCALE: f32 = 0.01;
+
+/// What a simulated plant knows to be true, in a scene frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthView {
+    /// The contact points (hand frame).
+    pub contacts: Vec<P3>,
+    /// The force on the object at each (N, hand frame).
+    pub forces: Vec<[f32; 3]>,
+    /// The object's true rotation about z (deg, unwrapped).
+    pub rotation_deg: f64,
+}
 
 /// A finger's state in a scene frame.
 #[derive(Debug, Clone)]
@@ -95,6 +115,8 @@ pub enum Frame {
         cones: Vec<Vec<P3>>,
         /// The fingers.
         fingers: Vec<FingerView>,
+        /// The truth, with a simulated plant (the newest before the frame).
+        truth: Option<TruthView>,
         /// The smallest quality of the tracking commands since the last tick.
         quality: Option<f64>,
         /// The largest latencies since the last tick: end to end, three hops, three computes.
@@ -290,6 +312,8 @@ pub mod colours {
     pub const CONES: u32 = 0xffa53dff;
     /// The contacts.
     pub const CONTACTS: u32 = 0xffffffff;
+    /// The true contacts and forces (a simulated plant's).
+    pub const TRUTH: u32 = 0xff4fd8ff;
     /// The rendezvous region and the rotation axis.
     pub const RENDEZVOUS: u32 = 0xffd23fff;
 }
@@ -405,6 +429,7 @@ pub fn log_frames(
                 contacts,
                 cones,
                 fingers,
+                truth,
                 quality,
                 latency,
                 dropped,
@@ -462,6 +487,29 @@ pub fn log_frames(
                     format!("{}/object", paths::ANGLES),
                     &rerun::Scalars::single(object_deg),
                 )?;
+                if let Some(truth) = truth {
+                    rec.log(
+                        paths::TRUE_CONTACTS,
+                        &rerun::Points3D::new(truth.contacts.iter().copied())
+                            .with_radii([0.0018])
+                            .with_colors([colours::TRUTH]),
+                    )?;
+                    rec.log(
+                        paths::TRUE_FORCES,
+                        &rerun::Arrows3D::from_vectors(
+                            truth.forces.iter().map(|f| {
+                                [f[0] * FORCE_SCALE, f[1] * FORCE_SCALE, f[2] * FORCE_SCALE]
+                            }),
+                        )
+                        .with_origins(truth.contacts)
+                        .with_radii([0.0008])
+                        .with_colors([colours::TRUTH]),
+                    )?;
+                    rec.log(
+                        format!("{}/object_true", paths::ANGLES),
+                        &rerun::Scalars::single(truth.rotation_deg),
+                    )?;
+                }
                 rec.log(
                     format!("{}/alpha", paths::QUALITY),
                     &rerun::Scalars::single(alpha),
