@@ -396,6 +396,17 @@ fn print_text(
             "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
         )?;
     }
+    if let Some(mm) = s.min_squeeze_reserve_mm {
+        writeln!(
+            o,
+            "squeeze    every finger in contact can press at least {mm:.2} mm further along its contact normal{}",
+            if mm >= icrflow_plan::planner::SQUEEZE_PROBE * 1e3 - 1e-9 {
+                " (measured up to 5 mm)"
+            } else {
+                ""
+            }
+        )?;
+    }
     if s.switches > 0 {
         let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
         writeln!(

@@ -96,6 +96,37 @@ fn spatial_ellipsoid_mesh_plan_keeps_the_margin() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Every contact pose of a plan leaves its finger room to press `plan.squeeze_reserve_mm` (2
+/// mm by default) further along the contact normal with the same point of its fingertip: the
+/// ellipsoid's plan without the requirement has a finger that could press only hundredths of
+/// a millimetre further (a joint at its limit), and the plan that keeps it chooses otherwise.
+#[test]
+fn every_contact_pose_leaves_room_to_squeeze() {
+    let dir = scratch("plan-squeeze");
+    let s = plan_json("config/ellipsoid_spatial.toml", &dir.join("kept"));
+    assert_eq!(s["completed"], true, "{s}");
+    let kept = s["min_squeeze_reserve_mm"].as_f64().unwrap();
+    assert!(kept >= 2.0 - 1e-6, "{s}");
+    let text = std::fs::read_to_string(root().join("config/ellipsoid_spatial.toml"))
+        .unwrap()
+        .replace(
+            "meshes/",
+            &format!("{}/", root().join("config/meshes").display()),
+        )
+        .replace("[plan]", "[plan]\nsqueeze_reserve_mm = 0.0");
+    let config = dir.join("unchecked.toml");
+    std::fs::write(&config, text).unwrap();
+    let s = plan_json(config.to_str().unwrap(), &dir.join("unchecked"));
+    assert_eq!(s["completed"], true, "{s}");
+    let unchecked = s["min_squeeze_reserve_mm"].as_f64().unwrap();
+    assert!(unchecked < 0.5, "{s}");
+    // The paper's plan has room everywhere: unchanged by the requirement (15 switches).
+    let s = plan_json("config/paper_sphere.toml", &dir.join("paper"));
+    assert!(s["min_squeeze_reserve_mm"].as_f64().unwrap() >= 2.0, "{s}");
+    assert_eq!(s["switches"], 15, "{s}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn urdf_hand_plans_the_same_as_the_built_in_hand() {
     let dir = scratch("plan-urdf");

@@ -25,6 +25,8 @@ use std::f64::consts::PI;
 
 /// Tolerance (m, rad) for treating a chain as planar.
 const PLANAR_TOLERANCE: Real = 1e-9;
+/// Steps along which [`Finger::reach_along`] follows a path.
+pub const REACH_STEPS: usize = 8;
 
 /// Why a hand description or a kinematic query failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -391,6 +393,42 @@ impl Finger {
             .sqrt()
     }
 
+    /// The fingertip sphere's centre at `q` (hand frame): [`Finger::fk`]'s `tip_centre`
+    /// without the rest of the pose, allocating nothing.
+    pub fn tip_centre(&self, q: &[Real]) -> Vec3 {
+        (self.chain(q, |_| {}) * nalgebra::Point3::from(self.tip)).coords
+    }
+
+    /// How far (m, at most `probe`) the fingertip centre of the finger at `q` can move along
+    /// the unit direction `dir` on a continuous path inside the joint limits: for a finger in
+    /// contact, with `dir` the inward contact normal, the room it has to press further into
+    /// the object (its *squeeze reserve*). The path is followed in [`REACH_STEPS`] steps of
+    /// local damped least squares, each from the last; where a step does not converge the
+    /// reserve is the last distance reached, refined by bisection to `probe / 256`.
+    pub fn reach_along(&self, q: &[Real], dir: &Vec3, probe: Real) -> Real {
+        let start = self.tip_centre(q);
+        reach(q, probe, |d, from| self.dls(&(start + dir * d), from).ok())
+    }
+
+    /// [`Finger::reach_along`] for a planar three-joint finger with the cap axis kept (the
+    /// fingertip presses with the same point of its cap, as a hand pressing on without
+    /// turning its fingertip does): with no redundancy left, a joint at its limit or a
+    /// straight finger stops it. `dir` is taken in the hand's plane. Each step is the closed
+    /// form ([`Finger::ik_planar`]) on the branch of the last, no joint moving more than
+    /// 0.5 rad at once; 0 for a finger that is not planar.
+    pub fn reach_along_planar(&self, q: &[Real], dir: &Vec3, probe: Real) -> Real {
+        let Some((x, y, phi)) = self.planar_pose(q) else {
+            return 0.0;
+        };
+        reach(q, probe, |d, from| {
+            let next = self
+                .ik_planar(x + dir.x * d, y + dir.y * d, phi, from)
+                .ok()?;
+            let jump = next.iter().zip(from).any(|(a, b)| (a - b).abs() > 0.5);
+            (!jump).then_some(next)
+        })
+    }
+
     /// Inverse kinematics of the fingertip centre by damped least squares, from `q0`, within
     /// the joint limits: joints at a limit that the step would push further out are frozen
     /// for that step (an active set), and each step is halved until the error decreases.
@@ -602,6 +640,57 @@ impl Finger {
         }
     }
 
+    /// The joints of a planar three-joint finger at `q` with its fingertip centre moved by
+    /// `d` in the hand's plane (m) and the cap axis kept (so the fingertip touches with the same
+    /// point of its cap), the elbow on the same branch, each joint the representative nearest
+    /// its angle in `q`, into `out`. Exact (closed form) and allocation-free: what follows an
+    /// object whose centre has moved by `d` with a pose planned about its old centre. `false`
+    /// (`out` unchanged) for a finger that is not planar with three joints, or a wrist moved
+    /// out of reach; the result is not clamped to the joint limits.
+    pub fn shift_planar(&self, q: &[Real], d: [Real; 2], out: &mut [Real]) -> bool {
+        let Some(p) = self.planar.as_ref() else {
+            return false;
+        };
+        if self.dof() != 3 || q.len() < 3 || out.len() < 3 {
+            return false;
+        }
+        let (l1, l2) = (p.lengths[0], p.lengths[1]);
+        let mut abs = [0.0; 3];
+        let mut turned = 0.0;
+        for i in 0..3 {
+            turned += p.signs[i] * q[i];
+            abs[i] = p.angles0[i] + turned;
+        }
+        // The wrist relative to the root, moved with the fingertip (the last link keeps its
+        // direction).
+        let wx = l1 * abs[0].cos() + l2 * abs[1].cos() + d[0];
+        let wy = l1 * abs[0].sin() + l2 * abs[1].sin() + d[1];
+        let r2 = wx * wx + wy * wy;
+        let (lo, hi) = ((l1 - l2).abs(), l1 + l2);
+        if r2 > hi * hi || r2 < lo * lo {
+            return false;
+        }
+        let bend = ((r2 - l1 * l1 - l2 * l2) / (2.0 * l1 * l2))
+            .clamp(-1.0, 1.0)
+            .acos();
+        let elbow = if wrap(abs[1] - abs[0]) >= 0.0 {
+            bend
+        } else {
+            -bend
+        };
+        let a1 = wy.atan2(wx) - (l2 * elbow.sin()).atan2(l1 + l2 * elbow.cos());
+        let moved = [a1, a1 + elbow, abs[2]];
+        for i in 0..3 {
+            let rel = if i == 0 {
+                moved[0] - p.angles0[0]
+            } else {
+                (moved[i] - moved[i - 1]) - (p.angles0[i] - p.angles0[i - 1])
+            };
+            out[i] = q[i] + wrap(p.signs[i] * rel - q[i]);
+        }
+        true
+    }
+
     /// The planar pose `(x, y, phi)` of the fingertip at `q` (planar fingers).
     pub fn planar_pose(&self, q: &[Real]) -> Option<(Real, Real, Real)> {
         self.planar.as_ref()?;
@@ -657,6 +746,44 @@ impl Finger {
             cap_offset: wrap(cap - last_link),
         })
     }
+}
+
+/// How far (at most `probe`) a finger starting at joints `q` gets by `step(d, from)`, which
+/// gives the joints at distance `d` from those at `from` (or `None`: not reachable from
+/// there): [`REACH_STEPS`] steps, each from the last, then bisection to `probe / 256` between
+/// the last reached and the first not.
+fn reach(
+    q: &[Real],
+    probe: Real,
+    mut step: impl FnMut(Real, &[Real]) -> Option<Vec<Real>>,
+) -> Real {
+    let mut q = q.to_vec();
+    let mut reached = 0.0;
+    let h = probe / REACH_STEPS as Real;
+    for k in 1..=REACH_STEPS {
+        let d = h * k as Real;
+        match step(d, &q) {
+            Some(next) => {
+                q = next;
+                reached = d;
+            }
+            None => {
+                let (mut lo, mut hi) = (reached, d);
+                while hi - lo > probe / 256.0 {
+                    let mid = 0.5 * (lo + hi);
+                    match step(mid, &q) {
+                        Some(next) => {
+                            q = next;
+                            lo = mid;
+                        }
+                        None => hi = mid,
+                    }
+                }
+                return lo;
+            }
+        }
+    }
+    reached
 }
 
 impl Hand {
@@ -838,6 +965,53 @@ mod tests {
                 assert!((a - b).abs() < 1e-9, "{sol:?} vs {q:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_planar_shift_moves_the_fingertip_and_keeps_its_cap_axis() {
+        let f = finger();
+        for q in [[0.3, -0.7, 1.1], [-0.2, 0.9, -0.4], [1.0, 1.5, 0.2]] {
+            let (x, y, phi) = f.planar_pose(&q).unwrap();
+            let mut out = [0.0; 3];
+            for d in [[1e-3, 0.0], [-0.8e-3, 2.5e-3], [0.0, 0.0]] {
+                assert!(f.shift_planar(&q, d, &mut out));
+                let (x2, y2, phi2) = f.planar_pose(&out).unwrap();
+                assert!((x2 - x - d[0]).abs() < 1e-12, "{q:?} {d:?}");
+                assert!((y2 - y - d[1]).abs() < 1e-12, "{q:?} {d:?}");
+                assert!(wrap(phi2 - phi).abs() < 1e-12);
+                // The same elbow branch: a small move moves the joints a little.
+                for (a, b) in out.iter().zip(&q) {
+                    assert!((a - b).abs() < 0.2, "{out:?} vs {q:?}");
+                }
+            }
+        }
+        // Out of reach: refused, `out` untouched.
+        let mut out = [7.0; 3];
+        assert!(!f.shift_planar(&[0.0; 3], [1.0, 0.0], &mut out));
+        assert_eq!(out, [7.0; 3]);
+    }
+
+    #[test]
+    fn the_reach_along_a_direction_ends_at_the_workspace_or_a_limit() {
+        let f = finger();
+        let q = [0.3, -0.7, 1.1];
+        let probe = 5e-3;
+        let centre = f.fk(&q).tip_centre;
+        // Toward the finger's root: inside the workspace, the whole probe.
+        let root = f.fk(&q).joints[0];
+        let inward = (root - centre).normalize();
+        assert!((f.reach_along(&q, &inward, probe) - probe).abs() < 1e-12);
+        // A straight finger cannot reach further out along its own length.
+        let straight = [0.0, 0.0, 0.0];
+        let c = f.fk(&straight).tip_centre;
+        let out = (c - f.fk(&straight).joints[0]).normalize();
+        assert!(f.reach_along(&straight, &out, probe) < probe / 100.0);
+        // Joints held at their angles by their limits: no reach at all.
+        let mut held = f.clone();
+        for (j, a) in held.joints.iter_mut().zip(q) {
+            (j.lower, j.upper) = (a, a);
+        }
+        assert_eq!(held.reach_along(&q, &inward, probe), 0.0);
     }
 
     #[test]

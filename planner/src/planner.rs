@@ -86,6 +86,10 @@ pub struct Settings {
     pub cap_margin: Real,
     /// Smallest admissible manipulability of a finger in contact.
     pub min_manipulability: Real,
+    /// How far (m) every finger in contact must be able to press further into the object
+    /// along the contact's inward normal, inside its joint limits ([`Finger::reach_along`]):
+    /// room for a hand's controller to squeeze (0: not checked).
+    pub squeeze_reserve: Real,
     /// Upper bound on planner steps (rolling, attach and detach together).
     pub max_steps: usize,
     /// Resolution of the search over the cap angle when a finger attaches (rad).
@@ -347,7 +351,17 @@ pub struct Summary {
     /// written before it was reported.
     #[serde(default)]
     pub min_link_clearance_mm: Option<Real>,
+    /// The smallest squeeze reserve of any finger in contact at any step (mm, measured up to
+    /// [`SQUEEZE_PROBE`]): how much further the tightest finger could press into the object
+    /// along its contact normal inside its joint limits ([`Scenario::squeeze_reserve`]);
+    /// `None` in plans written before it was reported.
+    #[serde(default)]
+    pub min_squeeze_reserve_mm: Option<Real>,
 }
+
+/// How far the plan's summary measures the squeeze reserve (m): a reserve this large or
+/// larger is reported as this.
+pub const SQUEEZE_PROBE: Real = 5e-3;
 
 /// A plan.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -380,6 +394,10 @@ enum Blocked {
     Ik(IkError),
     Mobility {
         value: Real,
+    },
+    Squeeze {
+        reach: Real,
+        needed: Real,
     },
     Jump {
         joint: usize,
@@ -436,6 +454,12 @@ impl std::fmt::Display for Blocked {
             Blocked::Mobility { value } => {
                 write!(f, "mobility lost (manipulability {value:.3e})")
             }
+            Blocked::Squeeze { reach, needed } => write!(
+                f,
+                "the finger could press only {:.2} mm further into the object (needs {:.2} mm)",
+                reach * 1e3,
+                needed * 1e3
+            ),
             Blocked::Jump { joint, degrees } => write!(
                 f,
                 "joint {} would have to jump by {degrees:.1} deg (the other elbow branch)",
@@ -516,7 +540,43 @@ impl Scenario<'_> {
         if m < s.min_manipulability {
             return Err(Blocked::Mobility { value: m });
         }
+        if s.squeeze_reserve > 0.0 {
+            let reach = self.squeeze_reserve(finger, c, theta, &q, s.squeeze_reserve);
+            if reach < s.squeeze_reserve * (1.0 - 1e-6) {
+                return Err(Blocked::Squeeze {
+                    reach,
+                    needed: s.squeeze_reserve,
+                });
+            }
+        }
         Ok(q)
+    }
+
+    /// How far (m, at most `probe`) `finger` at joints `q`, touching candidate `c` with the
+    /// object at `theta`, can press further into the object along the inward normal: for a
+    /// planar finger in the hand's plane with its fingertip's cap axis kept
+    /// ([`Finger::reach_along_planar`]: pressing on with the same point of the cap), for
+    /// others by the fingertip centre alone ([`Finger::reach_along`]).
+    pub fn squeeze_reserve(
+        &self,
+        finger: &Finger,
+        c: usize,
+        theta: Real,
+        q: &[Real],
+        probe: Real,
+    ) -> Real {
+        let (_, n) = self.world(c, theta);
+        let mut inward = -n;
+        if finger.planar.is_some() {
+            inward.z = 0.0;
+        }
+        match inward.try_normalize(1e-12) {
+            Some(d) if finger.planar.is_some() && finger.dof() == 3 => {
+                finger.reach_along_planar(q, &d, probe)
+            }
+            Some(d) => finger.reach_along(q, &d, probe),
+            None => 0.0,
+        }
     }
 
     /// Signed arc length (counter-clockwise positive) along the section from `a` to `b`,
@@ -695,6 +755,12 @@ impl Scenario<'_> {
             return Err(PlanError::Settings(format!(
                 "plan.cap_margin_deg: must be >= 0, got {}",
                 s.cap_margin.to_degrees()
+            )));
+        }
+        if !(s.squeeze_reserve.is_finite() && s.squeeze_reserve >= 0.0) {
+            return Err(PlanError::Settings(format!(
+                "plan.squeeze_reserve_mm: must be >= 0, got {}",
+                s.squeeze_reserve * 1e3
             )));
         }
         if !(s.min_manipulability.is_finite() && s.min_manipulability >= 0.0) {
@@ -978,6 +1044,7 @@ impl Scenario<'_> {
             lp_region_unsafe,
             brute_force_candidates,
             min_link_clearance_mm: None,
+            min_squeeze_reserve_mm: None,
         };
         let closest = link_clearance(self, &steps);
         if closest.clearance < 0.0 {
@@ -990,9 +1057,25 @@ impl Scenario<'_> {
         }
         let summary = Summary {
             min_link_clearance_mm: Some(closest.clearance * 1e3),
+            min_squeeze_reserve_mm: Some(self.min_squeeze_reserve(&steps) * 1e3),
             ..summary
         };
         Ok(Plan { summary, steps })
+    }
+
+    /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at
+    /// any of `steps`.
+    fn min_squeeze_reserve(&self, steps: &[Step]) -> Real {
+        let mut least = SQUEEZE_PROBE;
+        for step in steps {
+            for f in &step.fingers {
+                let Some(c) = f.contact else { continue };
+                let finger = self.finger(f.finger);
+                let r = self.squeeze_reserve(finger, c, step.rotation, &f.joints, SQUEEZE_PROBE);
+                least = least.min(r);
+            }
+        }
+        least
     }
 
     /// Why contact `c` cannot travel to `n` in one rolling step of `step` from `theta`, if it

@@ -14,7 +14,8 @@ use crate::convert::{self, array_out, icrflow_error, json_to_py, value_error};
 pub struct Plan {
     /// The summary, as `icrflow plan --json` prints it: `completed`, `stop_reason`,
     /// `rotation_deg`, `goal_deg`, `switches`, `steps`, `rolling_steps`, `min_quality`,
-    /// `alpha`, `max_rolling_residual`, the rendezvous region counts, `min_link_clearance_mm`.
+    /// `alpha`, `max_rolling_residual`, the rendezvous region counts, `min_link_clearance_mm`,
+    /// `min_squeeze_reserve_mm`.
     summary: Py<PyDict>,
     /// The trajectory, one row per step (S steps, F fingers of the hand, in `fingers`
     /// order): `step` (S,), `phase` (S,) str (`start`, `rolling`, `attach`, `detach`),

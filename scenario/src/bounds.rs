@@ -315,6 +315,13 @@ pub const MANIPULABILITY: Range = Range::closed(
     "m^2",
     "more than a three-link finger of 0.5 m links ever has (l1 l2 + l1 l3 + l2 l3 = 0.75 m^2)",
 );
+/// `plan.squeeze_reserve_mm`.
+pub const SQUEEZE_RESERVE: Range = Range::closed(
+    0.0,
+    5.0,
+    "mm",
+    "the plan's summary measures the reserve up to 5 mm (icrflow_plan::planner::SQUEEZE_PROBE)",
+);
 /// Upper bound on plan steps.
 pub const MAX_STEPS: Count = Count::new(
     1,

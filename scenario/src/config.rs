@@ -1205,6 +1205,8 @@ fn nodes_spec(raw: Option<Vec<String>>) -> Result<Vec<String>> {
 
 /// Planner defaults.
 pub const DEFAULT_ROTATION_DEG: Real = 360.0;
+/// Default squeeze reserve every contact pose of a plan keeps (mm).
+pub const DEFAULT_SQUEEZE_RESERVE_MM: Real = 2.0;
 /// Default object rotation per rolling step (deg).
 pub const DEFAULT_STEP_DEG: Real = 5.0;
 
@@ -1216,6 +1218,7 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         min_manipulability: None,
         max_steps: None,
         attach_resolution_deg: None,
+        squeeze_reserve_mm: None,
     });
     let rotation =
         bounds::ROTATION.or("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?;
@@ -1244,6 +1247,11 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         attach_resolution: bounds::ATTACH_RESOLUTION
             .or("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?
             .to_radians(),
+        squeeze_reserve: bounds::SQUEEZE_RESERVE.or(
+            "plan.squeeze_reserve_mm",
+            raw.squeeze_reserve_mm,
+            DEFAULT_SQUEEZE_RESERVE_MM,
+        )? * 1e-3,
     })
 }
 

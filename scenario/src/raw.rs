@@ -179,4 +179,5 @@ pub struct RawPlan {
     pub min_manipulability: Option<f64>,
     pub max_steps: Option<usize>,
     pub attach_resolution_deg: Option<f64>,
+    pub squeeze_reserve_mm: Option<f64>,
 }
