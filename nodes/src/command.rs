@@ -15,7 +15,10 @@
 //! over `pipeline.max_pose_innovation_deg`, or its contact residual over
 //! `pipeline.max_contact_residual_mm` ([`EstimateBounds`]).
 //!
-//! A tracking command's joint targets are the plan step's, clamped into the joint limits, and
+//! A tracking command's joint targets are the plan step's, moved with the object where the
+//! estimate has its centre moved from where the plan has it (a finger out of contact moved with
+//! the object, so that it meets the surface where it is; the fingers in contact together against
+//! the drift, by its integral: [`CENTRING_RATE`]), clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
 //! steps, and the fingertips follow the planned rolling), and its forces balance the object's
@@ -47,6 +50,11 @@ use icrflow_runtime::health::{Health, Sequence, now};
 
 /// Periods without a wrench space after which the node holds on its own timer.
 pub const WATCHDOG_PERIODS: f64 = 3.0;
+/// How fast the fingers in contact move against the object's estimated drift (1/s: the
+/// integral gain of the centring, a time constant of half a second).
+pub const CENTRING_RATE: f64 = 2.0;
+/// The farthest the centring moves the fingers in contact (m).
+pub const CENTRING_LIMIT: f64 = 3e-3;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
@@ -93,6 +101,7 @@ impl<'a> Commander<'a> {
                 solved_for: None,
                 forces: Vec::with_capacity(MAX_FINGERS),
                 last: None,
+                centring: [0.0, 0.0],
             },
             watchdog_ns: (WATCHDOG_PERIODS * (1.0 / p.rate_hz) * 1e9) as u64,
             last_sent: now,
@@ -269,6 +278,9 @@ struct Tracker<'a> {
     forces: Vec<Vec3>,
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
+    /// How far the fingers in contact are moved together to hold the object's centre where
+    /// the plan has it (m, in the hand's plane).
+    centring: [f64; 2],
 }
 
 /// Why a plan step was not tracked: no forces balance its contacts (an outcome: the
@@ -364,6 +376,16 @@ impl Tracker<'_> {
             _ => dt,
         };
         let max_step = p.joint_speed * elapsed;
+        let moved = gate
+            .grasp()
+            .map_or([0.0, 0.0], |g| [g.position[0], g.position[1]]);
+        // The object held where the plan has it: the fingers in contact move together against
+        // the estimated drift of its centre, by an integral of it (a slow loop: it corrects
+        // the offsets of the hand's squeeze and the contacts' give, not the rolling).
+        for (c, m) in self.centring.iter_mut().zip(moved) {
+            *c = (*c - CENTRING_RATE * elapsed * m).clamp(-CENTRING_LIMIT, CENTRING_LIMIT);
+        }
+        let centring = self.centring;
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
             let Some(f) = hand.finger(target.finger) else {
@@ -371,8 +393,25 @@ impl Tracker<'_> {
             };
             let joints = (target.joint_count as usize).min(MAX_JOINTS).min(f.dof());
             let mut goal = [0.0; MAX_JOINTS];
+            goal[..joints].copy_from_slice(&target.joints[..joints]);
+            // The plan is about the object's starting centre. A finger that does not touch
+            // the object (free, or on its way to attach) aims where the estimate has the
+            // object moved (a planar finger's fingertip moved with it), so that it meets the
+            // surface where it is; fingers in contact stay on the plan (following the object
+            // with them would push it on for ever).
+            let touching = gate.grasp().is_some_and(|g| {
+                let n = (g.finger_count as usize).min(MAX_FINGERS);
+                g.fingers[..n]
+                    .iter()
+                    .any(|c| c.finger == target.finger && c.in_contact == 1)
+            });
+            let shift = if touching { centring } else { moved };
+            if shift != [0.0, 0.0] {
+                let plan = goal;
+                f.shift_planar(&plan[..joints], shift, &mut goal[..joints]);
+            }
             for (j, g) in goal.iter_mut().enumerate().take(joints) {
-                *g = target.joints[j].clamp(f.joints[j].lower, f.joints[j].upper);
+                *g = g.clamp(f.joints[j].lower, f.joints[j].upper);
             }
             // Toward the goal along a straight line in joint space, the largest joint motion at
             // most `max_step`: every joint of the finger scaled alike, so the fingertip follows

@@ -275,6 +275,9 @@ impl<'a> Estimator<'a> {
             touching += 1;
         }
         g.rotation = self.theta;
+        // The object's centre of mass, at the hand frame's origin at the start, moved as the
+        // pose measurements say.
+        g.position = [self.moved[0], self.moved[1], 0.0];
         let half = 0.5 * self.theta;
         g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
         g.residual = if touching > 0 {

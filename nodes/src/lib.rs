@@ -10,6 +10,7 @@
 
 pub mod command;
 pub mod estimator;
+pub mod lockstep;
 pub mod noise;
 pub mod physical;
 pub mod planner;

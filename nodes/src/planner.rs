@@ -38,8 +38,11 @@ pub const CLEARANCE: f64 = icrflow_plan::rolling::RELEASE + 0.5e-3;
 
 /// The grasp state `g` as the follower's estimate, into `e` (its buffers kept, so that this
 /// allocates nothing once they have grown): the fingers in use, each with as many joints as
-/// the hand's finger has.
-fn estimate(g: &GraspState, hand: &Hand, e: &mut Estimate) {
+/// the hand's finger has. The plan is made about the object's starting centre; where the
+/// estimate has the centre moved, each planar finger out of contact has its joints taken as
+/// if its fingertip had moved back with it (`Finger::shift_planar`), the inverse of what the
+/// hand command node does to such a finger's targets.
+pub(crate) fn estimate(g: &GraspState, hand: &Hand, e: &mut Estimate) {
     let n = (g.finger_count as usize).min(MAX_FINGERS);
     e.rotation = g.rotation;
     e.fingers.resize_with(n, Default::default);
@@ -51,6 +54,17 @@ fn estimate(g: &GraspState, hand: &Hand, e: &mut Estimate) {
         f.joints.clear();
         f.joints
             .extend_from_slice(&g.joints[slot][..dof.min(MAX_JOINTS)]);
+        let back = [-g.position[0], -g.position[1]];
+        if back != [0.0, 0.0]
+            && !f.in_contact
+            && let Some(finger) = hand.finger(c.finger)
+        {
+            let mut q = [0.0; MAX_JOINTS];
+            if finger.shift_planar(&f.joints, back, &mut q) {
+                let n = f.joints.len();
+                f.joints.copy_from_slice(&q[..n]);
+            }
+        }
     }
 }
 
@@ -58,7 +72,7 @@ fn estimate(g: &GraspState, hand: &Hand, e: &mut Estimate) {
 /// then the rendezvous region), each finger's region length, and the attaching finger with
 /// the rendezvous region's length.
 #[derive(Debug, Clone, PartialEq, Default)]
-struct Regions {
+pub(crate) struct Regions {
     members: Vec<u32>,
     lengths: [u32; MAX_FINGERS],
     rendezvous: (u32, u32),
@@ -125,7 +139,12 @@ fn regions(
 }
 
 /// The plan-step message of `target` (`done`: the plan is done, after it) with its `regions`.
-fn message(target: &Target, done: bool, regions: &Regions, header: Header) -> PlanStepHeader {
+pub(crate) fn message(
+    target: &Target,
+    done: bool,
+    regions: &Regions,
+    header: Header,
+) -> PlanStepHeader {
     let step = &target.step;
     let mut h = PlanStepHeader {
         header,

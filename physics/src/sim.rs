@@ -381,6 +381,26 @@ impl Sim {
         }
     }
 
+    /// How many of MuJoCo's contacts this step are between the object and a part of the hand
+    /// other than a fingertip (a link).
+    pub fn link_contacts(&self) -> usize {
+        let object = self.object_geom as i32;
+        self.data
+            .contact()
+            .iter()
+            .filter(|c| {
+                let other = if c.geom[0] == object {
+                    c.geom[1]
+                } else if c.geom[1] == object {
+                    c.geom[0]
+                } else {
+                    return false;
+                };
+                !self.fingers.iter().any(|f| f.tip_geom as i32 == other)
+            })
+            .count()
+    }
+
     /// The velocity of the point `p` (hand frame) moving with body `body`.
     fn point_velocity(&self, body: usize, p: &Vec3) -> Vec3 {
         let v = self

@@ -1,0 +1,219 @@
+//! A MuJoCo run of a config in lockstep (`icrflow_nodes::lockstep`): what the physics did,
+//! per plan phase, for tuning the plant's controls.
+//!
+//!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [SECONDS] [KEY=VALUE ...]
+//!
+//! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
+//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's). Prints a line every half second of
+//! simulated time and, at the end, per phase: the largest slip speed and friction use at
+//! contacts planned to roll, and contacts lost while planned.
+
+use std::collections::BTreeMap;
+
+use anyhow::{Context as _, Result, bail};
+use icrflow_interfaces::{MAX_FINGERS, PlanPhase};
+use icrflow_nodes::lockstep;
+use icrflow_scenario::{Config, Setup};
+
+#[derive(Default, Debug)]
+struct PhaseStats {
+    ticks: u64,
+    slip: f64,
+    friction_use: f64,
+    lost: u64,
+}
+
+fn phase_name(p: u32) -> &'static str {
+    match p {
+        x if x == PlanPhase::Start as u32 => "start",
+        x if x == PlanPhase::Rolling as u32 => "rolling",
+        x if x == PlanPhase::Attach as u32 => "attach",
+        x if x == PlanPhase::Detach as u32 => "detach",
+        x if x == PlanPhase::Done as u32 => "done",
+        _ => "?",
+    }
+}
+
+fn main() -> Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(path) = args.first() else {
+        bail!("usage: lockstep CONFIG [SECONDS] [KEY=VALUE ...]");
+    };
+    let mut config = Config::load(std::path::Path::new(path))?;
+    let mut seconds = 40.0;
+    for a in &args[1..] {
+        if let Ok(s) = a.parse::<f64>() {
+            seconds = s;
+            continue;
+        }
+        let (k, v) = a.split_once('=').context("KEY=VALUE")?;
+        let v: f64 = v.parse().with_context(|| format!("{k}: a number"))?;
+        match k {
+            "kp" => config.plant.kp = v,
+            "kv" => config.plant.kv = v,
+            "squeeze_mm" => config.plant.squeeze = v * 1e-3,
+            "friction_margin" => config.plant.friction_margin = v,
+            "feedforward" => config.plant.feedforward = v != 0.0,
+            "timestep_ms" => config.plant.timestep = v * 1e-3,
+            "min_normal_force" => config.pipeline.min_normal_force = v,
+            "joint_speed_deg_s" => config.pipeline.joint_speed = v.to_radians(),
+            "rotation_deg" => config.plan.goal = v.to_radians(),
+            "seed" => config.pipeline.seed = v as u64,
+            _ => bail!("unknown key {k}"),
+        }
+    }
+    let setup = Setup::new(&config)?;
+    let mu = config.grasp.model.mu();
+    let mut stats: BTreeMap<&'static str, PhaseStats> = BTreeMap::new();
+    let mut next_line = 0.0;
+    let mut worst: Option<(f64, String)> = None;
+    let started = std::time::Instant::now();
+    let ended = lockstep::run(&config, &setup, seconds, 0.5, &mut |tick| {
+        let Some(truth) = tick.truth else {
+            return;
+        };
+        let plan = tick.plan;
+        let phase = plan.map_or("none", |p| phase_name(p.phase));
+        let s = stats.entry(phase).or_default();
+        s.ticks += 1;
+        if let Some(plan) = plan {
+            let n = (plan.finger_count as usize).min(MAX_FINGERS);
+            for k in 0..n {
+                let target = &plan.targets[k];
+                if target.in_contact != 1 {
+                    continue;
+                }
+                let Some(slot) = (0..truth.finger_count as usize)
+                    .find(|&s| truth.finger_ids[s] == target.finger)
+                else {
+                    continue;
+                };
+                if truth.in_contact[slot] == 0 {
+                    s.lost += 1;
+                    continue;
+                }
+                let f = truth.contact_forces[slot];
+                let nrm = truth.contact_normals[slot];
+                let fn_ = -(f[0] * nrm[0] + f[1] * nrm[1] + f[2] * nrm[2]);
+                let ft = ((f[0] + nrm[0] * fn_).powi(2)
+                    + (f[1] + nrm[1] * fn_).powi(2)
+                    + (f[2] + nrm[2] * fn_).powi(2))
+                .sqrt();
+                let u = ft / (mu * fn_.max(1e-9));
+                s.slip = s.slip.max(truth.slip_speeds[slot]);
+                s.friction_use = s.friction_use.max(u);
+                if truth.slip_speeds[slot] > 0.01
+                    && worst
+                        .as_ref()
+                        .is_none_or(|(w, _)| truth.slip_speeds[slot] > *w)
+                {
+                    worst = Some((
+                        truth.slip_speeds[slot],
+                        format!(
+                            "t {:.2} s, step {} {phase}, finger {}: slip {:.1} mm/s, f_n {:.2} N, use {:.2}",
+                            tick.time,
+                            plan.step,
+                            target.finger,
+                            truth.slip_speeds[slot] * 1e3,
+                            fn_,
+                            u
+                        ),
+                    ));
+                }
+            }
+        }
+        if tick.time >= next_line {
+            next_line += 0.5;
+            let c = tick.plant.sim().object_centre();
+            let mut forces = String::new();
+            for slot in 0..truth.finger_count as usize {
+                let f = truth.contact_forces[slot];
+                if truth.in_contact[slot] == 1 {
+                    let nrm = truth.contact_normals[slot];
+                    let fn_ = -(f[0] * nrm[0] + f[1] * nrm[1] + f[2] * nrm[2]);
+                    let ft = ((f[0] + nrm[0] * fn_).powi(2)
+                        + (f[1] + nrm[1] * fn_).powi(2)
+                        + (f[2] + nrm[2] * fn_).powi(2))
+                    .sqrt();
+                    forces += &format!(
+                        " {:.1}/{:.2}/{:.0}",
+                        fn_,
+                        ft / (mu * fn_.max(1e-9)),
+                        truth.slip_speeds[slot] * 1e3
+                    );
+                } else {
+                    forces += " -";
+                }
+            }
+            let mut errors = String::new();
+            if let (Some((c, _)), Some(g)) = (tick.command, tick.grasp) {
+                for slot in 0..c.finger_count as usize {
+                    let Some(f) = setup.hand.finger(c.finger_ids[slot]) else {
+                        continue;
+                    };
+                    let n = f.dof();
+                    let target = f.tip_centre(&c.joint_targets[slot][..n]);
+                    let d = f.tip_centre(&g.joints[slot][..n]) - target;
+                    let radial = target.normalize();
+                    let along = d.dot(&radial);
+                    errors += &format!(
+                        " {:.2}/{:+.2}",
+                        (d - radial * along).norm() * 1e3,
+                        along * 1e3
+                    );
+                }
+            }
+            forces += &format!(
+                " | dq{errors} deg | links {}",
+                tick.plant.sim().link_contacts()
+            );
+            eprintln!(
+                "t {:5.2} s  true {:7.2} est {:7.2} plan {:7.2} deg  step {:4} {:8} fn/use/slip{forces}  centre [{:+.1} {:+.1} {:+.1}] mm{}",
+                tick.time,
+                truth.rotation.to_degrees(),
+                tick.grasp.map_or(f64::NAN, |g| g.rotation.to_degrees()),
+                plan.map_or(f64::NAN, |p| p.rotation.to_degrees()),
+                plan.map_or(0, |p| p.step),
+                phase,
+                c.x * 1e3,
+                c.y * 1e3,
+                c.z * 1e3,
+                tick.command
+                    .and_then(|(_, why)| why)
+                    .map(|w| format!("  HOLD {w}"))
+                    .unwrap_or_default()
+            );
+        }
+    })?;
+    eprintln!(
+        "ended after {:.2} s simulated ({:.1} s computed): done {}, true {:.2} deg, estimated {:.2} deg, {} holds, {} replans{}",
+        ended.time,
+        started.elapsed().as_secs_f64(),
+        ended.done,
+        ended.rotation.to_degrees(),
+        ended.estimated.to_degrees(),
+        ended.holds,
+        ended.replans,
+        ended
+            .holding
+            .as_ref()
+            .map(|w| format!(", holding: {w}"))
+            .unwrap_or_default()
+    );
+    for (t, said) in &ended.replanned {
+        eprintln!("  at {t:.2} s: {said}");
+    }
+    for (phase, s) in &stats {
+        eprintln!(
+            "  {phase:8} {:6} truths  max slip {:7.1} mm/s  max friction use {:.2}  lost {}",
+            s.ticks,
+            s.slip * 1e3,
+            s.friction_use,
+            s.lost
+        );
+    }
+    if let Some((_, w)) = worst {
+        eprintln!("  worst slip: {w}");
+    }
+    Ok(())
+}
