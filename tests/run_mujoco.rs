@@ -10,7 +10,7 @@ use common::{icrflow, root, scratch};
 /// One pipeline at a time (each starts six processes; the Zenoh bridge's port is shared).
 static PIPELINE: Mutex<()> = Mutex::new(());
 
-/// `config/NAME` turned `rotation` degrees, giving up after `max_hold` s of holds or of no
+/// `config/NAME` turned `rotation` degrees, giving up after 10 s of holds or of no
 /// progress, with `plant` keys added to its `[plant]`, written into `dir`; run with
 /// `--summary-json`, recorded to `rrd` (else without the visualizer): the summary's text, the
 /// JSON, stderr.
@@ -31,7 +31,7 @@ fn run(
         .replace("path = \"meshes", &format!("path = \"{}", mesh.display()))
         .replace(
             "[plant]\n",
-            &format!("[pipeline]\nmax_hold_s = 3.0\n\n[plant]\n{plant}\n"),
+            &format!("[pipeline]\nmax_hold_s = 10.0\n\n[plant]\n{plant}\n"),
         );
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();

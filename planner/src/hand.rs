@@ -25,7 +25,8 @@ use std::f64::consts::PI;
 
 /// Tolerance (m, rad) for treating a chain as planar.
 const PLANAR_TOLERANCE: Real = 1e-9;
-/// Steps along which [`Finger::reach_along`] follows a path.
+/// Steps along which [`Finger::reach_along`] and [`Finger::reach_along_planar`] follow a path
+/// to measure a reserve.
 pub const REACH_STEPS: usize = 8;
 
 /// Why a hand description or a kinematic query failed.
@@ -407,7 +408,9 @@ impl Finger {
     /// reserve is the last distance reached, refined by bisection to `probe / 256`.
     pub fn reach_along(&self, q: &[Real], dir: &Vec3, probe: Real) -> Real {
         let start = self.tip_centre(q);
-        reach(q, probe, |d, from| self.dls(&(start + dir * d), from).ok())
+        reach(q, probe, REACH_STEPS, |d, from| {
+            self.dls(&(start + dir * d), from).ok()
+        })
     }
 
     /// [`Finger::reach_along`] for a planar three-joint finger with the cap axis kept (the
@@ -416,11 +419,13 @@ impl Finger {
     /// straight finger stops it. `dir` is taken in the hand's plane. Each step is the closed
     /// form ([`Finger::ik_planar`]) on the branch of the last, no joint moving more than
     /// 0.5 rad at once; 0 for a finger that is not planar.
-    pub fn reach_along_planar(&self, q: &[Real], dir: &Vec3, probe: Real) -> Real {
+    /// `steps` sets how finely the path is followed ([`REACH_STEPS`] to measure; fewer to
+    /// check that `probe` is reached, which then costs `steps` solutions).
+    pub fn reach_along_planar(&self, q: &[Real], dir: &Vec3, probe: Real, steps: usize) -> Real {
         let Some((x, y, phi)) = self.planar_pose(q) else {
             return 0.0;
         };
-        reach(q, probe, |d, from| {
+        reach(q, probe, steps, |d, from| {
             let next = self
                 .ik_planar(x + dir.x * d, y + dir.y * d, phi, from)
                 .ok()?;
@@ -750,17 +755,19 @@ impl Finger {
 
 /// How far (at most `probe`) a finger starting at joints `q` gets by `step(d, from)`, which
 /// gives the joints at distance `d` from those at `from` (or `None`: not reachable from
-/// there): [`REACH_STEPS`] steps, each from the last, then bisection to `probe / 256` between
-/// the last reached and the first not.
+/// there): `steps` steps, each from the last, then bisection to `probe / 256` between the last
+/// reached and the first not.
 fn reach(
     q: &[Real],
     probe: Real,
+    steps: usize,
     mut step: impl FnMut(Real, &[Real]) -> Option<Vec<Real>>,
 ) -> Real {
     let mut q = q.to_vec();
     let mut reached = 0.0;
-    let h = probe / REACH_STEPS as Real;
-    for k in 1..=REACH_STEPS {
+    let steps = steps.max(1);
+    let h = probe / steps as Real;
+    for k in 1..=steps {
         let d = h * k as Real;
         match step(d, &q) {
             Some(next) => {

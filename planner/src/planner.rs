@@ -541,8 +541,17 @@ impl Scenario<'_> {
             return Err(Blocked::Mobility { value: m });
         }
         if s.squeeze_reserve > 0.0 {
-            let reach = self.squeeze_reserve(finger, c, theta, &q, s.squeeze_reserve);
+            // Checked in two steps (half way, all the way); measured finely only to say why.
+            let reach = self.squeeze_reserve(finger, c, theta, &q, s.squeeze_reserve, 2);
             if reach < s.squeeze_reserve * (1.0 - 1e-6) {
+                let reach = self.squeeze_reserve(
+                    finger,
+                    c,
+                    theta,
+                    &q,
+                    s.squeeze_reserve,
+                    crate::hand::REACH_STEPS,
+                );
                 return Err(Blocked::Squeeze {
                     reach,
                     needed: s.squeeze_reserve,
@@ -556,7 +565,9 @@ impl Scenario<'_> {
     /// object at `theta`, can press further into the object along the inward normal: for a
     /// planar finger in the hand's plane with its fingertip's cap axis kept
     /// ([`Finger::reach_along_planar`]: pressing on with the same point of the cap), for
-    /// others by the fingertip centre alone ([`Finger::reach_along`]).
+    /// others by the fingertip centre alone ([`Finger::reach_along`]); the path followed in
+    /// `steps` steps (see [`Finger::reach_along_planar`]).
+    #[allow(clippy::too_many_arguments)]
     pub fn squeeze_reserve(
         &self,
         finger: &Finger,
@@ -564,6 +575,7 @@ impl Scenario<'_> {
         theta: Real,
         q: &[Real],
         probe: Real,
+        steps: usize,
     ) -> Real {
         let (_, n) = self.world(c, theta);
         let mut inward = -n;
@@ -572,7 +584,7 @@ impl Scenario<'_> {
         }
         match inward.try_normalize(1e-12) {
             Some(d) if finger.planar.is_some() && finger.dof() == 3 => {
-                finger.reach_along_planar(q, &d, probe)
+                finger.reach_along_planar(q, &d, probe, steps)
             }
             Some(d) => finger.reach_along(q, &d, probe),
             None => 0.0,
@@ -1071,7 +1083,14 @@ impl Scenario<'_> {
             for f in &step.fingers {
                 let Some(c) = f.contact else { continue };
                 let finger = self.finger(f.finger);
-                let r = self.squeeze_reserve(finger, c, step.rotation, &f.joints, SQUEEZE_PROBE);
+                let r = self.squeeze_reserve(
+                    finger,
+                    c,
+                    step.rotation,
+                    &f.joints,
+                    SQUEEZE_PROBE,
+                    crate::hand::REACH_STEPS,
+                );
                 least = least.min(r);
             }
         }
