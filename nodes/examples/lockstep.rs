@@ -4,9 +4,12 @@
 //!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [SECONDS] [KEY=VALUE ...]
 //!
 //! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
-//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's). Prints a line every half second of
-//! simulated time and, at the end, per phase: the largest slip speed and friction use at
-//! contacts planned to roll, and contacts lost while planned.
+//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's). Prints a line every
+//! half second of simulated time (true, estimated and planned rotation; per fingertip its
+//! normal force, friction use and slip speed in mm/s; how far each fingertip is from its
+//! command across and along the surface; link contacts; the object's centre) and, at the
+//! end, the re-plans and per phase the largest slip speed and friction use at contacts planned
+//! to roll, and contacts lost while planned.
 
 use std::collections::BTreeMap;
 
@@ -164,7 +167,7 @@ fn main() -> Result<()> {
                 }
             }
             forces += &format!(
-                " | dq{errors} deg | links {}",
+                " | tip across/along{errors} mm | links {}",
                 tick.plant.sim().link_contacts()
             );
             eprintln!(
