@@ -150,11 +150,13 @@ impl Hosts {
         let into = Arc::clone(&said);
         let reader = std::thread::spawn(move || {
             use std::io::BufRead as _;
-            for line in std::io::BufReader::new(stderr).lines() {
-                let Ok(line) = line else { break };
+            // Bytes, not UTF-8 lines: a line that is not UTF-8 must not stop the draining.
+            let mut stderr = std::io::BufReader::new(stderr);
+            let mut line = Vec::new();
+            while matches!(stderr.read_until(b'\n', &mut line), Ok(n) if n > 0) {
                 let mut all = into.lock().unwrap_or_else(|e| e.into_inner());
-                all.push_str(&line);
-                all.push('\n');
+                all.push_str(&String::from_utf8_lossy(&line));
+                line.clear();
             }
         });
         self.stderrs.push((said, reader));
@@ -422,10 +424,11 @@ fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     // Mid-run, the link goes down for 4 s: 2 s after the robot's hand has started to follow
     // the plan (the pair takes ~15 s uncut; how long the workstation takes to plan depends on
     // the machine's load, so the cut is timed from the run, not from the start).
-    assert!(
-        hosts.said(0, "run: the plan is ready", Duration::from_secs(120)),
-        "the robot's hand never started"
-    );
+    if !hosts.said(0, "run: the plan is ready", Duration::from_secs(120)) {
+        let (_, robot_err) = hosts.wait(0);
+        let (_, ws_err) = hosts.wait(0);
+        panic!("the robot's hand never started\nrobot: {robot_err}\nworkstation: {ws_err}");
+    }
     std::thread::sleep(Duration::from_secs(2));
     hosts.link(false);
     std::thread::sleep(Duration::from_secs(4));

@@ -306,15 +306,22 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let checkpoint = ctx.bus.config().root.join("estimator.state");
-    let theta: f64 = std::fs::read_to_string(&checkpoint)
-        .ok()
-        .and_then(|t| t.trim().parse().ok())
-        .filter(|x: &f64| x.is_finite())
-        .unwrap_or(0.0);
+    // The checkpoint: the rotation, then where the object's centre was first measured (the
+    // reference of its motion, which a restart must keep: the command node holds the object
+    // against that motion).
+    let saved_text = std::fs::read_to_string(&checkpoint).unwrap_or_default();
+    let mut words = saved_text
+        .split_whitespace()
+        .map(|w| w.parse::<f64>().ok().filter(|x| x.is_finite()));
+    let theta: f64 = words.next().flatten().unwrap_or(0.0);
     let mut estimator = Estimator::new(&ctx.scenario.setup.hand, surface, &object.section, theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     // Where the object's centre was measured first: its motion is taken from there.
-    let mut first_position: Option<[f64; 2]> = None;
+    let mut first_position: Option<[f64; 2]> =
+        match (words.next().flatten(), words.next().flatten()) {
+            (Some(x), Some(y)) => Some([x, y]),
+            _ => None,
+        };
     let log_contacts = ctx.launch.log.contacts;
     let saved = Checkpoint::new(checkpoint)?;
 
@@ -375,6 +382,9 @@ pub fn run(ctx: &Context) -> Result<()> {
             let theta = estimator.rotation();
             saved.store(|text| {
                 let _ = write!(text, "{theta:e}");
+                if let Some([x, y]) = first_position {
+                    let _ = write!(text, " {x:e} {y:e}");
+                }
             });
         }
         Ok(())

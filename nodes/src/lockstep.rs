@@ -11,8 +11,10 @@
 //! Per tick `t` (every `1 / pipeline.rate_hz`): the plant advances under the last command and
 //! measures; the estimator takes the joint state (and a pose when one is due); the planner
 //! follows the estimate (its step republished every [`crate::planner::REPUBLISH`] s as the node
-//! does); the wrench space of the grasp state; the command that answers it, which the plant
-//! follows at the next tick (one period later, as the nodes' hops are on a real machine).
+//! does; of the steps it publishes in one tick the command node takes the last, as it takes
+//! the newest off the bus); the wrench space of the grasp state; the command that answers it,
+//! which the plant follows at the next tick (one period later, as the nodes' hops are on a
+//! real machine).
 
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{
@@ -34,7 +36,8 @@ pub struct Tick<'s> {
     pub time: f64,
     /// The plant (MuJoCo's state through [`Physical::sim`]).
     pub plant: &'s Physical<'s>,
-    /// The newest plan step the command node has (none before the first).
+    /// The newest plan step the planner published (none before the first; the command node
+    /// was offered it, and its gate may have refused it).
     pub plan: Option<&'s PlanStepHeader>,
     /// The estimate of this tick, if the estimator made one.
     pub grasp: Option<&'s GraspState>,
@@ -55,7 +58,7 @@ pub struct Ended {
     pub estimated: f64,
     /// MuJoCo's true rotation at the end (rad).
     pub rotation: f64,
-    /// Hold commands, and the first reason of the longest run of them.
+    /// Hold commands.
     pub holds: u64,
     /// Plans made again from the estimate.
     pub replans: u32,

@@ -53,7 +53,7 @@ fn the_paper_sphere_turns_in_lockstep_as_the_estimate_says() {
         gap.to_degrees()
     );
     // Pushed about by a millimetre or two while fingers attach and release, the centre is
-    // brought back (without the centring it stays about a millimetre off).
+    // brought back (without the centring it ends 1.5 mm off).
     assert!(drift[0] < 3e-3, "the centre moved {} m", drift[0]);
     assert!(drift[1] < 0.3e-3, "the centre ended {} m off", drift[1]);
     assert!(fewest >= 2, "{fewest} fingertips touching");

@@ -1019,6 +1019,38 @@ mod tests {
             (j.lower, j.upper) = (a, a);
         }
         assert_eq!(held.reach_along(&q, &inward, probe), 0.0);
+        // With the cap axis kept (the planner's measure): the same inside the workspace, in
+        // two steps or eight, with the fingertip's orientation unchanged at the end.
+        for steps in [2, REACH_STEPS] {
+            assert!((f.reach_along_planar(&q, &inward, probe, steps) - probe).abs() < 1e-12);
+        }
+        assert_eq!(
+            held.reach_along_planar(&q, &inward, probe, REACH_STEPS),
+            0.0
+        );
+        // A joint 1 mm of fingertip travel from its limit stops it there: no redundancy is
+        // left to go round it (the position-only reach goes on with the other joints).
+        let (x, y, phi) = f.planar_pose(&q).unwrap();
+        let end = f
+            .ik_planar(x + inward.x * 1e-3, y + inward.y * 1e-3, phi, &q)
+            .unwrap();
+        let (k, _) = end
+            .iter()
+            .zip(&q)
+            .enumerate()
+            .max_by(|a, b| (a.1.0 - a.1.1).abs().total_cmp(&(b.1.0 - b.1.1).abs()))
+            .unwrap();
+        let mut limited = f.clone();
+        if end[k] > q[k] {
+            limited.joints[k].upper = end[k];
+        } else {
+            limited.joints[k].lower = end[k];
+        }
+        let reach = limited.reach_along_planar(&q, &inward, probe, REACH_STEPS);
+        assert!((reach - 1e-3).abs() < probe / 200.0, "{reach}");
+        assert!(limited.reach_along(&q, &inward, probe) > 2e-3);
+        // Straight along its own length, it cannot press on at all.
+        assert!(f.reach_along_planar(&straight, &out, probe, REACH_STEPS) < probe / 100.0);
     }
 
     #[test]

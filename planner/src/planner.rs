@@ -541,9 +541,10 @@ impl Scenario<'_> {
             return Err(Blocked::Mobility { value: m });
         }
         if s.squeeze_reserve > 0.0 {
-            // Checked in two steps (half way, all the way); measured finely only to say why.
-            let reach = self.squeeze_reserve(finger, c, theta, &q, s.squeeze_reserve, 2);
-            if reach < s.squeeze_reserve * (1.0 - 1e-6) {
+            // Checked in two steps (half way, all the way); where they fall short, measured
+            // finely, which decides (and says how far it gets).
+            let short = |reach: Real| reach < s.squeeze_reserve * (1.0 - 1e-6);
+            if short(self.squeeze_reserve(finger, c, theta, &q, s.squeeze_reserve, 2)) {
                 let reach = self.squeeze_reserve(
                     finger,
                     c,
@@ -552,10 +553,12 @@ impl Scenario<'_> {
                     s.squeeze_reserve,
                     crate::hand::REACH_STEPS,
                 );
-                return Err(Blocked::Squeeze {
-                    reach,
-                    needed: s.squeeze_reserve,
-                });
+                if short(reach) {
+                    return Err(Blocked::Squeeze {
+                        reach,
+                        needed: s.squeeze_reserve,
+                    });
+                }
             }
         }
         Ok(q)
