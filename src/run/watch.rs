@@ -116,7 +116,17 @@ struct Limits {
     max_hold: Duration,
     /// The margin.
     alpha: f64,
+    /// How long a run that reached its goal goes on before it stops: [`LINGER`] on the host
+    /// of a split run that plans (its planner republishes `Done`, which the other host's run
+    /// needs to hear to stop), none otherwise.
+    linger: Duration,
 }
+
+/// How long the planning host of a split run goes on after its goal, so that the planner's
+/// `Done` (republished every 10 ms) crosses to the other host before this host's bridge
+/// stops: without it the other host's run never heard it once in 8 cut-link runs here (the
+/// goal's one `Done`, published as the bridge was stopped) and held for `max_hold_s`.
+pub const LINGER: Duration = Duration::from_secs(1);
 
 /// The run's watch: the state it keeps across wake-ups.
 pub(super) struct Watch {
@@ -176,6 +186,8 @@ pub(super) struct Watch {
     status: Status,
     /// Whether the goal's reaching was said.
     goal_said: bool,
+    /// When the goal was reached (for [`Limits::linger`]).
+    goal_at: Option<Instant>,
     /// Node restarts so far.
     restarts: u32,
     plan_published: u64,
@@ -278,6 +290,11 @@ impl Watch {
                 max_age_ns: (p.max_input_age * 1e9) as u64 + 10_000_000,
                 max_hold: Duration::from_secs_f64(p.max_hold),
                 alpha: config.grasp.alpha,
+                linger: if p.split() && p.nodes.iter().any(|n| n == "planner") {
+                    LINGER
+                } else {
+                    Duration::ZERO
+                },
             },
             hangup,
             names,
@@ -315,6 +332,7 @@ impl Watch {
             planning: None,
             status: Status::default(),
             goal_said: false,
+            goal_at: None,
             restarts: 0,
             plan_published: 0,
             plan_compute: Histogram::new(),
@@ -361,7 +379,10 @@ impl Watch {
             );
         }
         if at_goal && !l.live {
-            return Ok(Some(StopReason::GoalReached));
+            let since = *self.goal_at.get_or_insert_with(Instant::now);
+            if since.elapsed() >= l.linger {
+                return Ok(Some(StopReason::GoalReached));
+            }
         }
         Ok(None)
     }
