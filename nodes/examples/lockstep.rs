@@ -14,7 +14,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context as _, Result, bail};
-use icrflow_interfaces::{MAX_FINGERS, PlanPhase};
+use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlantTruth};
 use icrflow_nodes::lockstep;
 use icrflow_scenario::{Config, Setup};
 
@@ -35,6 +35,18 @@ fn phase_name(p: u32) -> &'static str {
         x if x == PlanPhase::Done as u32 => "done",
         _ => "?",
     }
+}
+
+/// Finger `slot`'s true normal force (N) and friction use `|f_t| / (mu f_n)`.
+fn pressing(truth: &PlantTruth, slot: usize, mu: f64) -> (f64, f64) {
+    let f = truth.contact_forces[slot];
+    let n = truth.contact_normals[slot];
+    let normal = -(f[0] * n[0] + f[1] * n[1] + f[2] * n[2]);
+    let tangential = (0..3)
+        .map(|k| (f[k] + n[k] * normal).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    (normal, tangential / (mu * normal.max(1e-9)))
 }
 
 fn main() -> Result<()> {
@@ -95,14 +107,7 @@ fn main() -> Result<()> {
                     s.lost += 1;
                     continue;
                 }
-                let f = truth.contact_forces[slot];
-                let nrm = truth.contact_normals[slot];
-                let fn_ = -(f[0] * nrm[0] + f[1] * nrm[1] + f[2] * nrm[2]);
-                let ft = ((f[0] + nrm[0] * fn_).powi(2)
-                    + (f[1] + nrm[1] * fn_).powi(2)
-                    + (f[2] + nrm[2] * fn_).powi(2))
-                .sqrt();
-                let u = ft / (mu * fn_.max(1e-9));
+                let (fn_, u) = pressing(truth, slot, mu);
                 s.slip = s.slip.max(truth.slip_speeds[slot]);
                 s.friction_use = s.friction_use.max(u);
                 if truth.slip_speeds[slot] > 0.01
@@ -130,20 +135,9 @@ fn main() -> Result<()> {
             let c = tick.plant.sim().object_centre();
             let mut forces = String::new();
             for slot in 0..truth.finger_count as usize {
-                let f = truth.contact_forces[slot];
                 if truth.in_contact[slot] == 1 {
-                    let nrm = truth.contact_normals[slot];
-                    let fn_ = -(f[0] * nrm[0] + f[1] * nrm[1] + f[2] * nrm[2]);
-                    let ft = ((f[0] + nrm[0] * fn_).powi(2)
-                        + (f[1] + nrm[1] * fn_).powi(2)
-                        + (f[2] + nrm[2] * fn_).powi(2))
-                    .sqrt();
-                    forces += &format!(
-                        " {:.1}/{:.2}/{:.0}",
-                        fn_,
-                        ft / (mu * fn_.max(1e-9)),
-                        truth.slip_speeds[slot] * 1e3
-                    );
+                    let (fn_, u) = pressing(truth, slot, mu);
+                    forces += &format!(" {:.1}/{:.2}/{:.0}", fn_, u, truth.slip_speeds[slot] * 1e3);
                 } else {
                     forces += " -";
                 }
