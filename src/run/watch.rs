@@ -124,8 +124,8 @@ struct Limits {
 
 /// How long the planning host of a split run goes on after its goal, so that the planner's
 /// `Done` (republished every 10 ms) crosses to the other host before this host's bridge
-/// stops: without it the other host's run never heard it once in 8 cut-link runs here (the
-/// goal's one `Done`, published as the bridge was stopped) and held for `max_hold_s`.
+/// stops: without it, in one of 8 cut-link runs here, the other host's run never heard it
+/// (this host stopped its bridge as its planner published it) and held for `max_hold_s`.
 pub const LINGER: Duration = Duration::from_secs(1);
 
 /// The run's watch: the state it keeps across wake-ups.
