@@ -411,8 +411,15 @@ fn print_text(
         let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
         writeln!(
             o,
-            "switching  rendezvous candidates over all switches: {} exact (brute force, used),\n           {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
+            "switching  rendezvous candidates over all switches: {} exact (brute force, used{}),\n           {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
             s.brute_force_candidates,
+            match s.region_erosion {
+                0 => String::new(),
+                n => format!(
+                    " shrunk by {n} ring{} of candidates",
+                    if n == 1 { "" } else { "s" }
+                ),
+            },
             s.lp_region_candidates,
             pct(s.lp_region_candidates),
             s.lp_region_unsafe,

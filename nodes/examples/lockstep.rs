@@ -4,12 +4,14 @@
 //!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [SECONDS] [KEY=VALUE ...]
 //!
 //! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
-//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's). Prints a line every
-//! half second of simulated time (true, estimated and planned rotation; per fingertip its
-//! normal force, friction use and slip speed in mm/s; how far each fingertip is from its
-//! command across and along the surface; link contacts; the object's centre) and, at the
-//! end, the re-plans and per phase the largest slip speed and friction use at contacts planned
-//! to roll, and contacts lost while planned.
+//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's), every_s (the
+//! interval of the lines, 0.5 s unless given). Prints a line every `every_s` of simulated time
+//! (true, estimated and planned rotation; per fingertip its normal force, the commanded
+//! force's magnitude in brackets, friction use and slip speed in mm/s; each finger's contact
+//! candidate, estimated / planned; how far each fingertip is from its command across and along
+//! the surface; link contacts; the object's centre) and, at the end, the re-plans and per phase
+//! the largest slip speed and friction use at contacts planned to roll, and contacts lost while
+//! planned.
 
 use std::collections::BTreeMap;
 
@@ -56,6 +58,7 @@ fn main() -> Result<()> {
     };
     let mut config = Config::load(std::path::Path::new(path))?;
     let mut seconds = 40.0;
+    let mut every = 0.5;
     for a in &args[1..] {
         if let Ok(s) = a.parse::<f64>() {
             seconds = s;
@@ -74,6 +77,7 @@ fn main() -> Result<()> {
             "joint_speed_deg_s" => config.pipeline.joint_speed = v.to_radians(),
             "rotation_deg" => config.plan.goal = v.to_radians(),
             "seed" => config.pipeline.seed = v as u64,
+            "every_s" => every = v,
             _ => bail!("unknown key {k}"),
         }
     }
@@ -131,13 +135,25 @@ fn main() -> Result<()> {
             }
         }
         if tick.time >= next_line {
-            next_line += 0.5;
+            next_line += every;
             let c = tick.plant.sim().object_centre();
             let mut forces = String::new();
             for slot in 0..truth.finger_count as usize {
                 if truth.in_contact[slot] == 1 {
                     let (fn_, u) = pressing(truth, slot, mu);
-                    forces += &format!(" {:.1}/{:.2}/{:.0}", fn_, u, truth.slip_speeds[slot] * 1e3);
+                    // The commanded force's magnitude beside the true normal force.
+                    let commanded = tick.command.and_then(|(c, _)| {
+                        (0..c.finger_count as usize)
+                            .find(|&k| c.finger_ids[k] == truth.finger_ids[slot])
+                            .map(|k| c.forces[k].iter().map(|x| x * x).sum::<f64>().sqrt())
+                    });
+                    forces += &format!(
+                        " {:.1}({:.1})/{:.2}/{:.0}",
+                        fn_,
+                        commanded.unwrap_or(f64::NAN),
+                        u,
+                        truth.slip_speeds[slot] * 1e3
+                    );
                 } else {
                     forces += " -";
                 }
@@ -160,8 +176,25 @@ fn main() -> Result<()> {
                     );
                 }
             }
+            // Each finger's contact candidate, estimated / planned ("-": none).
+            let mut cands = String::new();
+            if let (Some(g), Some(plan)) = (tick.grasp, plan) {
+                for slot in 0..g.finger_count as usize {
+                    let e = &g.fingers[slot];
+                    let planned = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
+                        .iter()
+                        .find(|t| t.finger == e.finger && t.in_contact == 1);
+                    let est = if e.in_contact == 1 {
+                        e.candidate.to_string()
+                    } else {
+                        "-".into()
+                    };
+                    let pl = planned.map_or("-".into(), |t| t.candidate.to_string());
+                    cands += &format!(" {est}/{pl}");
+                }
+            }
             forces += &format!(
-                " | tip across/along{errors} mm | links {}",
+                " | cand est/plan{cands} | tip across/along{errors} mm | links {}",
                 tick.plant.sim().link_contacts()
             );
             eprintln!(

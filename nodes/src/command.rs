@@ -21,8 +21,11 @@
 //! the drift, by its integral: [`CENTRING_RATE`]), clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
-//! steps, and the fingertips follow the planned rolling), and its forces balance the object's
-//! weight (`plant.gravity`, none by default) inside the exact friction cones narrowed by
+//! steps, and the fingertips follow the planned rolling), and its forces, on the contacts of
+//! the plan step that the estimate has made (an attaching finger presses only once it
+//! touches: pressing on its way, it would hit the object, and the others, their forces
+//! already those of the grasp with it, would let the object slip meanwhile), balance the
+//! object's weight (`plant.gravity`, none by default) inside the exact friction cones narrowed by
 //! `plant.friction_margin`, with the configured minimum normal force
 //! ([`icrflow_plan::forces::ForceSolver`], kept across commands so a new contact set costs no
 //! allocation; infeasible holds).
@@ -315,8 +318,24 @@ impl Tracker<'_> {
         let mut slots = [0usize; MAX_FINGERS];
         let mut set = [u32::MAX; MAX_FINGERS];
         let mut count = 0;
+        // Whether the estimate has finger `id` touching the object.
+        let touching = |id: u32| {
+            gate.grasp().is_some_and(|g| {
+                let n = (g.finger_count as usize).min(MAX_FINGERS);
+                g.fingers[..n]
+                    .iter()
+                    .any(|c| c.finger == id && c.in_contact == 1)
+            })
+        };
+        // The contacts that carry forces: those of the plan step that the estimate has made.
+        // An attaching finger presses only once it touches: given its share while it still
+        // approaches, it would hit the object with it, and the others, their forces already
+        // those of the grasp with it, would let the object slip meanwhile.
         for (k, target) in plan.targets.iter().enumerate().take(n) {
-            if target.in_contact == 1 && (target.candidate as usize) < cands.points.len() {
+            if target.in_contact == 1
+                && (target.candidate as usize) < cands.points.len()
+                && touching(target.finger)
+            {
                 slots[count] = k;
                 set[count] = target.candidate;
                 count += 1;
@@ -399,13 +418,11 @@ impl Tracker<'_> {
             // object moved (a planar finger's fingertip moved with it), so that it meets the
             // surface where it is; fingers in contact stay on the plan (following the object
             // with them would push it on for ever).
-            let touching = gate.grasp().is_some_and(|g| {
-                let n = (g.finger_count as usize).min(MAX_FINGERS);
-                g.fingers[..n]
-                    .iter()
-                    .any(|c| c.finger == target.finger && c.in_contact == 1)
-            });
-            let shift = if touching { centring } else { moved };
+            let shift = if touching(target.finger) {
+                centring
+            } else {
+                moved
+            };
             if shift != [0.0, 0.0] {
                 let plan = goal;
                 f.shift_planar(&plan[..joints], shift, &mut goal[..joints]);
@@ -551,6 +568,54 @@ mod tests {
         c.on_grasp(&i.grasp);
         let out = c.on_wrench(&i.wrench, at);
         (out.command, out.hold.map(str::to_string))
+    }
+
+    /// A finger the plan step has attach presses only once the estimate has it touching:
+    /// while it approaches it gets no force and the others keep the forces of the grasp
+    /// without it; once it touches, all four press, balanced.
+    #[test]
+    fn an_attaching_finger_presses_only_once_it_touches() {
+        let (config, setup) = paper();
+        let mut c = Commander::new(&config, &setup, T0);
+        let mut i = inputs(&config, &setup, 1, T0, 0.0);
+        let (before, hold) = offer(&mut c, &i, T0);
+        assert_eq!(hold, None);
+        // The free finger attaches at the candidate opposite the first contact's.
+        let free = (0..setup.hand.fingers.len())
+            .find(|&s| i.plan.targets[s].in_contact == 0)
+            .unwrap();
+        let cands = setup.problem.candidates();
+        let n = cands.points.len() as u32;
+        let at = (i.plan.targets[0].candidate + n / 2) % n;
+        let p = cands.points[at as usize];
+        i.plan.phase = PlanPhase::Attach as u32;
+        i.plan.targets[free].in_contact = 1;
+        i.plan.targets[free].candidate = at;
+        i.plan.targets[free].point = [p.x, p.y, p.z];
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let step = |c: &mut Commander<'_>, i: &mut Inputs, seq: u64| {
+            let t = T0 + seq * dt;
+            i.plan.header = header(Kind::PlanStep, seq, 0, t);
+            i.grasp.header = header(Kind::GraspState, seq, seq, t);
+            i.wrench.header = header(Kind::WrenchSpace, seq, seq, t);
+            offer(c, i, t)
+        };
+        let (approaching, hold) = step(&mut c, &mut i, 2);
+        assert_eq!(hold, None);
+        assert_eq!(approaching.forces[free], [0.0; 3]);
+        assert_eq!(approaching.forces, before.forces);
+        // It touches.
+        i.grasp.fingers[free].in_contact = 1;
+        i.grasp.fingers[free].candidate = at;
+        let (touching, hold) = step(&mut c, &mut i, 3);
+        assert_eq!(hold, None);
+        let mut net = Vec3::zeros();
+        for slot in 0..setup.hand.fingers.len() {
+            let v = Vec3::from(touching.forces[slot]);
+            assert!(v.norm() > 0.0, "slot {slot}");
+            net += v;
+        }
+        assert!(net.norm() < 1e-5, "net force {net}");
     }
 
     #[test]

@@ -6,7 +6,7 @@
 use icrflow_nodes::estimator::RELEASE;
 use icrflow_nodes::planner::CLEARANCE;
 use icrflow_plan::follow::{
-    Estimate, EstimatedFinger, Event, Follower, REPLAN_NS, SETTLED_NS, STANDOFFS, Target,
+    Estimate, EstimatedFinger, Event, Follower, LEAD, REPLAN_NS, SETTLED_NS, STANDOFFS, Target,
     Tolerances, replan, targets,
 };
 use icrflow_plan::planner::{Phase, Plan, Step};
@@ -201,7 +201,8 @@ fn at_joints_of(step: &Step, rotation_deg: f64) -> Estimate {
 }
 
 /// A rolling sub-target counts as reached when the hand is at its joints and the object
-/// within SETTLED_TOLERANCE of its rotation, without waiting for the object to settle (after a
+/// within SETTLED_TOLERANCE of its rotation (here 1.8 deg short: beyond the LEAD by which a
+/// sub-target inside a step is passed), without waiting for the object to settle (after a
 /// re-plan the object stayed a degree short of every sub-target, and the run crawled on at
 /// SETTLED_NS per sub-target); being at one sub-target's joints is never being at the next
 /// one's, so the follower does not run ahead of the hand.
@@ -216,9 +217,9 @@ fn the_hand_at_a_rolling_targets_joints_reaches_it() {
     let mut closest = f64::INFINITY;
     for &k in &rolling {
         let step = &list[k].step;
-        let e = at_joints_of(step, step.rotation.to_degrees() - 1.0);
+        let e = at_joints_of(step, step.rotation.to_degrees() - 1.8);
         assert!(list[k].hand_at(&e, tol.hand), "target {k}");
-        // A degree short, not settled: reached only as the hand is there.
+        // 1.8 deg short, not settled: reached only as the hand is there.
         assert!(!list[k].reached(&e, false, tol.joint), "target {k}");
         assert!(list[k].reached(&e, true, tol.joint), "target {k}");
         let next = &list[k + 1];
@@ -362,8 +363,8 @@ fn a_follower_resumes_at_the_target_nearest_to_the_first_estimate() {
     assert_eq!(out.resumed, Some(k));
 }
 
-/// The object a degree short of a rolling target, the hand not at its joints: the follower
-/// holds the target until the object has stood still for SETTLED_NS, then moves on.
+/// The object 1.8 deg short of a rolling target (beyond LEAD), the hand not at its joints: the
+/// follower holds the target until the object has stood still for SETTLED_NS, then moves on.
 #[test]
 fn a_rolling_target_short_of_which_the_object_settles_is_reached_as_it_settles() {
     let config = config("paper_sphere.toml");
@@ -374,7 +375,7 @@ fn a_rolling_target_short_of_which_the_object_settles_is_reached_as_it_settles()
         .unwrap();
     let mut now = follow_to(&mut f, k, 0);
     let step = f.targets()[k].step.clone();
-    let mut e = at_joints_of(&step, step.rotation.to_degrees() - 1.0);
+    let mut e = at_joints_of(&step, step.rotation.to_degrees() - 1.8);
     // The fingers in contact half a degree off the target's joints.
     for ef in e.fingers.iter_mut().filter(|ef| ef.in_contact) {
         ef.joints[0] += 0.5_f64.to_radians();
@@ -400,6 +401,50 @@ fn a_rolling_target_short_of_which_the_object_settles_is_reached_as_it_settles()
         now += TICK;
     }
     assert_eq!(f.replans(), 0);
+}
+
+/// Inside a rolling step the hand rolls on while the object follows: a sub-target other than
+/// the step's last is passed at once with the object within LEAD of it, the hand anywhere;
+/// farther short (the object stopped) or farther past (it slipped ahead) it is held. The step's last sub-target (before a switch, or
+/// the next step's sub-targets) is not passed so: there the object must come within
+/// ROTATION_TOLERANCE, or settle (SETTLED_NS) within SETTLED_TOLERANCE.
+#[test]
+fn a_sub_target_inside_a_rolling_step_is_passed_while_the_object_follows_within_the_lead() {
+    let (config, _, _, list) = planned("paper_sphere.toml");
+    let tol = Tolerances::new(config.pipeline.joint_noise);
+    let lead = LEAD.to_degrees();
+    let (mut passing, mut last) = (0, 0);
+    for (k, t) in list.iter().enumerate() {
+        if t.step.phase != Phase::Rolling || t.way_point || k == 0 {
+            continue;
+        }
+        let r = t.step.rotation.to_degrees();
+        // The hand off the target's joints: only the rotation decides.
+        let at = |off: f64| {
+            let mut e = at_joints_of(&t.step, r + off);
+            for ef in e.fingers.iter_mut().filter(|ef| ef.in_contact) {
+                ef.joints[0] += 1.0_f64.to_radians();
+            }
+            assert!(!t.hand_at(&e, tol.hand));
+            t.reached(&e, false, tol.joint)
+        };
+        if t.passing {
+            passing += 1;
+            assert!(at(-(lead - 0.1)), "target {k}");
+            assert!(at(lead - 0.1), "target {k}: past it");
+            assert!(!at(-(lead + 0.1)), "target {k}");
+            assert!(!at(lead + 0.1), "target {k}");
+        } else {
+            last += 1;
+            assert!(!at(-1.0), "target {k}");
+            assert!(at(-0.2), "target {k}");
+        }
+    }
+    // Ten sub-targets per 5 deg step, the last of each not passed on the way.
+    assert!(
+        passing > 500 && last >= 72,
+        "{passing} passing, {last} last"
+    );
 }
 
 /// The object settled a degree past the goal, the hand not at the last target's joints (after

@@ -10,9 +10,13 @@
 //! allocated per step.
 //!
 //! **Squeeze.** A finger commanded with a force has its servo targets moved so that its
-//! fingertip centre's target lies [`Controls::squeeze`] further along `f` (a damped
-//! least-squares step of the fingertip Jacobian): the position servos then press too, as a
-//! hand's controller squeezes an object it holds.
+//! fingertip centre's target lies further along `f`, by [`Controls::squeeze`] times `|f|` over
+//! the largest force commanded to any finger (a damped least-squares step of the fingertip
+//! Jacobian): the position servos then press too, as a hand's controller squeezes an object
+//! it holds, and press the fingers in proportion to the balancing forces, so that what they
+//! add is itself nearly balanced. (The same squeeze for every finger, used until session 18,
+//! added an unbalanced push wherever the forces differ: the object lagged the hand by a
+//! degree and more, and the ellipsoid slipped out under gravity.)
 
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_plan::hand::Hand;
@@ -53,7 +57,8 @@ pub enum SimError {
 pub struct Controls {
     /// Feed the fingertip force targets forward as joint torques.
     pub feedforward: bool,
-    /// How far past the commanded fingertip position a pressing finger's servos aim (m).
+    /// How far past the commanded fingertip position the servos of the finger pressing
+    /// hardest aim (m); the others' in proportion to their forces.
     pub squeeze: Real,
 }
 
@@ -269,6 +274,13 @@ impl Sim {
     /// Servo targets and feed-forward torques from the commands, at the current state.
     fn apply_targets(&mut self) {
         let n = self.fingers.len();
+        // The largest force commanded: the finger that presses hardest squeezes the whole
+        // `squeeze`, the others in proportion to their forces.
+        let largest = self
+            .fingers
+            .iter()
+            .map(|f| f.force.norm())
+            .fold(0.0, Real::max);
         for slot in 0..n {
             let (force, has_force) = {
                 let f = &self.fingers[slot];
@@ -295,10 +307,11 @@ impl Sim {
                 jac[k] = axis.cross(&(p - anchor));
                 jac_centre[k] = axis.cross(&(tip_centre - anchor));
             }
-            // The squeeze: the fingertip centre's target `squeeze` further along the force.
+            // The squeeze: the fingertip centre's target further along the force, by
+            // `squeeze` times its share of the largest force.
             let mut dq = [0.0; MAX_JOINTS];
             if has_force && self.controls.squeeze > 0.0 {
-                let d = force.normalize() * self.controls.squeeze;
+                let d = force * (self.controls.squeeze / largest);
                 let mut jjt = Matrix3::identity() * SQUEEZE_DAMPING;
                 for c in jac_centre.iter().take(dof) {
                     jjt += c * c.transpose();

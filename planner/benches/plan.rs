@@ -58,6 +58,7 @@ fn scenario(s: &Setup) -> Scenario<'_> {
             cap_margin: 5f64.to_radians(),
             min_manipulability: 1e-4,
             squeeze_reserve: 2e-3,
+            region_erosion: 0,
             max_steps: 10_000,
             attach_resolution: 2f64.to_radians(),
         },

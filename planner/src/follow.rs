@@ -11,7 +11,9 @@
 //! command out. A target is commanded until the estimate has reached it (the same fingers in
 //! contact and, for a rolling step, the object's rotation within [`ROTATION_TOLERANCE`] of
 //! the target, or within [`SETTLED_TOLERANCE`] of it with the object settled or the hand at
-//! the target's joints, [`HAND_AT_TARGET`]), then the next. The first estimate picks the
+//! the target's joints, [`HAND_AT_TARGET`]), then the next; a sub-target inside a rolling step
+//! (not its last) is passed as soon as the object is within [`LEAD`] of it, so that the hand
+//! rolls on while a physical object follows it a degree behind. The first estimate picks the
 //! target nearest to it, so that a follower started again resumes rather than sends the hand
 //! back.
 //!
@@ -70,6 +72,14 @@ const CAP_TURNS: [Real; 7] = [
 /// How close a free finger's joints must come to a way point (rad), beyond the encoder noise
 /// (five standard deviations of `pipeline.joint_noise_deg` are added: [`Tolerances::new`]).
 pub const WAY_POINT_TOLERANCE: Real = 1.0 * std::f64::consts::PI / 180.0;
+/// How far from a sub-target inside a rolling step the object may be for the target to count
+/// as passed (rad): the hand goes on to the next while the object follows. With a
+/// physical plant the object lags the hand's sub-target by about a degree at rest (the
+/// contacts give under the squeeze and the tangential loads), and waiting for it to settle
+/// at each sub-target ([`SETTLED_NS`]) crawled at 1 deg/s. The command then leads the object
+/// by at most `LEAD` plus a [`SUBSTEP`]; an object that stops (a slip) stops the hand there,
+/// and one that slipped ahead of it by more is held there too, to be planned again from.
+pub const LEAD: Real = 1.5 * std::f64::consts::PI / 180.0;
 /// How far short of a rolling step the object may settle and the step still count as reached
 /// (rad); a hand held still farther away waits.
 pub const SETTLED_TOLERANCE: Real = 2.0 * std::f64::consts::PI / 180.0;
@@ -164,6 +174,10 @@ pub struct Target {
     /// free finger are at it, so that the finger goes from way point to way point along moves
     /// checked to stay outside the object, and never cuts across.
     pub way_point: bool,
+    /// A sub-target inside a rolling step (not its last): passed as soon as the object is
+    /// within [`LEAD`] of it ([`Target::reached`]), so that the hand rolls on without waiting
+    /// for the object to settle at each.
+    pub passing: bool,
 }
 
 impl Target {
@@ -171,6 +185,7 @@ impl Target {
         Self {
             step,
             way_point: false,
+            passing: false,
         }
     }
 
@@ -186,7 +201,8 @@ impl Target {
         e.same_contacts(step)
             && (step.phase != Phase::Rolling
                 || off <= ROTATION_TOLERANCE
-                || (settled && off <= SETTLED_TOLERANCE))
+                || (settled && off <= SETTLED_TOLERANCE)
+                || (self.passing && off <= LEAD))
             && (!self.way_point || e.joint_error(step, false) <= joint_tolerance)
     }
 
@@ -404,6 +420,7 @@ fn way_points(
             out.push(Target {
                 step: via,
                 way_point: true,
+                passing: false,
             });
         }
     }
@@ -441,7 +458,11 @@ fn rolling(prev: &Step, step: &Step, hand: &Hand, out: &mut Vec<Target>) {
                 }
             }
         }
-        out.push(Target::new(t));
+        out.push(Target {
+            step: t,
+            way_point: false,
+            passing: i < n,
+        });
     }
 }
 

@@ -90,6 +90,13 @@ pub struct Settings {
     /// along the contact's inward normal, inside its joint limits ([`Finger::reach_along`]):
     /// room for a hand's controller to squeeze (0: not checked).
     pub squeeze_reserve: Real,
+    /// Rings of neighbouring candidates (the candidates' adjacency) by which every ICR and
+    /// every rendezvous region is shrunk before the planner picks a contact from it: a
+    /// contact that a real hand makes up to that many candidates off the plan's stays inside
+    /// the unshrunk region. For the ICRs of a rolling grasp this keeps the margin whatever
+    /// the contacts' errors within it (the ICRs hold for every contact anywhere in its
+    /// region); at a switch, for the attaching finger's error. 0: the regions as they are.
+    pub region_erosion: usize,
     /// Upper bound on planner steps (rolling, attach and detach together).
     pub max_steps: usize,
     /// Resolution of the search over the cap angle when a finger attaches (rad).
@@ -346,6 +353,10 @@ pub struct Summary {
     pub lp_region_unsafe: usize,
     /// Rendezvous candidates found by brute force, summed over the switches.
     pub brute_force_candidates: usize,
+    /// The [`Settings::region_erosion`] planned with (rings of candidates); 0 in plans
+    /// written before it was reported.
+    #[serde(default)]
+    pub region_erosion: usize,
     /// How close any finger's link comes to the object's section (mm), at the steps and along
     /// the straight joint-space moves between them ([`link_clearance`]); `None` in plans
     /// written before it was reported.
@@ -617,6 +628,23 @@ impl Scenario<'_> {
         } else {
             length * turn.signum()
         }
+    }
+
+    /// The members of a region (sorted candidate indices) whose neighbours, to
+    /// [`Settings::region_erosion`] rings of the candidates' adjacency, are all members too.
+    fn erode(&self, members: &[u32]) -> Vec<u32> {
+        let rings = self.settings.region_erosion;
+        let adjacency = &self.problem.candidates().adjacency;
+        let mut kept = members.to_vec();
+        for _ in 0..rings {
+            let inside = |m: u32| kept.binary_search(&m).is_ok();
+            kept = kept
+                .iter()
+                .copied()
+                .filter(|&m| adjacency.neighbours(m as usize).iter().all(|&n| inside(n)))
+                .collect();
+        }
+        kept
     }
 
     /// The body point that stays still in the world when the object turns by `step`.
@@ -1058,6 +1086,7 @@ impl Scenario<'_> {
             lp_region_candidates,
             lp_region_unsafe,
             brute_force_candidates,
+            region_erosion: s.region_erosion,
             min_link_clearance_mm: None,
             min_squeeze_reserve_mm: None,
         };
@@ -1158,6 +1187,13 @@ impl Scenario<'_> {
             }
             Err(e) => return Ok(Roll::Stuck(e.to_string())),
         };
+        let regions: Vec<icrflow_grasp::icr::Region> = regions
+            .into_iter()
+            .map(|r| icrflow_grasp::icr::Region {
+                members: self.erode(&r.members),
+                ..r
+            })
+            .collect();
         let mut next = Vec::with_capacity(contacts.len());
         for (i, (c, region)) in contacts.iter().zip(&regions).enumerate() {
             let f = self.finger(c.finger);
@@ -1240,7 +1276,10 @@ impl Scenario<'_> {
         }
         let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
         let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
-        let brute = &regions.exact;
+        // The exact region shrunk by the erosion: an attaching finger that lands that many
+        // candidates off the rendezvous point still keeps the margin.
+        let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
+        let brute: &Vec<usize> = &self.erode(&exact).into_iter().map(|c| c as usize).collect();
         let angle = |c: usize| {
             let p = self.problem.candidates().points[c] - self.centre;
             p.y.atan2(p.x)

@@ -36,6 +36,7 @@ fn settings(alpha: Real) -> Settings {
         cap_margin: 5f64.to_radians(),
         min_manipulability: 1e-4,
         squeeze_reserve: 2e-3,
+        region_erosion: 0,
         max_steps: 10_000,
         attach_resolution: 2f64.to_radians(),
     }
@@ -486,4 +487,57 @@ fn a_step_that_rolls_a_contact_out_of_its_icr_is_blocked() {
             plan.summary.stop_reason
         );
     }
+}
+
+/// Every grasp of `plan` whose contacts are each moved by at most one candidate along the
+/// section (every combination, the rolling steps only): the smallest quality found, and at
+/// which step.
+fn worst_one_off(p: &GraspProblem, plan: &Plan) -> (Real, usize) {
+    let n = p.candidates().points.len();
+    let mut worst = (Real::INFINITY, 0);
+    for step in plan.steps.iter().filter(|s| s.phase == Phase::Rolling) {
+        let contacts = contacts_of(step);
+        let combos = 3_usize.pow(contacts.len() as u32);
+        for combo in 0..combos {
+            let mut moved = contacts.clone();
+            let mut code = combo;
+            for c in &mut moved {
+                *c = (*c + n + code % 3 - 1) % n;
+                code /= 3;
+            }
+            let q = p.evaluate(&moved).map_or(0.0, |e| e.quality);
+            if q < worst.0 {
+                worst = (q, step.step);
+            }
+        }
+    }
+    worst
+}
+
+/// `plan.region_erosion = 1`: the rolling contacts are picked one candidate inside their
+/// ICRs, so a hand whose contacts land a candidate off the plan's (every combination of the
+/// three, at every rolling step) keeps the margin; the paper's plan without it has grasps
+/// that one candidate's error takes below alpha. The plan still turns the whole turn.
+#[test]
+fn with_regions_shrunk_by_a_candidate_a_contact_one_off_the_plan_keeps_the_margin() {
+    let (o, p) = sphere_problem(0.3);
+    let hand = paper::hand();
+    let mut shrunk = scenario(&o, &p, &hand, &PAPER_CONTACTS, ALPHA);
+    shrunk.settings.region_erosion = 1;
+    let plan = shrunk.plan(&mut |_| {}).unwrap();
+    assert!(plan.summary.completed, "{:?}", plan.summary.stop_reason);
+    assert_eq!(plan.summary.region_erosion, 1);
+    let (worst, at) = worst_one_off(&p, &plan);
+    println!(
+        "shrunk by one: {} switches, worst grasp one candidate off {worst:.4} (step {at})",
+        plan.summary.switches
+    );
+    assert!(worst >= ALPHA * (1.0 - 1e-9), "step {at}: {worst}");
+    let (_, _, _, unshrunk) = paper_plan();
+    let (worst, at) = worst_one_off(&p, &unshrunk);
+    println!(
+        "as they are: {} switches, worst grasp one candidate off {worst:.4} (step {at})",
+        unshrunk.summary.switches
+    );
+    assert!(worst < ALPHA, "step {at}: {worst}");
 }

@@ -322,6 +322,12 @@ pub const SQUEEZE_RESERVE: Range = Range::closed(
     "mm",
     "the plan's summary measures the reserve up to 5 mm (icrflow_plan::planner::SQUEEZE_PROBE)",
 );
+/// `plan.region_erosion`.
+pub const REGION_EROSION: Count = Count::new(
+    0,
+    3,
+    "a ring is a candidate off each end of every region (5 deg on the paper's 72-candidate section): at 2 the paper's plan still turns a whole turn, at 3 it stops after 40 deg",
+);
 /// Upper bound on plan steps.
 pub const MAX_STEPS: Count = Count::new(
     1,

@@ -554,7 +554,8 @@ pub struct PlantSpec {
     pub kp: Real,
     /// See `kp`.
     pub kv: Real,
-    /// How far past the commanded fingertip position a pressing finger's servos aim (m).
+    /// How far past the commanded fingertip position the servos of the finger commanded with
+    /// the largest force aim (m); the others' in proportion to their forces.
     pub squeeze: Real,
     /// Whether the fingertip force targets reach the joints as feed-forward torques.
     pub feedforward: bool,
@@ -1219,6 +1220,7 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         max_steps: None,
         attach_resolution_deg: None,
         squeeze_reserve_mm: None,
+        region_erosion: None,
     });
     let rotation =
         bounds::ROTATION.or("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?;
@@ -1252,6 +1254,8 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
             raw.squeeze_reserve_mm,
             DEFAULT_SQUEEZE_RESERVE_MM,
         )? * 1e-3,
+        region_erosion: bounds::REGION_EROSION
+            .check("plan.region_erosion", raw.region_erosion.unwrap_or(0))?,
     })
 }
 

@@ -180,4 +180,5 @@ pub struct RawPlan {
     pub max_steps: Option<usize>,
     pub attach_resolution_deg: Option<f64>,
     pub squeeze_reserve_mm: Option<f64>,
+    pub region_erosion: Option<usize>,
 }

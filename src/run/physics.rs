@@ -4,11 +4,14 @@
 //! Fed every [`PlantTruth`] of a MuJoCo plant and every plan step: the object's true rotation
 //! and the largest distance of its centre from the start; per contact planned to roll, the
 //! largest tangential slip speed and friction use `|f_t| / (mu f_n)`; contacts lost while the
-//! plan has them (a finger off the object for [`LOST_AFTER`] truths in a row while planned in
-//! contact); at every plan step, the quality alpha* of the grasp at MuJoCo's true contact
-//! points (each taken into the object's frame and snapped to the nearest candidate of the
-//! section); whether the object was dropped (its centre further than [`DROP_FRACTION`] of its
-//! size from the start).
+//! plan has them (a finger that touched the object while planned in contact, then is off it
+//! for [`LOST_AFTER`] truths in a row while still planned in contact: an attaching finger
+//! still on its way to the object has lost nothing); for every plan step, the quality alpha*
+//! of the grasp at MuJoCo's true contact points at the step's last truth, as the hand has made
+//! it (each point taken into the object's frame and snapped to the nearest candidate of the
+//! section; a contact that flickered off for fewer than [`LOST_AFTER`] truths counts at its
+//! last point); whether the object was dropped (its centre further than [`DROP_FRACTION`] of
+//! its size from the start).
 
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
 use icrflow_interfaces::{MAX_FINGERS, PlanStepHeader, PlantEngine, PlantTruth};
@@ -68,8 +71,16 @@ pub struct PhysicsTrack {
     /// Per finger slot of the truth: truths in a row without contact while planned, and
     /// whether the loss was counted.
     off: [(u32, bool); MAX_FINGERS],
-    /// A plan step came since the last evaluation.
-    step_due: bool,
+    /// Per finger slot of the truth: whether it has touched the object since the plan has had
+    /// it in contact.
+    made: [bool; MAX_FINGERS],
+    /// Per finger slot of the truth: its last contact point (hand frame) and truths since.
+    last_touch: [Option<(Vec3, u32)>; MAX_FINGERS],
+    /// The quality of the current plan step's grasp at the newest truth: counted when the
+    /// next step comes (or at the summary), so that each step's grasp is taken as the hand
+    /// has made it (at a step's first truth an attaching finger may not touch yet, and at the
+    /// run's first the hand has not yet pressed).
+    pending: Option<Real>,
     last_step: Option<u64>,
 }
 
@@ -96,7 +107,9 @@ impl PhysicsTrack {
             dropped: false,
             planned: [(0, false); MAX_FINGERS],
             off: [(0, false); MAX_FINGERS],
-            step_due: false,
+            made: [false; MAX_FINGERS],
+            last_touch: [None; MAX_FINGERS],
+            pending: None,
             last_step: None,
         })
     }
@@ -111,7 +124,9 @@ impl PhysicsTrack {
         }
         if self.last_step != Some(p.step) {
             self.last_step = Some(p.step);
-            self.step_due = true;
+            if let Some(alpha) = self.pending.take() {
+                self.commit(alpha);
+            }
         }
     }
 
@@ -144,8 +159,16 @@ impl PhysicsTrack {
                     self.max_use = self.max_use.max(ft / (self.mu * fn_));
                 }
             }
+            self.last_touch[slot] = if on {
+                Some((Vec3::from(t.contact_points[slot]), 0))
+            } else {
+                self.last_touch[slot].map(|(p, n)| (p, n + 1))
+            };
+            // A contact is lost only once it was made: planned, it touched.
+            let made = &mut self.made[slot];
+            *made = planned && (*made || on);
             let (count, counted) = &mut self.off[slot];
-            if planned && !on {
+            if *made && !on {
                 *count += 1;
                 if *count >= LOST_AFTER && !*counted {
                     *counted = true;
@@ -156,24 +179,27 @@ impl PhysicsTrack {
                 *counted = false;
             }
         }
-        if self.step_due {
-            self.step_due = false;
-            self.evaluate(t);
+        if self.last_step.is_some() {
+            self.pending = Some(self.evaluate(t));
         }
     }
 
-    /// The quality of the grasp at the truth's contacts, in the object's frame.
-    fn evaluate(&mut self, t: &PlantTruth) {
+    /// The quality alpha* of the grasp at the truth's contacts, in the object's frame (0:
+    /// not in force closure, fewer than two contacts among them).
+    fn evaluate(&self, t: &PlantTruth) -> Real {
         let [w, x, y, z] = t.orientation;
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
         let origin = Vec3::from(t.position) - q * self.setup.object.centre_of_mass;
         let cands = self.setup.problem.candidates();
         let mut contacts = Vec::with_capacity(MAX_FINGERS);
         for slot in 0..(t.finger_count as usize).min(MAX_FINGERS) {
-            if t.in_contact[slot] != 1 {
+            // Touching, or off for fewer truths than make a loss (MuJoCo's contacts flicker on
+            // a rolling fingertip): at its last point.
+            let Some((point, _)) = self.last_touch[slot].filter(|&(_, off)| off < LOST_AFTER)
+            else {
                 continue;
-            }
-            let p = q.inverse() * (Vec3::from(t.contact_points[slot]) - origin);
+            };
+            let p = q.inverse() * (point - origin);
             let nearest = (0..cands.points.len()).min_by(|&a, &b| {
                 (cands.points[a] - p)
                     .norm_squared()
@@ -186,30 +212,31 @@ impl PhysicsTrack {
             }
         }
         if contacts.len() < 2 {
-            self.evaluated += 1;
-            self.not_closed += 1;
-            self.min_quality = Some(0.0);
-            return;
+            return 0.0;
         }
-        match self.setup.problem.evaluate(&contacts) {
-            Ok(e) => {
-                self.evaluated += 1;
-                let alpha = e.quality;
-                if alpha <= 0.0 {
-                    self.not_closed += 1;
-                }
-                self.min_quality = Some(self.min_quality.map_or(alpha, |m| m.min(alpha)));
-            }
-            Err(_) => {
-                self.evaluated += 1;
-                self.not_closed += 1;
-                self.min_quality = Some(0.0);
-            }
-        }
+        self.setup
+            .problem
+            .evaluate(&contacts)
+            .map_or(0.0, |e| e.quality.max(0.0))
+    }
+
+    /// Counts the quality of a plan step's grasp as executed.
+    fn commit(&mut self, alpha: Real) {
+        self.evaluated += 1;
+        self.not_closed += u32::from(alpha <= 0.0);
+        self.min_quality = Some(self.min_quality.map_or(alpha, |m| m.min(alpha)));
     }
 
     /// What it found.
     pub fn summary(&self) -> PhysicsSummary {
+        // The step under way counts as it stands.
+        let (mut min_quality, mut evaluated, mut not_closed) =
+            (self.min_quality, self.evaluated, self.not_closed);
+        if let Some(alpha) = self.pending {
+            evaluated += 1;
+            not_closed += u32::from(alpha <= 0.0);
+            min_quality = Some(min_quality.map_or(alpha, |m| m.min(alpha)));
+        }
         PhysicsSummary {
             engine: self.engine.clone(),
             rotation_deg: self.rotation.to_degrees(),
@@ -217,10 +244,116 @@ impl PhysicsTrack {
             max_slip_m_s: self.max_slip,
             max_friction_use: self.max_use,
             unplanned_losses: self.losses,
-            min_true_quality: self.min_quality,
-            steps_evaluated: self.evaluated,
-            steps_not_closed: self.not_closed,
+            min_true_quality: min_quality,
+            steps_evaluated: evaluated,
+            steps_not_closed: not_closed,
             dropped: self.dropped,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use icrflow_interfaces::FingerTarget;
+
+    /// The paper's scenario in MuJoCo, and the candidates of its initial contacts (fingers 1,
+    /// 2 and 4; finger 3 starts free).
+    fn paper() -> (Config, Vec<usize>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/paper_sphere_mujoco.toml");
+        let config = Config::load(&path).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        let (start, _) = setup.scenario(&config).start().unwrap();
+        (config, start.iter().map(|c| c.candidate).collect())
+    }
+
+    /// Plan step `step` with `contacts` (finger, planned in contact) in slots 0-3.
+    fn step(step: u64, contacts: [bool; 4]) -> PlanStepHeader {
+        let mut p = PlanStepHeader {
+            step,
+            finger_count: 4,
+            ..Default::default()
+        };
+        for (slot, on) in contacts.into_iter().enumerate() {
+            p.targets[slot] = FingerTarget {
+                finger: slot as u32 + 1,
+                in_contact: u32::from(on),
+                ..Default::default()
+            };
+        }
+        p
+    }
+
+    /// A truth with the object at rest at the origin and the fingers of slots 0-3 touching
+    /// where `touch` says (at those candidates' points).
+    fn truth(config: &Config, touch: [Option<usize>; 4]) -> PlantTruth {
+        let setup = Setup::new(config).unwrap();
+        let cands = setup.problem.candidates();
+        let mut t = PlantTruth {
+            orientation: [1.0, 0.0, 0.0, 0.0],
+            finger_count: 4,
+            engine: PlantEngine::Mujoco as u32,
+            ..Default::default()
+        };
+        for (slot, c) in touch.into_iter().enumerate() {
+            t.finger_ids[slot] = slot as u32 + 1;
+            if let Some(c) = c {
+                let p = cands.points[c] - setup.object.centre_of_mass;
+                t.in_contact[slot] = 1;
+                t.contact_points[slot] = [p.x, p.y, p.z];
+            }
+        }
+        t
+    }
+
+    /// A finger planned in contact that has not touched yet (an attach on its way) has lost
+    /// nothing; once it touched, LOST_AFTER truths off it while still planned are one loss.
+    #[test]
+    fn a_contact_is_lost_only_once_it_was_made() {
+        let (config, c) = paper();
+        let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        // Finger 3 (slot 2) attaches at a candidate between fingers 2's and 4's.
+        let attach = (c[1] + c[2]) / 2;
+        track.plan_step(&step(5, [true, true, true, true]));
+        let approaching = truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]);
+        for _ in 0..10 {
+            track.truth(&approaching);
+        }
+        assert_eq!(track.summary().unplanned_losses, 0);
+        let touching = truth(&config, [Some(c[0]), Some(c[1]), Some(attach), Some(c[2])]);
+        track.truth(&touching);
+        for k in 0..LOST_AFTER {
+            assert_eq!(track.summary().unplanned_losses, 0, "after {k} truths off");
+            track.truth(&approaching);
+        }
+        assert_eq!(track.summary().unplanned_losses, 1);
+    }
+
+    /// A plan step's grasp is taken at its last truth, as the hand has made it: at the first
+    /// truth of the run the hand has not yet pressed (two contacts, no force closure), by the
+    /// step's end all three touch; a contact that flickers off for a truth still counts.
+    #[test]
+    fn a_steps_grasp_is_taken_as_the_hand_has_made_it() {
+        let (config, c) = paper();
+        let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        track.plan_step(&step(1, [true, true, false, true]));
+        track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, None]));
+        let made = truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]);
+        track.truth(&made);
+        let flicker = truth(&config, [Some(c[0]), None, None, Some(c[2])]);
+        track.truth(&flicker);
+        let s = track.summary();
+        assert_eq!((s.steps_evaluated, s.steps_not_closed), (1, 0), "{s:?}");
+        let alpha = s.min_true_quality.unwrap();
+        assert!(alpha >= config.grasp.alpha, "{alpha}");
+        // The next step commits the first; off for LOST_AFTER truths, the contact is gone.
+        track.plan_step(&step(2, [true, true, false, true]));
+        for _ in 0..LOST_AFTER {
+            track.truth(&flicker);
+        }
+        let s = track.summary();
+        assert_eq!((s.steps_evaluated, s.steps_not_closed), (2, 1), "{s:?}");
+        assert_eq!(s.min_true_quality, Some(0.0));
     }
 }
