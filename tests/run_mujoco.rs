@@ -11,7 +11,8 @@ use common::{icrflow, root, scratch};
 static PIPELINE: Mutex<()> = Mutex::new(());
 
 /// `config/NAME` turned `rotation` degrees, giving up after 10 s of holds or of no
-/// progress, with `plant` keys added to its `[plant]`, written into `dir`; run with
+/// progress, with `plant` keys added to its `[plant]` and `pipeline` keys to its
+/// `[pipeline]`, written into `dir`; run with
 /// `--summary-json`, recorded to `rrd` (else without the visualizer): the summary's text, the
 /// JSON, stderr.
 fn run(
@@ -19,6 +20,7 @@ fn run(
     name: &str,
     rotation: f64,
     plant: &str,
+    pipeline: &str,
     rrd: Option<&std::path::Path>,
 ) -> (String, serde_json::Value, String) {
     let text = std::fs::read_to_string(root().join("config").join(name)).unwrap();
@@ -31,9 +33,12 @@ fn run(
         .replace("path = \"meshes", &format!("path = \"{}", mesh.display()))
         .replace("[plant]\n", &format!("[plant]\n{plant}\n"));
     let text = if text.contains("\n[pipeline]\n") {
-        text.replace("\n[pipeline]\n", "\n[pipeline]\nmax_hold_s = 10.0\n")
+        text.replace(
+            "\n[pipeline]\n",
+            &format!("\n[pipeline]\nmax_hold_s = 10.0\n{pipeline}\n"),
+        )
     } else {
-        format!("{text}\n[pipeline]\nmax_hold_s = 10.0\n")
+        format!("{text}\n[pipeline]\nmax_hold_s = 10.0\n{pipeline}\n")
     };
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
@@ -86,7 +91,7 @@ fn the_paper_sphere_turns_a_whole_turn_in_mujoco_as_the_estimate_says() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("mujoco-sphere");
     let rrd = dir.join("run.rrd");
-    let (out, s, _) = run(&dir, "paper_sphere_mujoco.toml", 360.0, "", Some(&rrd));
+    let (out, s, _) = run(&dir, "paper_sphere_mujoco.toml", 360.0, "", "", Some(&rrd));
     assert_whole_turn(&s, 13, 0.1);
     let p = &s["physics"];
     let truth = p["rotation_deg"].as_f64().unwrap();
@@ -141,8 +146,36 @@ fn the_paper_sphere_turns_a_whole_turn_in_mujoco_as_the_estimate_says() {
 fn the_ellipsoid_turns_a_whole_turn_under_gravity_in_mujoco() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("mujoco-ellipsoid");
-    let (_, s, _) = run(&dir, "ellipsoid_mujoco.toml", 360.0, "", None);
+    let (_, s, _) = run(&dir, "ellipsoid_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 13, 0.15);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Pushed mid-run (a twist of 0.05 N m for 50 ms at 5 s of MuJoCo's time), the pipeline's
+/// processes recover (the planner node plans again from the estimate where the object stops
+/// off the plan) and turn the sphere to the goal, the object in the hand.
+#[test]
+fn a_push_mid_run_is_recovered_by_the_pipeline() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("mujoco-push");
+    let (_, s, err) = run(
+        &dir,
+        "paper_sphere_mujoco.toml",
+        360.0,
+        "",
+        "push_nm = [0.0, 0.0, 0.05]\npush_at_s = 5.0",
+        None,
+    );
+    assert!(
+        err.contains("icrflow-plant: the object is pushed at"),
+        "{err}"
+    );
+    assert_eq!(s["completed"], true, "{s}");
+    let p = &s["physics"];
+    let truth = p["rotation_deg"].as_f64().unwrap();
+    assert!((truth - 360.0).abs() <= 7.2, "{truth}: {s}");
+    assert_eq!(p["dropped"], false, "{s}");
+    assert!(p["drift_m"].as_f64().unwrap() < 5e-3, "{s}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -158,6 +191,7 @@ fn without_force_targets_or_squeeze_the_ellipsoid_falls_and_the_summary_says_so(
         "ellipsoid_mujoco.toml",
         45.0,
         "feedforward = false\nsqueeze_mm = 0.0",
+        "",
         None,
     );
     let p = &s["physics"];

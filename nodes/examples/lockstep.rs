@@ -5,7 +5,8 @@
 //!
 //! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
 //! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's), every_s (the
-//! interval of the lines, 0.5 s unless given). Prints a line every `every_s` of simulated time
+//! interval of the lines, 0.5 s unless given), push_at_s, push_fx, push_fy (N), push_tz
+//! (N m), push_ms (a push of the object: `pipeline.push_*`). Prints a line every `every_s` of simulated time
 //! (true, estimated and planned rotation; per fingertip its normal force, the commanded
 //! force's magnitude in brackets, friction use and slip speed in mm/s; each finger's contact
 //! candidate, estimated / planned; how far each fingertip is from its command across and along
@@ -78,6 +79,21 @@ fn main() -> Result<()> {
             "rotation_deg" => config.plan.goal = v.to_radians(),
             "seed" => config.pipeline.seed = v as u64,
             "every_s" => every = v,
+            "push_at_s" | "push_fx" | "push_fy" | "push_tz" | "push_ms" => {
+                let p = config.pipeline.push.get_or_insert(icrflow_scenario::Push {
+                    force: [0.0; 3],
+                    torque: [0.0; 3],
+                    at: 5.0,
+                    duration: 0.05,
+                });
+                match k {
+                    "push_at_s" => p.at = v,
+                    "push_fx" => p.force[0] = v,
+                    "push_fy" => p.force[1] = v,
+                    "push_tz" => p.torque[2] = v,
+                    _ => p.duration = v * 1e-3,
+                }
+            }
             _ => bail!("unknown key {k}"),
         }
     }

@@ -7,7 +7,9 @@
 //! A tracking command sets every finger's joint servo targets and its fingertip force target
 //! (fed forward as `J^T f` with `plant.feedforward`, the servos aiming `plant.squeeze_mm`
 //! past the surface); a hold, or a command older than `pipeline.max_input_age_ms`, keeps the
-//! last targets and forces: the hand keeps its grip. The world waits for the hand: MuJoCo
+//! last targets and forces: the hand keeps its grip. The configured push of the object
+//! (`pipeline.push_n`, `push_nm`) begins at the first timestep at or after `push_at_s` of
+//! MuJoCo's time (an [`Event::Pushed`]). The world waits for the hand: MuJoCo
 //! does not advance until the first tracking command (until then nothing holds the object
 //! with a force, and under gravity it would fall out of a hand that has not yet closed).
 //!
@@ -30,7 +32,7 @@ use icrflow_physics::sim::Sim;
 use icrflow_plan::forces::{Balance, ForceContact, ForceSolver, Load};
 use icrflow_plan::hand::{Hand, wrap};
 use icrflow_plan::planner::Contact;
-use icrflow_scenario::{Config, PipelineSpec, Setup};
+use icrflow_scenario::{Config, PipelineSpec, Push, Setup};
 
 use crate::noise::Noise;
 use crate::plant::{Event, Output};
@@ -72,6 +74,8 @@ pub struct Physical<'a> {
     /// are not followed).
     command_time: u64,
     events: Vec<Event>,
+    /// The configured push, until it is made.
+    push: Option<Push>,
 }
 
 impl<'a> Physical<'a> {
@@ -114,6 +118,7 @@ impl<'a> Physical<'a> {
             noise: Noise::new(p.seed),
             command_time: 0,
             events: Vec::with_capacity(n + 1),
+            push: p.push,
         })
     }
 
@@ -174,6 +179,11 @@ impl<'a> Physical<'a> {
         self.rotation = v[0];
         self.last_yaw = v[1];
         self.started = v[2] != 0.0;
+        // A push due before the state was saved was made then (or cut short by the crash):
+        // it is not made again.
+        if self.push.is_some_and(|p| p.at < self.sim.time()) {
+            self.push = None;
+        }
         for slot in 0..self.touching.len() {
             self.touching[slot] = self.sim.contact(slot).is_some();
         }
@@ -199,6 +209,17 @@ impl<'a> Physical<'a> {
             let span = elapsed.clamp(self.dt, 10.0 * self.dt);
             let steps = (span / h).round().max(1.0) as usize;
             for _ in 0..steps {
+                if let Some(p) = self.push.filter(|p| self.sim.time() >= p.at) {
+                    self.push = None;
+                    self.sim
+                        .push(Vec3::from(p.force), Vec3::from(p.torque), p.duration);
+                    self.events.push(Event::Pushed {
+                        force: p.force,
+                        torque: p.torque,
+                        duration: p.duration,
+                        at: self.rotation,
+                    });
+                }
                 self.sim.step();
             }
         }

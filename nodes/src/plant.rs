@@ -87,6 +87,17 @@ pub enum Event {
         /// In contact now.
         on: bool,
     },
+    /// The configured push of the object began (`pipeline.push_n`, `push_nm`; MuJoCo).
+    Pushed {
+        /// The force (N, hand frame).
+        force: [f64; 3],
+        /// The torque (N m).
+        torque: [f64; 3],
+        /// For how long (s).
+        duration: f64,
+        /// The object's rotation when it began (rad).
+        at: f64,
+    },
     /// The configured slip happened.
     Slipped {
         /// By how much (rad).
@@ -119,6 +130,20 @@ impl std::fmt::Display for Event {
                 out,
                 "finger {finger} {} the object",
                 if on { "presses on" } else { "leaves" }
+            ),
+            Self::Pushed {
+                force,
+                torque,
+                duration,
+                at,
+            } => write!(
+                out,
+                "the object is pushed at {:.1} deg (pipeline.push_*): {:?} N and {:?} N m for \
+                 {:.0} ms",
+                at.to_degrees(),
+                force,
+                torque,
+                duration * 1e3
             ),
             Self::Slipped { by, to } => write!(
                 out,

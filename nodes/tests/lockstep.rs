@@ -1,13 +1,21 @@
 //! The loop in lockstep on MuJoCo ([`icrflow_nodes::lockstep`]): the nodes' own steps on
-//! simulated time, no processes. The paper's sphere turned toward 45 degrees.
+//! simulated time, no processes. The paper's sphere turned toward 45 degrees; both MuJoCo
+//! scenarios pushed at ten times of their whole turn.
 
+use icrflow_interfaces::PlanPhase;
 use icrflow_nodes::lockstep;
-use icrflow_scenario::{Config, Setup};
+use icrflow_nodes::plant::Event;
+use icrflow_scenario::{Config, Push, Setup};
+
+/// `config/NAME`.
+fn load(name: &str) -> Config {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config");
+    Config::load(&dir.join(name)).unwrap()
+}
 
 /// `config/paper_sphere_mujoco.toml` with the goal at `goal_deg`.
 fn paper(goal_deg: f64) -> (Config, Setup) {
-    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config");
-    let mut config = Config::load(&dir.join("paper_sphere_mujoco.toml")).unwrap();
+    let mut config = load("paper_sphere_mujoco.toml");
     config.plan.goal = goal_deg.to_radians();
     let setup = Setup::new(&config).unwrap();
     (config, setup)
@@ -70,4 +78,77 @@ fn a_lockstep_run_needs_the_mujoco_plant() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("plant.kind = \"mujoco\""), "{e}");
+}
+
+/// How a pushed run went: the plan phase when the push began (none if it never did), the
+/// largest distance of the object's centre from its start (m), and how the run ended.
+fn pushed(config: &Config, setup: &Setup) -> (Option<u32>, f64, lockstep::Ended) {
+    let (mut phase, mut drift, mut start) = (None, 0.0_f64, None);
+    let ended = lockstep::run(config, setup, 60.0, 0.5, &mut |tick| {
+        if tick
+            .plant
+            .events()
+            .iter()
+            .any(|e| matches!(e, Event::Pushed { .. }))
+        {
+            phase = Some(tick.plan.map_or(u32::MAX, |p| p.phase));
+        }
+        let c = tick.plant.sim().object_centre();
+        drift = drift.max((c - *start.get_or_insert(c)).norm());
+    })
+    .unwrap();
+    (phase, drift, ended)
+}
+
+/// Ten runs of `name`, each with a twist of the object (0.05 N m about the vertical for 50
+/// ms: an angular impulse that would spin the free sphere at 12 rad/s; held, it turns about a
+/// degree under the fingertips) at another time of the whole turn, while it rolls and while a
+/// finger attaches or lets go: each run ends at the goal (MuJoCo's rotation within 2 % of 360
+/// degrees), the object in the hand. What it took (re-plans) is printed. (Twice as hard a
+/// twist the sphere's grasp survived in 6 of 10 runs: issue 21's note.)
+fn every_push_is_recovered(name: &str) {
+    let config = load(name);
+    let setup = Setup::new(&config).unwrap();
+    let mut phases = Vec::new();
+    for at in [1.0, 2.5, 4.0, 5.5, 7.0, 8.5, 10.0, 11.5, 13.0, 14.5] {
+        let mut config = config.clone();
+        config.pipeline.push = Some(Push {
+            force: [0.0; 3],
+            torque: [0.0, 0.0, 0.05],
+            at,
+            duration: 0.05,
+        });
+        let (phase, drift, ended) = pushed(&config, &setup);
+        println!(
+            "{name}: pushed at {at} s (phase {phase:?}): {:.1} deg after {:.1} s, {} re-plans, centre at most {:.1} mm off",
+            ended.rotation.to_degrees(),
+            ended.time,
+            ended.replans,
+            drift * 1e3
+        );
+        let phase = phase.unwrap_or_else(|| panic!("no push at {at} s: {ended:?}"));
+        phases.push(phase);
+        assert!(ended.done, "pushed at {at} s: {ended:?}");
+        assert!(
+            (ended.rotation.to_degrees() - 360.0).abs() <= 7.2,
+            "pushed at {at} s: {ended:?}"
+        );
+        assert!(
+            drift < 0.5 * setup.object.max_radius(),
+            "dropped: {drift} m"
+        );
+    }
+    let rolling = PlanPhase::Rolling as u32;
+    assert!(phases.contains(&rolling), "{phases:?}");
+    assert!(phases.iter().any(|&p| p != rolling), "{phases:?}");
+}
+
+#[test]
+fn every_push_of_the_sphere_is_recovered() {
+    every_push_is_recovered("paper_sphere_mujoco.toml");
+}
+
+#[test]
+fn every_push_of_the_ellipsoid_under_gravity_is_recovered() {
+    every_push_is_recovered("ellipsoid_mujoco.toml");
 }

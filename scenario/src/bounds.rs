@@ -430,6 +430,29 @@ pub const SLIP: Range = Range::closed(
 );
 /// When the slip happens.
 pub const SLIP_AT: Range = Range::closed(0.0, 3600.0, "s", "within an hour of the start");
+/// A push's force, its magnitude.
+pub const PUSH_FORCE: Range = Range::closed(
+    0.0,
+    100.0,
+    "N",
+    "a knock, not a blow: 100 N is fifty times the ellipsoid's weight",
+);
+/// A push's torque, its magnitude.
+pub const PUSH_TORQUE: Range = Range::closed(
+    0.0,
+    10.0,
+    "N m",
+    "a knock, not a blow: 10 N m turns the paper's sphere (2e-4 kg m^2) by hundreds of degrees in 50 ms if nothing held it",
+);
+/// When the push happens.
+pub const PUSH_AT: Range = Range::closed(0.0, 3600.0, "s", "within an hour of the start");
+/// How long the push lasts.
+pub const PUSH_DURATION: Range = Range::closed(
+    1.0,
+    1000.0,
+    "ms",
+    "a knock, not a steady load: at most a second",
+);
 
 /// Frames per second of the recording.
 pub const VISUALIZER_RATE: Range = Range::closed(

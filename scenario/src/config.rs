@@ -508,6 +508,8 @@ pub struct PipelineSpec {
     pub slip: Real,
     /// When the slip happens, from the plant's start (s).
     pub slip_at: Real,
+    /// A push of the object the MuJoCo plant makes once (`None`: none).
+    pub push: Option<Push>,
     /// Seed of the simulated noise.
     pub seed: u64,
     /// The nodes this host runs ([`NODES`] by default); the
@@ -525,6 +527,21 @@ pub struct PipelineSpec {
     /// A node that has sent no heartbeat (health report) for this long is killed and
     /// restarted by `run` (s); one silent for a second is reported at once.
     pub hung_restart: Real,
+}
+
+/// A push of the object in MuJoCo (`pipeline.push_n`, `push_nm`, `push_at_s`, `push_ms`): a
+/// force through its centre of mass and a torque about it, in the world frame (the hand's),
+/// held for a while: a knock the loop has to recover from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Push {
+    /// The force (N).
+    pub force: [Real; 3],
+    /// The torque (N m).
+    pub torque: [Real; 3],
+    /// When it starts: MuJoCo's time, which runs from the hand's first tracking command (s).
+    pub at: Real,
+    /// How long it lasts (s).
+    pub duration: Real,
 }
 
 /// The plant of the pipeline (`plant.kind`).
@@ -624,6 +641,11 @@ impl Config {
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         let plant = plant_spec(raw.plant.unwrap_or_default())?;
+        if plant.kind != PlantKind::Mujoco && pipeline.push.is_some() {
+            bail!(
+                "pipeline.push_n / push_nm: a push of the object in MuJoCo needs plant.kind = \"mujoco\" (the kinematic plant's disturbance is pipeline.slip_deg)"
+            );
+        }
         if plant.kind == PlantKind::Mujoco && pipeline.slip != 0.0 {
             bail!(
                 "pipeline.slip_deg: the kinematic plant's scripted slip; with plant.kind = \"mujoco\" the physics slips by itself (leave slip_deg out)"
@@ -1053,7 +1075,38 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
     })
 }
 
+/// `pipeline.push_*`: a push when a force or a torque is given.
+fn push_spec(raw: &RawPipeline) -> Result<Option<Push>> {
+    let (at, ms) = (raw.push_at_s, raw.push_ms);
+    if raw.push_n.is_none() && raw.push_nm.is_none() {
+        if at.is_some() || ms.is_some() {
+            bail!(
+                "pipeline.push_at_s / push_ms: there is no push to time; give its force (push_n) or torque (push_nm)"
+            );
+        }
+        return Ok(None);
+    }
+    let vector = |key: &str, v: Option<[f64; 3]>, range: &bounds::Range| -> Result<[Real; 3]> {
+        let v = v.unwrap_or([0.0; 3]);
+        if v.iter().any(|x| !x.is_finite()) {
+            bail!("{key}: every component must be a finite number, got {v:?}");
+        }
+        range.check(
+            &format!("{key} (its magnitude)"),
+            v.iter().map(|x| x * x).sum::<f64>().sqrt(),
+        )?;
+        Ok(v)
+    };
+    Ok(Some(Push {
+        force: vector("pipeline.push_n", raw.push_n, &bounds::PUSH_FORCE)?,
+        torque: vector("pipeline.push_nm", raw.push_nm, &bounds::PUSH_TORQUE)?,
+        at: bounds::PUSH_AT.or("pipeline.push_at_s", at, 5.0)?,
+        duration: bounds::PUSH_DURATION.or("pipeline.push_ms", ms, 50.0)? * 1e-3,
+    }))
+}
+
 fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
+    let push = push_spec(&raw)?;
     let rig = raw.rig.unwrap_or_else(|| "sim".into());
     if rig.is_empty()
         || rig.len() > 48
@@ -1101,6 +1154,7 @@ fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
             .or("pipeline.slip_deg", raw.slip_deg, 0.0)?
             .to_radians(),
         slip_at: bounds::SLIP_AT.or("pipeline.slip_at_s", raw.slip_at_s, 5.0)?,
+        push,
         seed: raw.seed.unwrap_or(1),
         nodes: nodes_spec(raw.nodes)?,
         max_pose_innovation: bounds::POSE_INNOVATION
@@ -1328,6 +1382,49 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
         bad.insert("bogus".into(), toml::Value::Integer(1));
         let e = format!("{:#}", Config::from_table(bad, path).unwrap_err());
         assert!(e.contains("bogus"), "{e}");
+    }
+
+    /// A push of the object is read with its defaults, refused without MuJoCo, without a
+    /// force or torque to time, or too hard, each by its key.
+    #[test]
+    fn a_push_is_read_and_checked() {
+        let mujoco = format!("{GOOD}\n[plant]\nkind = \"mujoco\"\n");
+        let c = Config::parse(
+            &format!("{mujoco}\n[pipeline]\npush_nm = [0.0, 0.0, 0.05]\npush_at_s = 3.0\n"),
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        assert_eq!(
+            c.pipeline.push,
+            Some(Push {
+                force: [0.0; 3],
+                torque: [0.0, 0.0, 0.05],
+                at: 3.0,
+                duration: 0.05,
+            })
+        );
+        assert_eq!(
+            Config::parse(&mujoco, Path::new("x.toml"))
+                .unwrap()
+                .pipeline
+                .push,
+            None
+        );
+        let e = err(&format!("{GOOD}\n[pipeline]\npush_n = [1.0, 0.0, 0.0]\n"));
+        assert!(e.contains("pipeline.push_n") && e.contains("mujoco"), "{e}");
+        let e = err(&format!("{mujoco}\n[pipeline]\npush_at_s = 2.0\n"));
+        assert!(
+            e.contains("pipeline.push_at_s") && e.contains("no push"),
+            "{e}"
+        );
+        let e = err(&format!(
+            "{mujoco}\n[pipeline]\npush_n = [200.0, 0.0, 0.0]\n"
+        ));
+        assert!(e.contains("pipeline.push_n (its magnitude)"), "{e}");
+        let e = err(&format!(
+            "{mujoco}\n[pipeline]\npush_nm = [0.0, 0.0, 1.0]\npush_ms = 0.0\n"
+        ));
+        assert!(e.contains("pipeline.push_ms"), "{e}");
     }
 
     #[test]
