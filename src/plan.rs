@@ -411,12 +411,13 @@ fn print_text(
         let pct = |x: usize| 100.0 * x as Real / s.brute_force_candidates.max(1) as Real;
         writeln!(
             o,
-            "switching  rendezvous candidates over all switches: {} exact (brute force, used{}),\n           {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
+            "switching  rendezvous candidates over all switches: {} exact (brute force, {}),\n           {} by eq. 8 LP ({:.0} %, {} unsafe), {} by the ICR zone rule ({:.0} %)",
             s.brute_force_candidates,
             match s.region_erosion {
-                0 => String::new(),
+                0 => "used".to_string(),
                 n => format!(
-                    " shrunk by {n} ring{} of candidates",
+                    "the points chosen from the {} of them {n} ring{} inside",
+                    s.chosen_from_candidates,
                     if n == 1 { "" } else { "s" }
                 ),
             },

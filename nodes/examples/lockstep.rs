@@ -83,8 +83,8 @@ fn main() -> Result<()> {
                 let p = config.pipeline.push.get_or_insert(icrflow_scenario::Push {
                     force: [0.0; 3],
                     torque: [0.0; 3],
-                    at: 5.0,
-                    duration: 0.05,
+                    at: icrflow_scenario::DEFAULT_PUSH_AT_S,
+                    duration: icrflow_scenario::DEFAULT_PUSH_MS * 1e-3,
                 });
                 match k {
                     "push_at_s" => p.at = v,

@@ -102,6 +102,7 @@ impl<'a> Commander<'a> {
                 contacts: Vec::with_capacity(MAX_FINGERS),
                 solver: ForceSolver::new(),
                 solved_for: None,
+                pressing: [u32::MAX; MAX_FINGERS],
                 forces: Vec::with_capacity(MAX_FINGERS),
                 last: None,
                 centring: [0.0, 0.0],
@@ -277,6 +278,8 @@ struct Tracker<'a> {
     solver: ForceSolver,
     /// The contact set `forces` balance (candidates in slot order, padded with MAX).
     solved_for: Option<[u32; MAX_FINGERS]>,
+    /// The fingers that pressed in the last tracking command (padded with MAX).
+    pressing: [u32; MAX_FINGERS],
     /// The body-frame forces of that contact set, one per contact.
     forces: Vec<Vec3>,
     /// The last tracking command and when it was made.
@@ -330,17 +333,23 @@ impl Tracker<'_> {
         // The contacts that carry forces: those of the plan step that the estimate has made.
         // An attaching finger presses only once it touches: given its share while it still
         // approaches, it would hit the object with it, and the others, their forces already
-        // those of the grasp with it, would let the object slip meanwhile.
+        // those of the grasp with it, would let the object slip meanwhile. A finger that
+        // pressed in the last command goes on pressing while the plan has it in contact,
+        // whatever the estimate says meanwhile: a contact that flickers off in the estimate
+        // for a tick does not change the forces (nor solve them again).
+        let mut pressing = [u32::MAX; MAX_FINGERS];
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             if target.in_contact == 1
                 && (target.candidate as usize) < cands.points.len()
-                && touching(target.finger)
+                && (self.pressing.contains(&target.finger) || touching(target.finger))
             {
                 slots[count] = k;
                 set[count] = target.candidate;
+                pressing[count] = target.finger;
                 count += 1;
             }
         }
+        self.pressing = pressing;
         // The forces in the object's frame, solved once per contact set: the load is the
         // object's weight (`plant.gravity`, along the hand's z axis, so unchanged by the
         // object's turning about it), and the problem is invariant under that rotation
@@ -572,7 +581,8 @@ mod tests {
 
     /// A finger the plan step has attach presses only once the estimate has it touching:
     /// while it approaches it gets no force and the others keep the forces of the grasp
-    /// without it; once it touches, all four press, balanced.
+    /// without it; once it touches, all four press, balanced, and go on pressing when the
+    /// estimate loses the contact for a tick.
     #[test]
     fn an_attaching_finger_presses_only_once_it_touches() {
         let (config, setup) = paper();
@@ -616,6 +626,11 @@ mod tests {
             net += v;
         }
         assert!(net.norm() < 1e-5, "net force {net}");
+        // The estimate loses it for a tick: it goes on pressing as the plan has it.
+        i.grasp.fingers[free].in_contact = 0;
+        let (flicker, hold) = step(&mut c, &mut i, 4);
+        assert_eq!(hold, None);
+        assert_eq!(flicker.forces, touching.forces);
     }
 
     #[test]

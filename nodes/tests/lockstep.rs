@@ -80,9 +80,10 @@ fn a_lockstep_run_needs_the_mujoco_plant() {
     assert!(e.contains("plant.kind = \"mujoco\""), "{e}");
 }
 
-/// How a pushed run went: the plan phase when the push began (none if it never did), the
-/// largest distance of the object's centre from its start (m), and how the run ended.
-fn pushed(config: &Config, setup: &Setup) -> (Option<u32>, f64, lockstep::Ended) {
+/// How a pushed run went: the plan phase when the push began (`None` if it never did, `Some(None)`
+/// before any plan step), the largest distance of the object's centre from its start (m), and
+/// how the run ended.
+fn pushed(config: &Config, setup: &Setup) -> (Option<Option<u32>>, f64, lockstep::Ended) {
     let (mut phase, mut drift, mut start) = (None, 0.0_f64, None);
     let ended = lockstep::run(config, setup, 60.0, 0.5, &mut |tick| {
         if tick
@@ -91,7 +92,7 @@ fn pushed(config: &Config, setup: &Setup) -> (Option<u32>, f64, lockstep::Ended)
             .iter()
             .any(|e| matches!(e, Event::Pushed { .. }))
         {
-            phase = Some(tick.plan.map_or(u32::MAX, |p| p.phase));
+            phase = Some(tick.plan.map(|p| p.phase));
         }
         let c = tick.plant.sim().object_centre();
         drift = drift.max((c - *start.get_or_insert(c)).norm());
@@ -126,7 +127,9 @@ fn every_push_is_recovered(name: &str) {
             ended.replans,
             drift * 1e3
         );
-        let phase = phase.unwrap_or_else(|| panic!("no push at {at} s: {ended:?}"));
+        let phase = phase
+            .unwrap_or_else(|| panic!("no push at {at} s: {ended:?}"))
+            .unwrap_or_else(|| panic!("pushed at {at} s before any plan step"));
         phases.push(phase);
         assert!(ended.done, "pushed at {at} s: {ended:?}");
         assert!(

@@ -282,9 +282,14 @@ pub struct Switch {
     pub icr_region: Vec<usize>,
     /// The rendezvous region by the eq. (8) hyperplanes (candidate indices, ascending).
     pub lp_region: Vec<usize>,
-    /// The exact region by brute force, from which the rendezvous point is chosen
-    /// (candidate indices, ascending).
+    /// The exact region by brute force (candidate indices, ascending); the rendezvous point
+    /// is chosen from it shrunk by [`Settings::region_erosion`] rings.
     pub brute_force: Vec<usize>,
+    /// How many candidates the rendezvous point was chosen from: the exact region shrunk by
+    /// [`Settings::region_erosion`] rings (all of it without erosion; 0 in plans written
+    /// before it was recorded).
+    #[serde(default)]
+    pub chosen_from: usize,
     /// The chosen rendezvous candidate.
     pub rendezvous: usize,
     /// Its angle on the section (rad; `rendezvous_angle_deg` in files).
@@ -353,6 +358,11 @@ pub struct Summary {
     pub lp_region_unsafe: usize,
     /// Rendezvous candidates found by brute force, summed over the switches.
     pub brute_force_candidates: usize,
+    /// Rendezvous candidates the points were chosen from (the exact regions shrunk by
+    /// [`Settings::region_erosion`]), summed over the switches; 0 in plans written before it
+    /// was reported.
+    #[serde(default)]
+    pub chosen_from_candidates: usize,
     /// The [`Settings::region_erosion`] planned with (rings of candidates); 0 in plans
     /// written before it was reported.
     #[serde(default)]
@@ -633,18 +643,10 @@ impl Scenario<'_> {
     /// The members of a region (sorted candidate indices) whose neighbours, to
     /// [`Settings::region_erosion`] rings of the candidates' adjacency, are all members too.
     fn erode(&self, members: &[u32]) -> Vec<u32> {
-        let rings = self.settings.region_erosion;
-        let adjacency = &self.problem.candidates().adjacency;
-        let mut kept = members.to_vec();
-        for _ in 0..rings {
-            let inside = |m: u32| kept.binary_search(&m).is_ok();
-            kept = kept
-                .iter()
-                .copied()
-                .filter(|&m| adjacency.neighbours(m as usize).iter().all(|&n| inside(n)))
-                .collect();
-        }
-        kept
+        self.problem
+            .candidates()
+            .adjacency
+            .erode(members, self.settings.region_erosion)
     }
 
     /// The body point that stays still in the world when the object turns by `step`.
@@ -1061,6 +1063,7 @@ impl Scenario<'_> {
         let icr_region_candidates = switch_list().map(|s| s.icr_region.len()).sum();
         let lp_region_candidates = switch_list().map(|s| s.lp_region.len()).sum();
         let brute_force_candidates = switch_list().map(|s| s.brute_force.len()).sum();
+        let chosen_from_candidates = switch_list().map(|s| s.chosen_from).sum();
         let lp_region_unsafe = switch_list()
             .map(|s| {
                 s.lp_region
@@ -1086,6 +1089,7 @@ impl Scenario<'_> {
             lp_region_candidates,
             lp_region_unsafe,
             brute_force_candidates,
+            chosen_from_candidates,
             region_erosion: s.region_erosion,
             min_link_clearance_mm: None,
             min_squeeze_reserve_mm: None,
@@ -1235,7 +1239,11 @@ impl Scenario<'_> {
                 (Some(contact), _) => next.push(contact),
                 (None, Some(b)) => return Ok(Roll::Blocked(i, b.to_string())),
                 (None, None) => {
-                    return Ok(Roll::Blocked(i, "its ICR is empty".into()));
+                    let why = match self.settings.region_erosion {
+                        0 => "its ICR is empty".to_string(),
+                        n => format!("its ICR shrunk by {n} ring(s) of candidates is empty"),
+                    };
+                    return Ok(Roll::Blocked(i, why));
                 }
             }
         }
@@ -1362,8 +1370,12 @@ impl Scenario<'_> {
         }
         let Some((room, ahead, id, c, attach, detach, q_attach, q_detach)) = chosen else {
             return Ok(Err(format!(
-                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it{}",
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts{}, none is reachable by a free finger ({:?}) with a rolling step after it{}",
                 brute.len(),
+                match self.settings.region_erosion {
+                    0 => String::new(),
+                    n => format!(" ({n} ring(s) inside the exact region)"),
+                },
                 free.iter().map(|f| f.id).collect::<Vec<_>>(),
                 if rejected.is_empty() {
                     String::new()
@@ -1379,6 +1391,7 @@ impl Scenario<'_> {
             icr_region: regions.icr.clone(),
             lp_region: regions.lp.clone(),
             brute_force: regions.exact.clone(),
+            chosen_from: brute.len(),
             rendezvous: c,
             rendezvous_angle: self.angles.map(|a| a[c]),
             room_steps: room,

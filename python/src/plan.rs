@@ -14,7 +14,8 @@ use crate::convert::{self, array_out, icrflow_error, json_to_py, value_error};
 pub struct Plan {
     /// The summary, as `icrflow plan --json` prints it: `completed`, `stop_reason`,
     /// `rotation_deg`, `goal_deg`, `switches`, `steps`, `rolling_steps`, `min_quality`,
-    /// `alpha`, `max_rolling_residual`, the rendezvous region counts, `min_link_clearance_mm`,
+    /// `alpha`, `max_rolling_residual`, the rendezvous region counts (and
+    /// `chosen_from_candidates` with `region_erosion`), `min_link_clearance_mm`,
     /// `min_squeeze_reserve_mm`.
     summary: Py<PyDict>,
     /// The trajectory, one row per step (S steps, F fingers of the hand, in `fingers`
@@ -27,7 +28,8 @@ pub struct Plan {
     trajectory: Py<PyDict>,
     /// The finger switches, one dict per attach step (as in `trajectory.json`, plus its
     /// `step`): `released`, `attached`, `reason`, the regions `icr_region`, `lp_region`,
-    /// `brute_force`, `rendezvous`, `rendezvous_angle_deg`, `room_steps`, `ahead_deg`.
+    /// `brute_force`, `chosen_from` (how many of it the rendezvous was chosen from),
+    /// `rendezvous`, `rendezvous_angle_deg`, `room_steps`, `ahead_deg`.
     switches: Py<PyList>,
 }
 

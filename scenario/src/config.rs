@@ -1075,6 +1075,11 @@ fn zenoh_spec(raw: RawZenoh, base: &Path) -> Result<ZenohSpec> {
     })
 }
 
+/// When a push begins unless `pipeline.push_at_s` says (s of MuJoCo's time).
+pub const DEFAULT_PUSH_AT_S: Real = 5.0;
+/// How long a push lasts unless `pipeline.push_ms` says (ms).
+pub const DEFAULT_PUSH_MS: Real = 50.0;
+
 /// `pipeline.push_*`: a push when a force or a torque is given.
 fn push_spec(raw: &RawPipeline) -> Result<Option<Push>> {
     let (at, ms) = (raw.push_at_s, raw.push_ms);
@@ -1097,11 +1102,16 @@ fn push_spec(raw: &RawPipeline) -> Result<Option<Push>> {
         )?;
         Ok(v)
     };
+    let force = vector("pipeline.push_n", raw.push_n, &bounds::PUSH_FORCE)?;
+    let torque = vector("pipeline.push_nm", raw.push_nm, &bounds::PUSH_TORQUE)?;
+    if force.iter().chain(&torque).all(|&x| x == 0.0) {
+        bail!("pipeline.push_n / push_nm: both are zero, a push of nothing (leave them out)");
+    }
     Ok(Some(Push {
-        force: vector("pipeline.push_n", raw.push_n, &bounds::PUSH_FORCE)?,
-        torque: vector("pipeline.push_nm", raw.push_nm, &bounds::PUSH_TORQUE)?,
-        at: bounds::PUSH_AT.or("pipeline.push_at_s", at, 5.0)?,
-        duration: bounds::PUSH_DURATION.or("pipeline.push_ms", ms, 50.0)? * 1e-3,
+        force,
+        torque,
+        at: bounds::PUSH_AT.or("pipeline.push_at_s", at, DEFAULT_PUSH_AT_S)?,
+        duration: bounds::PUSH_DURATION.or("pipeline.push_ms", ms, DEFAULT_PUSH_MS)? * 1e-3,
     }))
 }
 
@@ -1417,6 +1427,8 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
             e.contains("pipeline.push_at_s") && e.contains("no push"),
             "{e}"
         );
+        let e = err(&format!("{mujoco}\n[pipeline]\npush_n = [0.0, 0.0, 0.0]\n"));
+        assert!(e.contains("a push of nothing"), "{e}");
         let e = err(&format!(
             "{mujoco}\n[pipeline]\npush_n = [200.0, 0.0, 0.0]\n"
         ));

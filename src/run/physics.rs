@@ -9,8 +9,8 @@
 //! still on its way to the object has lost nothing); for every plan step, the quality alpha*
 //! of the grasp at MuJoCo's true contact points at the step's last truth, as the hand has made
 //! it (each point taken into the object's frame and snapped to the nearest candidate of the
-//! section; a contact that flickered off for fewer than [`LOST_AFTER`] truths counts at its
-//! last point); whether the object was dropped (its centre further than [`DROP_FRACTION`] of
+//! section; a contact planned that flickered off for fewer than [`LOST_AFTER`] truths counts at
+//! its last point); whether the object was dropped (its centre further than [`DROP_FRACTION`] of
 //! its size from the start).
 
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
@@ -76,11 +76,13 @@ pub struct PhysicsTrack {
     made: [bool; MAX_FINGERS],
     /// Per finger slot of the truth: its last contact point (hand frame) and truths since.
     last_touch: [Option<(Vec3, u32)>; MAX_FINGERS],
-    /// The quality of the current plan step's grasp at the newest truth: counted when the
-    /// next step comes (or at the summary), so that each step's grasp is taken as the hand
-    /// has made it (at a step's first truth an attaching finger may not touch yet, and at the
-    /// run's first the hand has not yet pressed).
-    pending: Option<Real>,
+    /// The candidates of the current plan step's grasp at the newest truth, if a truth came
+    /// since the step: its quality is counted when the next step comes (or at the summary),
+    /// so that each step's grasp is taken as the hand has made it (at a step's first truth an
+    /// attaching finger may not touch yet, and at the run's first the hand has not yet
+    /// pressed).
+    pending: Vec<usize>,
+    pending_due: bool,
     last_step: Option<u64>,
 }
 
@@ -109,7 +111,8 @@ impl PhysicsTrack {
             off: [(0, false); MAX_FINGERS],
             made: [false; MAX_FINGERS],
             last_touch: [None; MAX_FINGERS],
-            pending: None,
+            pending: Vec::with_capacity(MAX_FINGERS),
+            pending_due: false,
             last_step: None,
         })
     }
@@ -124,8 +127,10 @@ impl PhysicsTrack {
         }
         if self.last_step != Some(p.step) {
             self.last_step = Some(p.step);
-            if let Some(alpha) = self.pending.take() {
-                self.commit(alpha);
+            if std::mem::take(&mut self.pending_due) {
+                let alpha = self.quality(&self.pending);
+                (self.min_quality, self.evaluated, self.not_closed) =
+                    counted(self.min_quality, self.evaluated, self.not_closed, alpha);
             }
         }
     }
@@ -180,22 +185,25 @@ impl PhysicsTrack {
             }
         }
         if self.last_step.is_some() {
-            self.pending = Some(self.evaluate(t));
+            self.contacts(t);
+            self.pending_due = true;
         }
     }
 
-    /// The quality alpha* of the grasp at the truth's contacts, in the object's frame (0:
-    /// not in force closure, fewer than two contacts among them).
-    fn evaluate(&self, t: &PlantTruth) -> Real {
+    /// The candidates of the grasp at truth `t`'s contacts, in the object's frame, into
+    /// `pending`: each fingertip touching, or planned in contact and off for fewer truths than
+    /// make a loss (MuJoCo's contacts flicker on a rolling fingertip), at its last point,
+    /// snapped to the nearest candidate.
+    fn contacts(&mut self, t: &PlantTruth) {
         let [w, x, y, z] = t.orientation;
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
         let origin = Vec3::from(t.position) - q * self.setup.object.centre_of_mass;
         let cands = self.setup.problem.candidates();
-        let mut contacts = Vec::with_capacity(MAX_FINGERS);
+        self.pending.clear();
         for slot in 0..(t.finger_count as usize).min(MAX_FINGERS) {
-            // Touching, or off for fewer truths than make a loss (MuJoCo's contacts flicker on
-            // a rolling fingertip): at its last point.
-            let Some((point, _)) = self.last_touch[slot].filter(|&(_, off)| off < LOST_AFTER)
+            let planned = self.planned_in_contact(t.finger_ids[slot]);
+            let Some((point, _)) =
+                self.last_touch[slot].filter(|&(_, off)| off == 0 || (planned && off < LOST_AFTER))
             else {
                 continue;
             };
@@ -206,25 +214,23 @@ impl PhysicsTrack {
                     .total_cmp(&(cands.points[b] - p).norm_squared())
             });
             if let Some(c) = nearest
-                && !contacts.contains(&c)
+                && !self.pending.contains(&c)
             {
-                contacts.push(c);
+                self.pending.push(c);
             }
         }
+    }
+
+    /// The quality alpha* of the grasp at `contacts` (0: not in force closure, or fewer than
+    /// two).
+    fn quality(&self, contacts: &[usize]) -> Real {
         if contacts.len() < 2 {
             return 0.0;
         }
         self.setup
             .problem
-            .evaluate(&contacts)
+            .evaluate(contacts)
             .map_or(0.0, |e| e.quality.max(0.0))
-    }
-
-    /// Counts the quality of a plan step's grasp as executed.
-    fn commit(&mut self, alpha: Real) {
-        self.evaluated += 1;
-        self.not_closed += u32::from(alpha <= 0.0);
-        self.min_quality = Some(self.min_quality.map_or(alpha, |m| m.min(alpha)));
     }
 
     /// What it found.
@@ -232,10 +238,13 @@ impl PhysicsTrack {
         // The step under way counts as it stands.
         let (mut min_quality, mut evaluated, mut not_closed) =
             (self.min_quality, self.evaluated, self.not_closed);
-        if let Some(alpha) = self.pending {
-            evaluated += 1;
-            not_closed += u32::from(alpha <= 0.0);
-            min_quality = Some(min_quality.map_or(alpha, |m| m.min(alpha)));
+        if self.pending_due {
+            (min_quality, evaluated, not_closed) = counted(
+                min_quality,
+                evaluated,
+                not_closed,
+                self.quality(&self.pending),
+            );
         }
         PhysicsSummary {
             engine: self.engine.clone(),
@@ -250,6 +259,21 @@ impl PhysicsTrack {
             dropped: self.dropped,
         }
     }
+}
+
+/// The smallest quality, the steps evaluated and those not in force closure, with a step of
+/// quality `alpha` counted in.
+fn counted(
+    min: Option<Real>,
+    evaluated: u32,
+    not_closed: u32,
+    alpha: Real,
+) -> (Option<Real>, u32, u32) {
+    (
+        Some(min.map_or(alpha, |m| m.min(alpha))),
+        evaluated + 1,
+        not_closed + u32::from(alpha <= 0.0),
+    )
 }
 
 #[cfg(test)]

@@ -60,6 +60,22 @@ impl Adjacency {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+
+    /// The nodes of `members` (sorted node indices) whose neighbours, to `rings` rings, are
+    /// all members too: the set shrunk by `rings` hops of the graph (on a loop, `rings` nodes
+    /// off each end of every arc). A node without neighbours is never removed.
+    pub fn erode(&self, members: &[u32], rings: usize) -> Vec<u32> {
+        let mut kept = members.to_vec();
+        for _ in 0..rings {
+            let inside = |m: u32| kept.binary_search(&m).is_ok();
+            kept = kept
+                .iter()
+                .copied()
+                .filter(|&m| self.neighbours(m as usize).iter().all(|&n| inside(n)))
+                .collect();
+        }
+        kept
+    }
 }
 
 /// A list of polygons (CSR of vertex indices), each counter-clockwise seen from outside.
@@ -219,6 +235,29 @@ mod tests {
         assert_eq!(adj.neighbours(3), &[] as &[u32]);
         assert!(Adjacency::from_lists(&[]).is_empty());
         assert!(Adjacency::default().is_empty());
+    }
+
+    /// On a loop of 12 nodes: two arcs shrink by a node off each end per ring, an arc of
+    /// three is gone after two rings, the whole loop stays whole, no rings change nothing, and
+    /// a node without neighbours stays.
+    #[test]
+    fn erosion_takes_rings_off_each_end_of_every_arc() {
+        let n = 12_u32;
+        let ring = Adjacency::from_lists(
+            &(0..n)
+                .map(|i| vec![(i + n - 1) % n, (i + 1) % n])
+                .collect::<Vec<_>>(),
+        );
+        // The arcs 10, 11, 0, 1, 2 (across the seam) and 5, 6, 7.
+        let members = [0, 1, 2, 5, 6, 7, 10, 11];
+        assert_eq!(ring.erode(&members, 0), members);
+        assert_eq!(ring.erode(&members, 1), [0, 1, 6, 11]);
+        assert_eq!(ring.erode(&members, 2), [0]);
+        assert_eq!(ring.erode(&members, 3), [] as [u32; 0]);
+        let all: Vec<u32> = (0..n).collect();
+        assert_eq!(ring.erode(&all, 3), all);
+        let lone = Adjacency::from_lists(&[vec![], vec![2], vec![1]]);
+        assert_eq!(lone.erode(&[0, 1], 1), [0]);
     }
 
     #[test]
