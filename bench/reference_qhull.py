@@ -37,12 +37,13 @@ TOL_REL = 1e-9  # tolerances are TOL_REL * max |w| over the hull's input points
 # --------------------------------------------------------------------------------------------
 
 def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """t1, t2 for each outward unit normal (rows). Convention shared with the Rust side:
-    t1 = normalize(ez x n) if |n_z| < 0.9 else normalize(ex x n); t2 = n x t1."""
+    """t1, t2 for each outward unit normal (rows). Convention shared with the Rust side
+    (`tangent_basis`, the tangent axis +z): t1 = normalize(ez x n), or normalize(ex x n) where
+    |ez x n| < 1e-6 (the poles); t2 = n x t1."""
     n = np.asarray(normals, dtype=float)
     ez = np.array([0.0, 0.0, 1.0])
     ex = np.array([1.0, 0.0, 0.0])
-    use_z = np.abs(n[:, 2]) < 0.9
+    use_z = np.linalg.norm(np.cross(ez, n), axis=1) >= 1e-6
     ref = np.where(use_z[:, None], ez, ex)
     t1 = np.cross(ref, n)
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)

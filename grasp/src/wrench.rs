@@ -5,7 +5,8 @@
 //!   the torque normalisation length, so forces and torques are comparable;
 //! - the contact force of cone edge `j` at a point with outward unit normal `n` is
 //!   `f_j = -n + mu (cos(2 pi j / s) t1 + sin(2 pi j / s) t2)` (not normalised: its normal
-//!   component is one), with the tangent basis of [`tangent_basis`];
+//!   component is one), with the tangent basis of [`tangent_basis_about`] (`t1 = axis x n`
+//!   normalised, the frame's tangent axis `+z` unless set);
 //! - the tangent basis belongs to the object: for an object at orientation `R` it is `R` times
 //!   the basis of the body-frame normal `R^T n`, so a rigid motion of the object with its
 //!   contacts leaves every wrench's geometry, and alpha*, unchanged;
@@ -67,6 +68,12 @@ pub enum WrenchError {
         /// The value given.
         edges: usize,
     },
+    /// The tangent rule's axis is not a finite, non-zero vector.
+    #[error("the friction cones' tangent axis must be a finite, non-zero vector, got {axis:?}")]
+    TangentAxis {
+        /// The value given.
+        axis: [Real; 3],
+    },
     /// The torque normalisation length is not positive and finite.
     #[error("torque normalisation length rho must be finite and > 0, got {rho}")]
     Rho {
@@ -109,27 +116,58 @@ impl ContactModel {
     }
 }
 
-/// Tangent basis `(t1, t2)` at a point with outward unit normal `n`: `t1 = ez x n` normalised
-/// when `|n_z| < 0.9`, else `ex x n` normalised; `t2 = n x t1`. For a normal in the
-/// horizontal plane `t1` is the in-plane tangent, counter-clockwise seen from +z.
+/// Below this `|axis x n|` a normal counts as at a pole of the tangent rule
+/// ([`tangent_basis_about`]).
+pub const POLE: Real = 1e-6;
+
+/// Tangent basis `(t1, t2)` at a point with outward unit normal `n` for the tangent axis `+z`
+/// ([`tangent_basis_about`]): for a normal in the horizontal plane `t1` is the in-plane
+/// tangent, counter-clockwise seen from +z.
 pub fn tangent_basis(n: &Vec3) -> (Vec3, Vec3) {
-    let axis = if n.z.abs() < 0.9 {
-        Vec3::z()
+    tangent_basis_about(&Vec3::z(), n)
+}
+
+/// Tangent basis `(t1, t2)` at a point with outward unit normal `n`, for the unit tangent axis
+/// `axis`: `t1 = axis x n` normalised, `t2 = n x t1`; at the poles of the rule (`|axis x n| <
+/// POLE`, the normal along the axis) `t1 = r x n` normalised, `r` the coordinate axis least
+/// aligned with `axis` (for `+z`, `ex`).
+///
+/// The basis turns smoothly with the normal everywhere but at the two poles. For an object
+/// turned about `axis`, a rolling contact circles the poles and never crosses them, so its
+/// linearised cone turns smoothly along its path. (Until session 18 the rule was `ez x n`
+/// below `|n_z| = 0.9` and `ex x n` above: at that seam a contact's cone turned abruptly, and
+/// a grasp's alpha* jumped, up to 7 times between the two bases in an independent check. The
+/// cones are inscribed in the exact ones in any basis, so the seam cost smoothness and region
+/// size, not safety.)
+pub fn tangent_basis_about(axis: &Vec3, n: &Vec3) -> (Vec3, Vec3) {
+    let t = axis.cross(n);
+    let t1 = if t.norm() >= POLE {
+        t.normalize()
     } else {
-        Vec3::x()
+        let (x, y, z) = (axis.x.abs(), axis.y.abs(), axis.z.abs());
+        let r = if x <= y && x <= z {
+            Vec3::x()
+        } else if y <= z {
+            Vec3::y()
+        } else {
+            Vec3::z()
+        };
+        r.cross(n).normalize()
     };
-    let t1 = axis.cross(n).normalize();
     let t2 = n.cross(&t1);
     (t1, t2)
 }
 
-/// The frame wrenches are expressed in: centre of mass, torque normalisation, space.
+/// The frame wrenches are expressed in: centre of mass, torque normalisation, space, and the
+/// body-frame axis of the cones' tangent rule ([`tangent_basis_about`]; `+z` unless
+/// [`WrenchFrame::with_tangent_axis`] says).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WrenchFrame {
     centre: Vec3,
     rho: Real,
     space: Space,
     orientation: UnitQuaternion,
+    tangent_axis: Vec3,
 }
 
 impl WrenchFrame {
@@ -143,7 +181,26 @@ impl WrenchFrame {
             rho,
             space,
             orientation: UnitQuaternion::identity(),
+            tangent_axis: Vec3::z(),
         })
+    }
+
+    /// The same frame with the cones' tangent rule about `axis` (body frame, normalised): the
+    /// axis the object is turned about, so that rolling contacts' cones turn smoothly.
+    pub fn with_tangent_axis(mut self, axis: Vec3) -> Result<Self, WrenchError> {
+        let norm = axis.norm();
+        if !norm.is_finite() || norm < POLE {
+            return Err(WrenchError::TangentAxis {
+                axis: [axis.x, axis.y, axis.z],
+            });
+        }
+        self.tangent_axis = axis / norm;
+        Ok(self)
+    }
+
+    /// The body-frame axis of the cones' tangent rule.
+    pub fn tangent_axis(&self) -> Vec3 {
+        self.tangent_axis
     }
 
     /// The same frame for an object at `orientation` (body to this frame): cone tangents are
@@ -192,7 +249,7 @@ impl WrenchFrame {
     pub fn primitive_wrenches(&self, p: &Vec3, n: &Vec3, model: &ContactModel, out: &mut [Real]) {
         let d = self.dim();
         let s = model.edges;
-        let (t1, t2) = tangent_basis(&(self.orientation.inverse() * n));
+        let (t1, t2) = tangent_basis_about(&self.tangent_axis, &(self.orientation.inverse() * n));
         let (t1, t2) = (self.orientation * t1, self.orientation * t2);
         for (j, row) in out.chunks_exact_mut(d).take(s).enumerate() {
             let phi = std::f64::consts::TAU * j as Real / s as Real;
@@ -226,6 +283,47 @@ mod tests {
             assert!(t1.dot(&n).abs() < 1e-12 && t2.dot(&n).abs() < 1e-12);
             assert!((t1.cross(&t2) - n).norm() < 1e-12);
         }
+    }
+
+    /// About any axis: orthonormal and right-handed everywhere, the poles included; `t1` is
+    /// along `axis x n` off the poles; about `+z` at the poles it is `ex x n` (the old rule's
+    /// there, so axis-aligned faces keep their cones); a zero axis is refused.
+    #[test]
+    fn the_basis_about_an_axis_is_orthonormal_and_follows_the_axis() {
+        let axes = [
+            Vec3::z(),
+            Vec3::new(-0.5, 0.866, 0.0).normalize(),
+            Vec3::new(0.2, -0.3, 0.93).normalize(),
+        ];
+        for axis in axes {
+            for n in [
+                axis,
+                -axis,
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.3, -0.4, 0.866).normalize(),
+                (axis + Vec3::new(1e-8, 0.0, 0.0)).normalize(),
+            ] {
+                let (t1, t2) = tangent_basis_about(&axis, &n);
+                assert!((t1.norm() - 1.0).abs() < 1e-9 && (t2.norm() - 1.0).abs() < 1e-9);
+                assert!(t1.dot(&n).abs() < 1e-9 && t2.dot(&n).abs() < 1e-9);
+                assert!((t1.cross(&t2) - n).norm() < 1e-9);
+                let t = axis.cross(&n);
+                if t.norm() >= POLE {
+                    assert!((t1 - t.normalize()).norm() < 1e-12);
+                }
+            }
+        }
+        let (t1, _) = tangent_basis(&Vec3::z());
+        assert!((t1 - Vec3::x().cross(&Vec3::z())).norm() < 1e-12);
+        let frame = WrenchFrame::new(Vec3::zeros(), 1.0, Space::Spatial).unwrap();
+        assert_eq!(frame.tangent_axis(), Vec3::z());
+        let e = frame
+            .with_tangent_axis(Vec3::zeros())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tangent axis"), "{e}");
+        let turned = frame.with_tangent_axis(Vec3::new(0.0, 2.0, 0.0)).unwrap();
+        assert_eq!(turned.tangent_axis(), Vec3::y());
     }
 
     #[test]
