@@ -113,6 +113,18 @@ pub enum ObjectError {
         /// The second face.
         second_face: usize,
     },
+    /// No turning of faces makes the winding consistent: a non-orientable surface (like a
+    /// Moebius strip closed up).
+    #[error(
+        "the mesh cannot be wound consistently: it is not orientable (faces {first_face} and \
+         {second_face} disagree whichever way the faces between them are turned)"
+    )]
+    NonOrientable {
+        /// A face.
+        first_face: usize,
+        /// A face across an edge from the part already wound, which it contradicts.
+        second_face: usize,
+    },
     /// The closed surface encloses no volume (it is flat, or its parts cancel).
     #[error("the mesh encloses no volume (signed volume {volume:e}, size {size:e})")]
     ZeroVolume {
@@ -220,6 +232,13 @@ pub enum MeshWarning {
     },
     /// The faces were oriented inward (negative signed volume) and have all been reversed.
     InwardOrientation,
+    /// Faces wound against their neighbours (an inconsistent winding) were turned.
+    FacesTurned {
+        /// How many.
+        count: usize,
+        /// Index of the first one, in the input face list.
+        first: usize,
+    },
     /// The plane `z = height` does not cut the surface: the section is empty.
     SectionEmpty {
         /// Height of the plane.
@@ -248,6 +267,10 @@ impl fmt::Display for MeshWarning {
             Self::UnusedVertices { count, first } => {
                 write!(f, "{count} unused vertex(es), first {first}: dropped")
             }
+            Self::FacesTurned { count, first } => write!(
+                f,
+                "{count} face(s) wound against their neighbours, first {first}: turned"
+            ),
             Self::InwardOrientation => {
                 write!(
                     f,

@@ -22,13 +22,16 @@ impl Object {
     ///
     /// Checks, in this order, each failing with an error naming the face or vertex:
     /// no vertices or no faces; a non-finite coordinate or one beyond +-1e30; a face with
-    /// fewer than 3 indices or an index out of range; an edge used by one face only (open
-    /// surface), by more than two faces (non-manifold), or twice in the same direction
-    /// (inconsistent orientation); a zero enclosed volume (|V| <= 1e-12 d^3, d the
+    /// fewer than 3 indices or an index out of range; a surface no turning of faces winds
+    /// consistently (not orientable); an edge used by one face only (open surface) or by more
+    /// than two faces (non-manifold); a zero enclosed volume (|V| <= 1e-12 d^3, d the
     /// bounding-box diagonal).
     ///
     /// Repairs, each reported as a [`MeshWarning`]: repeated consecutive indices in a face are
-    /// merged, and a face left with fewer than 3 distinct vertices is dropped; unused vertices
+    /// merged, and a face left with fewer than 3 distinct vertices is dropped; faces wound
+    /// against their neighbours are turned (in each connected part the fewer: meshes from the
+    /// wild often have some faces the other way round; until session 18 they were refused);
+    /// unused vertices
     /// are dropped (so [`Object::vertices`] may be shorter than `vertices`); faces of area
     /// <= 1e-12 d^2 stay in the surface but are not candidate facets. Several disconnected
     /// shells are accepted as given (an inward inner shell is a cavity), and only a negative
@@ -90,7 +93,8 @@ fn assemble_with(
     progress.report(Stage::Check, 0, total);
     check_vertices(&vertices)?;
     let mut warnings = Vec::new();
-    let (faces, origin) = clean_faces(faces, vertices.len(), &mut warnings)?;
+    let (mut faces, origin) = clean_faces(faces, vertices.len(), &mut warnings)?;
+    orient_faces(&mut faces, &origin, &mut warnings)?;
     let neighbours = check_edges(&vertices, &faces, &origin)?;
     progress.report(Stage::Check, total, total);
     let total = faces.len();
@@ -201,6 +205,107 @@ fn clean_faces(
         return Err(ObjectError::NoUsableFaces);
     }
     Ok((kept, origin))
+}
+
+/// Turns faces so that every edge shared by two faces is traversed by them in opposite
+/// directions (a consistent winding), reported as [`MeshWarning::FacesTurned`]: in each
+/// connected part the fewer faces are turned (whether the part then faces outward is the
+/// volume's test, later). Edges of one face or of more than two are left to [`check_edges`],
+/// which refuses them; a part whose faces no turning makes consistent (a non-orientable
+/// surface) is refused, naming two faces that disagree.
+fn orient_faces(
+    faces: &mut [Vec<u32>],
+    origin: &[usize],
+    warnings: &mut Vec<MeshWarning>,
+) -> Result<(), ObjectError> {
+    // Every directed edge as (undirected key, face, traversed low -> high), sorted by key.
+    let mut uses: Vec<(u64, u32, bool)> = Vec::with_capacity(faces.iter().map(Vec::len).sum());
+    for (f, face) in faces.iter().enumerate() {
+        for (a, b) in edges(face) {
+            let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
+            uses.push((key, f as u32, a < b));
+        }
+    }
+    uses.sort_unstable_by_key(|u| u.0);
+    // Across each edge of exactly two faces: the pair, and whether they must end turned alike
+    // (they traverse it in opposite directions) or not.
+    let mut links: Vec<(u32, u32, bool)> = Vec::with_capacity(uses.len());
+    let mut start = 0;
+    while start < uses.len() {
+        let mut end = start + 1;
+        while end < uses.len() && uses[end].0 == uses[start].0 {
+            end += 1;
+        }
+        if end - start == 2 {
+            let ((_, f, df), (_, g, dg)) = (uses[start], uses[start + 1]);
+            if f != g {
+                links.push((f, g, df != dg));
+                links.push((g, f, df != dg));
+            }
+        }
+        start = end;
+    }
+    drop(uses);
+    links.sort_unstable_by_key(|l| l.0);
+    let mut first_link = vec![0usize; faces.len() + 1];
+    for &(f, _, _) in &links {
+        first_link[f as usize + 1] += 1;
+    }
+    for f in 0..faces.len() {
+        first_link[f + 1] += first_link[f];
+    }
+    // Breadth first through each part from its first face, kept as it is.
+    const UNSEEN: u8 = 2;
+    let mut turn = vec![UNSEEN; faces.len()];
+    let mut part = Vec::new();
+    let mut turned_total = 0;
+    for seed in 0..faces.len() {
+        if turn[seed] != UNSEEN {
+            continue;
+        }
+        turn[seed] = 0;
+        part.clear();
+        part.push(seed);
+        let mut next = 0;
+        while next < part.len() {
+            let f = part[next];
+            next += 1;
+            for &(_, g, alike) in &links[first_link[f]..first_link[f + 1]] {
+                let g = g as usize;
+                let want = if alike { turn[f] } else { 1 - turn[f] };
+                if turn[g] == UNSEEN {
+                    turn[g] = want;
+                    part.push(g);
+                } else if turn[g] != want {
+                    return Err(ObjectError::NonOrientable {
+                        first_face: origin[f],
+                        second_face: origin[g],
+                    });
+                }
+            }
+        }
+        let turned = part.iter().filter(|&&f| turn[f] == 1).count();
+        if 2 * turned > part.len() {
+            for &f in &part {
+                turn[f] = 1 - turn[f];
+            }
+        }
+    }
+    let mut first = None;
+    for (f, face) in faces.iter_mut().enumerate() {
+        if turn[f] == 1 {
+            face.reverse();
+            turned_total += 1;
+            first.get_or_insert(origin[f]);
+        }
+    }
+    if let Some(first) = first {
+        warnings.push(MeshWarning::FacesTurned {
+            count: turned_total,
+            first,
+        });
+    }
+    Ok(())
 }
 
 /// The directed edges of a polygon, last vertex to first included.
@@ -671,16 +776,65 @@ pub(super) mod tests {
         );
     }
 
+    /// A face wound against its neighbours is turned, with a warning naming how many; with
+    /// most of the faces wound against the rest, the fewer are turned; the cube comes out as
+    /// the consistent one, outward, of unit volume.
     #[test]
-    fn one_flipped_face_is_inconsistent() {
-        let (v, mut f) = cube();
-        f[2].reverse();
+    fn faces_wound_against_their_neighbours_are_turned_with_a_warning() {
+        let (v, good) = cube();
+        let whole = Object::from_polygons("x", v.clone(), good.clone()).unwrap();
+        for turned in [vec![2], vec![0, 3], vec![0, 1, 2, 3]] {
+            let mut f = good.clone();
+            for &k in &turned {
+                f[k].reverse();
+            }
+            let o = Object::from_polygons("x", v.clone(), f).unwrap();
+            // Four of six turned: the other two are the fewer, and the whole is then inward.
+            let expected = if turned.len() > 3 {
+                vec![
+                    MeshWarning::FacesTurned { count: 2, first: 4 },
+                    MeshWarning::InwardOrientation,
+                ]
+            } else {
+                vec![MeshWarning::FacesTurned {
+                    count: turned.len(),
+                    first: turned[0],
+                }]
+            };
+            assert_eq!(o.warnings, expected, "{turned:?}");
+            assert!((o.volume - 1.0).abs() < 1e-15);
+            assert_eq!(o.facets.normals, whole.facets.normals, "{turned:?}");
+        }
+    }
+
+    /// The six-vertex projective plane (ten triangles, every edge shared by two): closed and
+    /// manifold, but no winding is consistent: refused as not orientable, naming two faces.
+    #[test]
+    fn a_non_orientable_mesh_is_refused_by_what_is_wrong() {
+        let v: Vec<Vec3> = (0..6)
+            .map(|k| {
+                let a = k as Real;
+                Vec3::new(a.cos(), a.sin(), 0.3 * a)
+            })
+            .collect();
+        let f: Vec<Vec<u32>> = [
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 3, 4],
+            [0, 4, 5],
+            [0, 5, 1],
+            [1, 2, 4],
+            [2, 3, 5],
+            [3, 4, 1],
+            [4, 5, 2],
+            [5, 1, 3],
+        ]
+        .iter()
+        .map(|t| t.to_vec())
+        .collect();
         let e = Object::from_polygons("x", v, f).unwrap_err();
-        assert!(
-            matches!(e, ObjectError::InconsistentOrientation { .. }),
-            "{e}"
-        );
-        assert!(e.to_string().contains("same direction"));
+        assert!(matches!(e, ObjectError::NonOrientable { .. }), "{e}");
+        assert!(e.to_string().contains("not orientable"), "{e}");
     }
 
     #[test]
