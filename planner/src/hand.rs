@@ -28,6 +28,11 @@ const PLANAR_TOLERANCE: Real = 1e-9;
 /// Steps along which [`Finger::reach_along`] and [`Finger::reach_along_planar`] follow a path
 /// to measure a reserve.
 pub const REACH_STEPS: usize = 8;
+/// Most null-space steps [`Finger::ik_position_centred`] takes toward the middle of the joint
+/// ranges.
+pub const CENTRING_STEPS: usize = 30;
+/// Largest joint motion of one such step (rad).
+pub const CENTRING_STEP: Real = 0.05;
 
 /// Why a hand description or a kinematic query failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -479,6 +484,103 @@ impl Finger {
             }
         }
         Err(best)
+    }
+
+    /// How far the joints `q` are from their limits, each as a fraction of its range from the
+    /// nearer end (0 at a limit, 0.5 mid-range): the smallest, the finger's limit margin.
+    pub fn limit_margin(&self, q: &[Real]) -> Real {
+        self.joints
+            .iter()
+            .zip(q)
+            .map(|(j, a)| {
+                let range = j.upper - j.lower;
+                if range > 0.0 {
+                    ((a - j.lower).min(j.upper - a) / range).max(0.0)
+                } else {
+                    0.0
+                }
+            })
+            .fold(0.5, Real::min)
+    }
+
+    /// The joint-limit cost of `q`: `sum range_i^2 / (4 (upper_i - q_i) (q_i - lower_i))`,
+    /// the number of joints when every joint is mid-range, growing without bound as one
+    /// nears a limit (infinite at it). Joints of zero range count nothing.
+    pub fn limit_cost(&self, q: &[Real]) -> Real {
+        self.joints
+            .iter()
+            .zip(q)
+            .map(|(j, a)| {
+                let range = j.upper - j.lower;
+                if range <= 0.0 {
+                    return 0.0;
+                }
+                let room = (j.upper - a) * (a - j.lower);
+                if room <= 0.0 {
+                    Real::INFINITY
+                } else {
+                    range * range / (4.0 * room)
+                }
+            })
+            .sum()
+    }
+
+    /// [`Finger::ik_position`], then the finger's redundancy used to keep its joints off
+    /// their limits: steps in the null space of the fingertip-centre Jacobian (which leave
+    /// the centre where it is, to first order) down the gradient of [`Finger::limit_cost`],
+    /// each re-converged on the target by damped least squares and kept only if it lowers the
+    /// cost with the centre still within `1e-10` m, until no null-space direction lowers it
+    /// or [`CENTRING_STEPS`] steps. A finger without redundancy (three joints for the three
+    /// coordinates) keeps the plain solution. (The 4-joint fingers of the Allegro hand have one
+    /// redundant direction: the self-motion of their parallel flexion joints.)
+    pub fn ik_position_centred(&self, target: &Vec3, q0: &[Real]) -> Result<Vec<Real>, IkError> {
+        let mut q = self.ik_position(target, q0)?;
+        let n = self.dof();
+        for _ in 0..CENTRING_STEPS {
+            let jac = self.jacobian(&q).rows(0, 3).into_owned();
+            // The null-space projector I - J^+ J (J^+ by the pseudo-inverse of its SVD).
+            let Ok(pinv) = jac.clone().pseudo_inverse(1e-9) else {
+                break;
+            };
+            let projector = DMatrix::<Real>::identity(n, n) - &pinv * &jac;
+            // The cost's gradient, its joints kept a hair inside their limits.
+            let gradient = DVector::from_iterator(
+                n,
+                self.joints.iter().zip(&q).map(|(j, &a)| {
+                    let range = j.upper - j.lower;
+                    if range <= 0.0 {
+                        return 0.0;
+                    }
+                    let hair = 1e-6 * range;
+                    let a = a.clamp(j.lower + hair, j.upper - hair);
+                    let (up, down) = (j.upper - a, a - j.lower);
+                    -(range * range * (up - down) / (4.0 * up * up * down * down))
+                }),
+            );
+            let dq = -(&projector * gradient);
+            if dq.amax() < 1e-9 {
+                break;
+            }
+            let mut step = CENTRING_STEP / dq.amax();
+            let before = self.limit_cost(&q);
+            let mut moved = None;
+            for _ in 0..8 {
+                let trial: Vec<Real> = q.iter().zip(dq.iter()).map(|(a, d)| a + step * d).collect();
+                if let Ok(t) = self.dls(target, &trial)
+                    && self.limit_cost(&t) < before - 1e-12
+                    && (self.fk(&t).tip_centre - target).norm() <= 1e-10
+                {
+                    moved = Some(t);
+                    break;
+                }
+                step *= 0.5;
+            }
+            match moved {
+                Some(t) => q = t,
+                None => break,
+            }
+        }
+        Ok(q)
     }
 
     /// One damped-least-squares descent from `q0`.
