@@ -359,10 +359,17 @@ impl Finger {
     }
 
     /// Jacobian of the fingertip centre (3 x n) and of the rotation about the hand's z axis
-    /// (1 x n, the last row), at `q`.
+    /// (1 x n, the last row), at `q`: rows 0, 1, 2 and 5 of [`Finger::jacobian6`].
     pub fn jacobian(&self, q: &[Real]) -> DMatrix<Real> {
+        self.jacobian6(q).select_rows(&[0, 1, 2, 5])
+    }
+
+    /// The whole Jacobian of the fingertip (6 x n) at `q`: rows 0-2 the fingertip centre's
+    /// velocity, rows 3-5 the fingertip's angular velocity (the joint axes), both in the
+    /// hand frame, per unit joint rate.
+    pub fn jacobian6(&self, q: &[Real]) -> DMatrix<Real> {
         let n = self.dof();
-        let mut jac = DMatrix::zeros(4, n);
+        let mut jac = DMatrix::zeros(6, n);
         let mut t = self.base;
         let mut axes = Vec::with_capacity(n);
         for (j, &qi) in self.joints.iter().zip(q) {
@@ -376,12 +383,29 @@ impl Finger {
         let p = (t * nalgebra::Point3::from(self.tip)).coords;
         for (c, (o, a)) in axes.iter().enumerate() {
             let v = a.cross(&(p - o));
-            jac[(0, c)] = v.x;
-            jac[(1, c)] = v.y;
-            jac[(2, c)] = v.z;
-            jac[(3, c)] = a.z;
+            for r in 0..3 {
+                jac[(r, c)] = v[r];
+                jac[(r + 3, c)] = a[r];
+            }
         }
         jac
+    }
+
+    /// The contact Jacobian (3 x n) at `q` of a fingertip touching a surface whose outward
+    /// unit normal there is `n` (hand frame; the fingertip touches at `centre - r_f n`): the
+    /// velocity of the fingertip's material point at the contact per unit joint rate, `J_v +
+    /// r_f [n]x J_w`. Rolling without slipping on a still object is `A q' = 0`.
+    pub fn contact_jacobian(&self, q: &[Real], n: &Vec3) -> DMatrix<Real> {
+        let jac = self.jacobian6(q);
+        let mut a = jac.rows(0, 3).into_owned();
+        for c in 0..self.dof() {
+            let w = Vec3::new(jac[(3, c)], jac[(4, c)], jac[(5, c)]);
+            let v = n.cross(&w) * self.tip_radius;
+            for r in 0..3 {
+                a[(r, c)] += v[r];
+            }
+        }
+        a
     }
 
     /// Manipulability `sqrt(det(J J^T))` of the task the planner uses: `(x, y, phi)` for a

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use icrflow_grasp::math::{Isometry3, Real};
+use icrflow_grasp::math::{Isometry3, Real, Vec3};
 use icrflow_plan::hand::Finger;
 use icrflow_plan::paper;
 use icrflow_plan::urdf::{UrdfFinger, fingers_from_file};
@@ -185,6 +185,47 @@ fn jacobian_matches_finite_differences() {
                     jac[(r, c)],
                     d[r]
                 );
+            }
+        }
+    }
+}
+
+/// The whole fingertip Jacobian against finite differences on the Allegro's and the paper's
+/// fingers: its linear rows the fingertip centre's motion, its angular rows the fingertip's
+/// rotation (`log(R(q + h e_c) R(q)^T) / h`); and the contact Jacobian the motion of the
+/// fingertip's material point at a contact `r_f` from the centre along `-n`.
+#[test]
+fn the_whole_and_the_contact_jacobian_match_finite_differences() {
+    for f in allegro().iter().chain(paper::hand().fingers.iter()) {
+        let q = within(f, &[0.3, 0.6, 0.2, 0.7]);
+        let jac = f.jacobian6(&q);
+        let pose = f.fk(&q);
+        let n = Vec3::new(0.3, -0.5, 0.81).normalize();
+        let contact = f.contact_jacobian(&q, &n);
+        // The material point at the contact, in the fingertip's frame.
+        let body = pose.tip_rotation.inverse() * (-f.tip_radius * n);
+        let h = 1e-7;
+        for c in 0..f.dof() {
+            let mut qp = q.clone();
+            qp[c] += h;
+            let moved = f.fk(&qp);
+            let v = (moved.tip_centre - pose.tip_centre) / h;
+            let w = (moved.tip_rotation * pose.tip_rotation.inverse()).scaled_axis() / h;
+            let m = (moved.tip_centre + moved.tip_rotation * body
+                - (pose.tip_centre + pose.tip_rotation * body))
+                / h;
+            for r in 0..3 {
+                for (got, want, what) in [
+                    (jac[(r, c)], v[r], "linear"),
+                    (jac[(r + 3, c)], w[r], "angular"),
+                    (contact[(r, c)], m[r], "contact"),
+                ] {
+                    assert!(
+                        (got - want).abs() < 1e-6,
+                        "finger {} joint {c} {what} row {r}: {got} vs {want}",
+                        f.id
+                    );
+                }
             }
         }
     }
