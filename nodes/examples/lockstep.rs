@@ -6,13 +6,13 @@
 //! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
 //! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's), every_s (the
 //! interval of the lines, 0.5 s unless given), push_at_s, push_fx, push_fy (N), push_tz
-//! (N m), push_ms (a push of the object: `pipeline.push_*`). Prints a line every `every_s` of simulated time
-//! (true, estimated and planned rotation; per fingertip its normal force, the commanded
-//! force's magnitude in brackets, friction use and slip speed in mm/s; each finger's contact
-//! candidate, estimated / planned; how far each fingertip is from its command across and along
-//! the surface; link contacts; the object's centre) and, at the end, the re-plans and per phase
-//! the largest slip speed and friction use at contacts planned to roll, and contacts lost while
-//! planned.
+//! (N m), push_ms (a push of the object: `pipeline.push_*`). Prints a line every `every_s` of
+//! simulated time (true, estimated and planned rotation; per fingertip its normal force, the
+//! commanded force's magnitude in brackets, friction use and slip speed in mm/s; each finger's
+//! contact candidate, estimated / planned; how far each fingertip is from its command across
+//! and along the surface; link contacts; the object's centre) and, at the end, the re-plans
+//! and per phase the largest slip speed and friction use at contacts planned to roll, and
+//! contacts lost while planned.
 
 use std::collections::BTreeMap;
 

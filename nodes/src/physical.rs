@@ -5,8 +5,9 @@
 //! Each tick (`pipeline.rate_hz`) MuJoCo advances by the time since the last tick (whole
 //! timesteps of `plant.timestep_ms`, at most ten periods' worth when the process was late).
 //! A tracking command sets every finger's joint servo targets and its fingertip force target
-//! (fed forward as `J^T f` with `plant.feedforward`, the servos aiming `plant.squeeze_mm`
-//! past the surface); a hold, or a command older than `pipeline.max_input_age_ms`, keeps the
+//! (fed forward as `J^T f` with `plant.feedforward`, the servos of the finger with the
+//! largest force aiming `plant.squeeze_mm` past the surface, the others' in proportion to
+//! their forces: `icrflow_physics::sim`); a hold, or a command older than `pipeline.max_input_age_ms`, keeps the
 //! last targets and forces: the hand keeps its grip. The configured push of the object
 //! (`pipeline.push_n`, `push_nm`) begins at the first timestep at or after `push_at_s` of
 //! MuJoCo's time (an [`Event::Pushed`]). The world waits for the hand: MuJoCo

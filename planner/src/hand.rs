@@ -411,9 +411,9 @@ impl Finger {
     /// Manipulability `sqrt(det(J J^T))` of the task the planner uses: `(x, y, phi)` for a
     /// planar finger, the fingertip centre otherwise. Zero at a singularity.
     pub fn manipulability(&self, q: &[Real]) -> Real {
-        let jac = self.jacobian(q);
+        let jac = self.jacobian6(q);
         let task = if self.planar.is_some() {
-            jac.select_rows(&[0, 1, 3])
+            jac.select_rows(&[0, 1, 5])
         } else {
             jac.rows(0, 3).into_owned()
         };
@@ -561,7 +561,7 @@ impl Finger {
         let mut q = self.ik_position(target, q0)?;
         let n = self.dof();
         for _ in 0..CENTRING_STEPS {
-            let jac = self.jacobian(&q).rows(0, 3).into_owned();
+            let jac = self.jacobian6(&q).rows(0, 3).into_owned();
             // The null-space projector I - J^+ J (J^+ by the pseudo-inverse of its SVD).
             let Ok(pinv) = jac.clone().pseudo_inverse(1e-9) else {
                 break;
@@ -625,7 +625,7 @@ impl Finger {
             if e.norm() <= 1e-10 {
                 return Ok(q);
             }
-            let full = self.jacobian(&q).rows(0, 3).into_owned();
+            let full = self.jacobian6(&q).rows(0, 3).into_owned();
             let mut frozen = vec![false; n];
             let mut dq = DVector::zeros(n);
             for _ in 0..=n {

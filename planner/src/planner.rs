@@ -1191,13 +1191,17 @@ impl Scenario<'_> {
             }
             Err(e) => return Ok(Roll::Stuck(e.to_string())),
         };
-        let regions: Vec<icrflow_grasp::icr::Region> = regions
-            .into_iter()
-            .map(|r| icrflow_grasp::icr::Region {
-                members: self.erode(&r.members),
-                ..r
-            })
-            .collect();
+        let regions: Vec<icrflow_grasp::icr::Region> = if self.settings.region_erosion == 0 {
+            regions
+        } else {
+            regions
+                .into_iter()
+                .map(|r| icrflow_grasp::icr::Region {
+                    members: self.erode(&r.members),
+                    ..r
+                })
+                .collect()
+        };
         let mut next = Vec::with_capacity(contacts.len());
         for (i, (c, region)) in contacts.iter().zip(&regions).enumerate() {
             let f = self.finger(c.finger);
@@ -1286,8 +1290,14 @@ impl Scenario<'_> {
         let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
         // The exact region shrunk by the erosion: an attaching finger that lands that many
         // candidates off the rendezvous point still keeps the margin.
-        let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
-        let brute: &Vec<usize> = &self.erode(&exact).into_iter().map(|c| c as usize).collect();
+        let shrunk: Vec<usize>;
+        let brute: &[usize] = if self.settings.region_erosion == 0 {
+            &regions.exact
+        } else {
+            let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
+            shrunk = self.erode(&exact).into_iter().map(|c| c as usize).collect();
+            &shrunk
+        };
         let angle = |c: usize| {
             let p = self.problem.candidates().points[c] - self.centre;
             p.y.atan2(p.x)
