@@ -37,6 +37,9 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
     let mut shown = crate::progress::Shown::new(progress_after);
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
+    if let Some(spatial) = setup.spatial_scenario(&config) {
+        return validate_spatial(path, &config, &setup, &spatial);
+    }
     let started = match setup.scenario(&config).start() {
         Ok(s) => Ok(s),
         Err(e) if crate::exit::is_grasp_answer(&e) => Err(e),
@@ -155,6 +158,72 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
     })
 }
 
+/// [`validate`] for a spatial hand ([`Setup::spatial`]): the config, the object, the hand, the
+/// initial grasp as the spatial planner places it. `run` does not take it yet (said here).
+fn validate_spatial(
+    path: &Path,
+    config: &Config,
+    setup: &Setup,
+    scenario: &icrflow_plan::spatial::SpatialScenario<'_>,
+) -> Result<u8> {
+    let started = match scenario.start() {
+        Ok(s) => Ok(s),
+        Err(e) if crate::exit::is_grasp_answer(&e) => Err(e),
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot start")),
+    };
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "config     {} is valid", path.display())?;
+    writeln!(
+        o,
+        "object     {} ({} facets: the contact candidates); fingertips roll on {}",
+        config.object.describe(),
+        setup.object.facets.len(),
+        scenario.surface.describe()
+    )?;
+    for w in &setup.object.warnings {
+        writeln!(o, "warning    {w}")?;
+    }
+    let a = config.turn.axis;
+    writeln!(
+        o,
+        "hand       {} fingers in space ({}); the object turns about [{:.3}, {:.3}, {:.3}]",
+        setup.hand.fingers.len(),
+        match &config.hand {
+            HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
+            _ => "link lengths".to_string(),
+        },
+        a.x,
+        a.y,
+        a.z
+    )?;
+    writeln!(
+        o,
+        "pipeline   `run` does not take a spatial hand yet (its plants and estimator roll fingertips in the hand's plane); `plan` plans it"
+    )?;
+    let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
+    match &started {
+        Ok((_, quality)) => writeln!(
+            o,
+            "grasp      {} contacts (fingers {fingers:?}) on the facets nearest the points, force closure, alpha* = {quality:.6} >= alpha = {}",
+            fingers.len(),
+            config.grasp.alpha
+        )?,
+        Err(e) => writeln!(
+            o,
+            "grasp      {} contacts (fingers {fingers:?}): {e}",
+            fingers.len()
+        )?,
+    }
+    Ok(match started {
+        Ok(_) => crate::exit::DONE,
+        Err(e) => {
+            drop(o);
+            eprintln!("validate: cannot start: {e}");
+            crate::exit::INCOMPLETE
+        }
+    })
+}
+
 /// Which grasp `validate`, `plan` and `run` evaluate, in lines under the quality: the contacts
 /// on the object's section in the hand's plane (where the fingertips roll), and, for a
 /// spatial analysis, how `analyze` differs.
@@ -216,10 +285,13 @@ pub fn run(
     let mut shown = crate::progress::Shown::new(progress_after);
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
-    let scenario = setup.scenario(&config);
+    let spatial = setup.spatial_scenario(&config);
     let mut shown = Planning::new(config.plan.goal, progress_after);
     let started = Instant::now();
-    let planned = scenario.plan(&mut |theta| shown.at(theta));
+    let planned = match &spatial {
+        Some(s) => s.plan(&mut |theta| shown.at(theta)),
+        None => setup.scenario(&config).plan(&mut |theta| shown.at(theta)),
+    };
     let elapsed = started.elapsed();
     shown.finish();
     let plan = match planned {
@@ -266,6 +338,7 @@ pub fn run(
             recording
                 .as_ref()
                 .map(|r| (r, recorded.as_deref().unwrap_or_default())),
+            spatial.is_some(),
         )?;
     }
     Ok(if s.completed {
@@ -343,7 +416,8 @@ impl Planning {
 
 /// The plan's summary `s` as text on stdout: the plan of config `path`, its initial grasp of
 /// quality `start_quality`, written in `dir`, planned in `elapsed`, recorded to `recording`
-/// (with its id).
+/// (with its id); `spatial`: planned by the spatial planner.
+#[allow(clippy::too_many_arguments)]
 fn print_text(
     path: &Path,
     config: &Config,
@@ -352,6 +426,7 @@ fn print_text(
     dir: &Path,
     elapsed: std::time::Duration,
     recording: Option<(&Recording, &str)>,
+    spatial: bool,
 ) -> Result<()> {
     let mut o = std::io::stdout().lock();
     writeln!(o, "config     {}", path.display())?;
@@ -365,9 +440,17 @@ fn print_text(
     )?;
     writeln!(
         o,
-        "rotation   {:.1} deg of {:.1} deg{}",
+        "rotation   {:.1} deg of {:.1} deg{}{}",
         s.rotation.to_degrees(),
         s.goal.to_degrees(),
+        if spatial {
+            format!(
+                " about [{:.3}, {:.3}, {:.3}] (spatial)",
+                s.axis[0], s.axis[1], s.axis[2]
+            )
+        } else {
+            String::new()
+        },
         if s.completed { "" } else { " (stopped early)" }
     )?;
     writeln!(
@@ -382,14 +465,26 @@ fn print_text(
         if s.min_quality >= s.alpha { ">=" } else { "<" },
         s.alpha
     )?;
-    for line in section_note(config) {
-        writeln!(o, "           {line}")?;
+    if spatial {
+        writeln!(
+            o,
+            "           the contacts' nearest facets, 6D analysis (as analyze with the same points)"
+        )?;
+        writeln!(
+            o,
+            "rolling    largest distance of a fingertip in contact from touching = {:.3e} m",
+            s.max_rolling_residual
+        )?;
+    } else {
+        for line in section_note(config) {
+            writeln!(o, "           {line}")?;
+        }
+        writeln!(
+            o,
+            "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
+            s.max_rolling_residual
+        )?;
     }
-    writeln!(
-        o,
-        "rolling    largest residual |r_f dgamma + s| = {:.3e} m",
-        s.max_rolling_residual
-    )?;
     if let Some(mm) = s.min_link_clearance_mm {
         writeln!(
             o,

@@ -260,6 +260,12 @@ impl Finger {
         Ok(finger)
     }
 
+    /// Whether the finger is a planar three-joint chain in the hand's plane `z = 0`: what the
+    /// planar planner ([`crate::planner`]) takes; others go to [`crate::spatial`].
+    pub fn in_hand_plane(&self) -> bool {
+        self.dof() == 3 && self.planar.as_ref().is_some_and(|p| p.z.abs() <= 1e-9)
+    }
+
     /// Number of joints.
     pub fn dof(&self) -> usize {
         self.joints.len()
@@ -592,7 +598,7 @@ impl Finger {
                 let trial: Vec<Real> = q.iter().zip(dq.iter()).map(|(a, d)| a + step * d).collect();
                 if let Ok(t) = self.dls(target, &trial)
                     && self.limit_cost(&t) < before - 1e-12
-                    && (self.fk(&t).tip_centre - target).norm() <= 1e-10
+                    && (self.tip_centre(&t) - target).norm() <= 1e-10
                 {
                     moved = Some(t);
                     break;
@@ -620,7 +626,7 @@ impl Finger {
         let mut q: Vec<Real> = q0.to_vec();
         q.resize(n, 0.0);
         clamp(&mut q);
-        let mut e = target - self.fk(&q).tip_centre;
+        let mut e = target - self.tip_centre(&q);
         for iteration in 0..ITERATIONS {
             if e.norm() <= 1e-10 {
                 return Ok(q);
@@ -670,7 +676,7 @@ impl Finger {
                 let mut trial: Vec<Real> =
                     q.iter().zip(dq.iter()).map(|(a, d)| a + step * d).collect();
                 clamp(&mut trial);
-                let et = target - self.fk(&trial).tip_centre;
+                let et = target - self.tip_centre(&trial);
                 if et.norm() < e.norm() {
                     (q, e) = (trial, et);
                     improved = true;

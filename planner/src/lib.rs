@@ -17,6 +17,7 @@
 //! | [`planner`] | rolling, finger switching, the trajectory and its summary |
 //! | [`rendezvous`] | rendezvous regions for a switch: exact (brute force), ICR zone rule, eq. (8) LP |
 //! | [`rolling`] | fingertips rolling on the object's section: the surface, contacts, the rotation from a fingertip's motion |
+//! | [`spatial`] | the planner in space: fingers of any serial chain ending in a fingertip sphere turning the object about any axis, the spatial rolling kinematics, smooth convex surfaces |
 
 #![warn(missing_docs)]
 
@@ -29,4 +30,5 @@ pub mod planner;
 pub mod rendezvous;
 pub mod rolling;
 pub mod route;
+pub mod spatial;
 pub mod urdf;

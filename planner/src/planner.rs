@@ -252,6 +252,11 @@ pub struct FingerState {
     pub contact: Option<usize>,
     /// Body-frame contact point (m).
     pub point: Option<[Real; 3]>,
+    /// Body-frame outward unit normal at the contact: the spatial planner's (its contacts are
+    /// exact surface points); the planar planner's contacts are candidates, whose normals the
+    /// grasp problem has.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[Real; 3]>,
     /// The contact's angle on the section (rad, [0, 2 pi); `angle_deg` in files).
     #[serde(rename = "angle_deg", with = "crate::degrees::option")]
     pub angle: Option<Real>,
@@ -337,6 +342,10 @@ pub struct Summary {
     /// Goal (rad; `goal_deg` in files).
     #[serde(rename = "goal_deg", with = "crate::degrees")]
     pub goal: Real,
+    /// The unit axis (hand frame) the object turns about, positive by the right-hand rule:
+    /// `[0, 0, 1]` for the planar planner (counter-clockwise seen from the top).
+    #[serde(default = "vertical")]
+    pub axis: [Real; 3],
     /// Finger switches.
     pub switches: usize,
     /// Trajectory steps (all phases; the start included).
@@ -378,6 +387,10 @@ pub struct Summary {
     /// `None` in plans written before it was reported.
     #[serde(default)]
     pub min_squeeze_reserve_mm: Option<Real>,
+}
+
+fn vertical() -> [Real; 3] {
+    [0.0, 0.0, 1.0]
 }
 
 /// How far the plan's summary measures the squeeze reserve (m): a reserve this large or
@@ -819,7 +832,7 @@ impl Scenario<'_> {
             let Some(f) = self.hand.finger(id) else {
                 return Err(PlanError::UnknownFinger { finger: id, known });
             };
-            if f.dof() != 3 || f.planar.as_ref().is_none_or(|p| p.z.abs() > 1e-9) {
+            if !f.in_hand_plane() {
                 return Err(PlanError::NotPlanar { finger: id });
             }
         }
@@ -891,6 +904,7 @@ impl Scenario<'_> {
                     finger: f.id,
                     contact: contact.map(|c| c.candidate),
                     point: p.map(|p| [p.x, p.y, p.z]),
+                    normal: None,
                     angle: contact.and_then(|c| self.angles.map(|a| a[c.candidate])),
                     cap_angle: contact.map(|c| c.gamma),
                     tip_rotation: pose.cap_axis.y.atan2(pose.cap_axis.x),
@@ -1077,6 +1091,7 @@ impl Scenario<'_> {
             stop_reason,
             rotation: theta,
             goal: s.goal,
+            axis: vertical(),
             switches,
             steps: steps.len(),
             rolling_steps,

@@ -155,10 +155,11 @@ pub fn plan(py: Python<'_>, config: &Bound<'_, PyAny>) -> PyResult<Plan> {
     let planned = py
         .detach(|| -> anyhow::Result<(Planned, Vec<u32>)> {
             let setup = Setup::new(&config)?;
-            let plan = setup
-                .scenario(&config)
-                .plan(&mut |_| {})
-                .context("cannot plan")?;
+            let plan = match setup.spatial_scenario(&config) {
+                Some(spatial) => spatial.plan(&mut |_| {}),
+                None => setup.scenario(&config).plan(&mut |_| {}),
+            }
+            .context("cannot plan")?;
             Ok((plan, setup.hand.fingers.iter().map(|f| f.id).collect()))
         })
         .map_err(|e| icrflow_error(format!("{e:#}")))?;
@@ -196,6 +197,7 @@ fn trajectory<'py>(
     let nan = Real::NAN;
     let mut contact = vec![-1_i64; s * f];
     let mut point = vec![nan; s * f * 3];
+    let mut normal = vec![nan; s * f * 3];
     let mut angle = vec![nan; s * f];
     let mut cap = vec![nan; s * f];
     let mut tip_rotation = vec![nan; s * f];
@@ -212,6 +214,9 @@ fn trajectory<'py>(
             }
             if let Some(p) = state.point {
                 point[3 * at..3 * at + 3].copy_from_slice(&p);
+            }
+            if let Some(n) = state.normal {
+                normal[3 * at..3 * at + 3].copy_from_slice(&n);
             }
             // Degrees out, as in the plan's files (the same conversion as theirs).
             angle[at] = state.angle.map_or(nan, Real::to_degrees);
@@ -258,6 +263,7 @@ fn trajectory<'py>(
     )?;
     d.set_item("contact", array_out(py, contact, &[s, f]))?;
     d.set_item("point", array_out(py, point, &[s, f, 3]))?;
+    d.set_item("normal", array_out(py, normal, &[s, f, 3]))?;
     d.set_item("angle_deg", array_out(py, angle, &[s, f]))?;
     d.set_item("cap_angle_deg", array_out(py, cap, &[s, f]))?;
     d.set_item("tip_rotation_deg", array_out(py, tip_rotation, &[s, f]))?;

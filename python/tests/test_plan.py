@@ -24,7 +24,9 @@ def nan_to_none(x):
     return None if isinstance(x, float) and np.isnan(x) else x
 
 
-@pytest.mark.parametrize("name", ["paper_sphere.toml", "ellipsoid_spatial.toml"])
+@pytest.mark.parametrize(
+    "name", ["paper_sphere.toml", "ellipsoid_spatial.toml", "allegro_sphere.toml"]
+)
 def test_plan_equals_the_cli(name, cli_plan):
     summary, steps = cli_plan(name)
     p = icrflow.plan(CONFIG / name)
@@ -42,6 +44,8 @@ def test_plan_equals_the_cli(name, cli_plan):
             assert (None if t["contact"][k, i] < 0 else int(t["contact"][k, i])) == f["contact"]
             point = None if np.isnan(t["point"][k, i]).all() else t["point"][k, i].tolist()
             assert point == f["point"]
+            normal = None if np.isnan(t["normal"][k, i]).all() else t["normal"][k, i].tolist()
+            assert normal == f.get("normal")
             assert nan_to_none(float(t["angle_deg"][k, i])) == f["angle_deg"]
             assert nan_to_none(float(t["cap_angle_deg"][k, i])) == f["cap_angle_deg"]
             assert t["tip_rotation_deg"][k, i] == f["tip_rotation_deg"]

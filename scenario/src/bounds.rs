@@ -315,6 +315,13 @@ pub const MANIPULABILITY: Range = Range::closed(
     "m^2",
     "more than a three-link finger of 0.5 m links ever has (l1 l2 + l1 l3 + l2 l3 = 0.75 m^2)",
 );
+/// `plan.min_mobility_mm` (per rad).
+pub const MOBILITY: Range = Range::closed(
+    0.0,
+    100.0,
+    "mm/rad",
+    "a fingertip 100 mm from every joint it moves by; the Allegro hand's fingers reach 20 to 60 in the middle of their ranges",
+);
 /// `plan.squeeze_reserve_mm`.
 pub const SQUEEZE_RESERVE: Range = Range::closed(
     0.0,

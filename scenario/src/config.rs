@@ -290,6 +290,8 @@ pub struct Config {
     pub hand: HandSpec,
     /// Planner settings (alpha from `[grasp]`).
     pub plan: Settings,
+    /// The `[plan]` keys of the spatial planner: the axis the object turns about.
+    pub turn: Turn,
     /// Pipeline settings.
     pub pipeline: PipelineSpec,
     /// What the plant simulates.
@@ -638,6 +640,7 @@ impl Config {
             None => HandSpec::Paper,
             Some(h) => hand_spec(h, base)?,
         };
+        let turn = turn_spec(raw.plan.as_ref())?;
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         let plant = plant_spec(raw.plant.unwrap_or_default())?;
@@ -671,6 +674,7 @@ impl Config {
             grasp,
             hand,
             plan,
+            turn,
             pipeline,
             plant,
             zenoh,
@@ -1275,6 +1279,44 @@ pub const DEFAULT_SQUEEZE_RESERVE_MM: Real = 2.0;
 /// Default object rotation per rolling step (deg).
 pub const DEFAULT_STEP_DEG: Real = 5.0;
 
+/// What the object turns about, and the spatial planner's own limits (`[plan]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Turn {
+    /// The unit axis (hand frame) the object turns about, positive by the right-hand rule
+    /// (`plan.axis`, normalised; `[0, 0, 1]` by default, the only axis of a planar hand).
+    pub axis: Vec3,
+    /// Smallest singular value of a spatial finger's fingertip-centre Jacobian in contact
+    /// (m per rad; `plan.min_mobility_mm`).
+    pub min_mobility: Real,
+}
+
+/// Default `plan.min_mobility_mm`.
+pub const DEFAULT_MIN_MOBILITY_MM: Real = 5.0;
+
+fn turn_spec(raw: Option<&RawPlan>) -> Result<Turn> {
+    let axis = match raw.and_then(|r| r.axis) {
+        None => Vec3::z(),
+        Some(a) => {
+            let v = Vec3::from(a);
+            if !v.iter().all(|x| x.is_finite()) || v.norm() < 1e-9 {
+                bail!(
+                    "plan.axis: [{}, {}, {}] is not a direction (finite, not zero)",
+                    num(a[0]),
+                    num(a[1]),
+                    num(a[2])
+                );
+            }
+            v.normalize()
+        }
+    };
+    let min_mobility = bounds::MOBILITY.or(
+        "plan.min_mobility_mm",
+        raw.and_then(|r| r.min_mobility_mm),
+        DEFAULT_MIN_MOBILITY_MM,
+    )? * 1e-3;
+    Ok(Turn { axis, min_mobility })
+}
+
 fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
     let raw = raw.unwrap_or(RawPlan {
         rotation_deg: None,
@@ -1285,6 +1327,8 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         attach_resolution_deg: None,
         squeeze_reserve_mm: None,
         region_erosion: None,
+        axis: None,
+        min_mobility_mm: None,
     });
     let rotation =
         bounds::ROTATION.or("plan.rotation_deg", raw.rotation_deg, DEFAULT_ROTATION_DEG)?;

@@ -14,4 +14,6 @@ mod raw;
 mod setup;
 
 pub use config::*;
-pub use setup::{Loaded, Setup, Snap, section_problem, snap_contact, surface_tolerance};
+pub use setup::{
+    Loaded, Setup, Snap, SpatialSetup, section_problem, snap_contact, surface_tolerance,
+};

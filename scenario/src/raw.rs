@@ -185,4 +185,6 @@ pub struct RawPlan {
     pub attach_resolution_deg: Option<f64>,
     pub squeeze_reserve_mm: Option<f64>,
     pub region_erosion: Option<usize>,
+    pub axis: Option<[f64; 3]>,
+    pub min_mobility_mm: Option<f64>,
 }

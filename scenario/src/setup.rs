@@ -1,16 +1,19 @@
 //! Everything the planner (offline or in the pipeline) needs, built from a config.
 
 use anyhow::{Context, Result, bail};
-use icrflow_grasp::math::Real;
+use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::Object;
 use icrflow_grasp::progress::Progress;
 use icrflow_grasp::quality::{GraspError, GraspProblem};
-use icrflow_grasp::wrench::{ContactModel, WrenchFrame};
+use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
 use icrflow_plan::rolling::{Surface, SurfaceError};
+use icrflow_plan::spatial::surface::Convex;
+use icrflow_plan::spatial::{Spatial, SpatialScenario};
 
-use crate::config::{Config, ContactSpec, FingerContact};
+use crate::bounds::num;
+use crate::config::{Config, ContactSpec, FingerContact, ObjectSpec};
 
 /// Everything the planner needs, built from a config.
 pub struct Setup {
@@ -25,6 +28,19 @@ pub struct Setup {
     /// The object's section as fingertips roll on it in the pipeline (the plant, the
     /// estimator, the planner node), or why they cannot: see [`Setup::surface`].
     surface: Result<Surface, SurfaceError>,
+    /// For a spatial hand (a finger that is not a planar three-joint chain in the hand's
+    /// plane): what the spatial planner rolls on. Then [`Setup::problem`]'s candidates are
+    /// the object's facets and [`Setup::initial`]'s candidates the facets nearest the
+    /// configured points.
+    pub spatial: Option<SpatialSetup>,
+}
+
+/// What a spatial hand's plan rolls on ([`icrflow_plan::spatial`]).
+pub struct SpatialSetup {
+    /// The smooth convex surface the fingertips roll on (body frame).
+    pub surface: Convex,
+    /// The initial contacts: (finger, the configured point moved onto the surface).
+    pub initial: Vec<(u32, Vec3)>,
 }
 
 /// A config file loaded, with what it builds: what a node of the pipeline starts from.
@@ -60,6 +76,19 @@ impl Setup {
         let g = &config.grasp;
         let rho = g.rho.unwrap_or_else(|| object.max_radius());
         let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
+        let hand = config.hand.build()?;
+        if !hand.fingers.iter().all(|f| f.in_hand_plane()) {
+            return Self::spatial(config, object, frame, hand, progress);
+        }
+        let axis = config.turn.axis;
+        if (axis - Vec3::z()).norm() > 1e-9 {
+            bail!(
+                "plan.axis: [{}, {}, {}]: the planar hand (three-joint fingers in the plane z = 0) turns objects about the hand's z axis only; give [0, 0, 1] or leave it out",
+                num(axis.x),
+                num(axis.y),
+                num(axis.z)
+            );
+        }
         if object.section.samples.is_empty() {
             bail!(
                 "object: the hand's plane (z = {:.4} m, through the centre of mass) does not cut it: no contact candidates",
@@ -67,7 +96,6 @@ impl Setup {
             );
         }
         let problem = section_problem(&object, frame, g.model, progress)?;
-        let hand = config.hand.build()?;
         let mut initial = Vec::with_capacity(g.contacts.len());
         for (i, c) in g.contacts.iter().enumerate() {
             if hand.finger(c.finger).is_none() {
@@ -80,16 +108,7 @@ impl Setup {
             let (index, _) = snap_contact(&object, &problem, true, i, c)?;
             initial.push((c.finger, index, c.cap_angle));
         }
-        if hand
-            .fingers
-            .iter()
-            .all(|f| g.contacts.iter().any(|c| c.finger == f.id))
-        {
-            bail!(
-                "grasp.contacts: every finger of the hand ({:?}) is in contact, so none is free to take over when one reaches its limit; leave one out",
-                hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
-            );
-        }
+        one_free(config, &hand)?;
         let surface = Surface::new(
             &object.section,
             [object.centre_of_mass.x, object.centre_of_mass.y],
@@ -100,6 +119,121 @@ impl Setup {
             hand,
             initial,
             surface,
+            spatial: None,
+        })
+    }
+
+    /// The setup of a spatial hand: the grasp problem on the object's facets (its cones'
+    /// tangents about the plan's axis), the exact surface the fingertips roll on, the
+    /// configured contact points on it.
+    fn spatial(
+        config: &Config,
+        object: Object,
+        frame: WrenchFrame,
+        hand: Hand,
+        progress: &mut dyn Progress,
+    ) -> Result<Self> {
+        let g = &config.grasp;
+        let planar: Vec<u32> = hand
+            .fingers
+            .iter()
+            .filter(|f| !f.in_hand_plane())
+            .map(|f| f.id)
+            .collect();
+        if g.space != Space::Spatial {
+            bail!(
+                "grasp.space: fingers {planar:?} are not planar three-joint chains in the hand's plane, so the hand is planned in space, and its grasps need spatial analysis: set space = \"spatial\""
+            );
+        }
+        let c = object.centre_of_mass;
+        let surface = match &config.object {
+            ObjectSpec::Sphere { radius, .. } => Convex::Sphere {
+                centre: c,
+                radius: *radius,
+            },
+            ObjectSpec::Ellipsoid { semi_axes, .. } => Convex::Ellipsoid {
+                centre: c,
+                semi_axes: Vec3::from(*semi_axes),
+            },
+            other => bail!(
+                "object: a spatial hand's fingertips roll on a smooth convex surface, here a sphere or an ellipsoid (shape = \"sphere\" or \"ellipsoid\"); {} is not supported for a spatial hand yet",
+                other.describe()
+            ),
+        };
+        let frame = frame
+            .with_tangent_axis(config.turn.axis)
+            .context("plan.axis")?;
+        let problem = GraspProblem::new_with(
+            &object.facets,
+            object.facets.clone(),
+            frame,
+            g.model,
+            progress,
+        )?;
+        let mut initial = Vec::with_capacity(g.contacts.len());
+        let mut points = Vec::with_capacity(g.contacts.len());
+        for (i, contact) in g.contacts.iter().enumerate() {
+            if hand.finger(contact.finger).is_none() {
+                bail!(
+                    "grasp.contacts[{i}].finger: finger {} is not in the hand (fingers {:?})",
+                    contact.finger,
+                    hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
+                );
+            }
+            if let ContactSpec::Angle(_) = contact.at {
+                bail!(
+                    "grasp.contacts[{i}] (finger {}): angle_deg is a place on the object's section in the hand's plane; a spatial hand's contacts are points: give point = [x, y, z] (body frame, m)",
+                    contact.finger
+                );
+            }
+            if contact.cap_angle.is_some() {
+                bail!(
+                    "grasp.contacts[{i}].cap_angle_deg (finger {}): a planar hand's; a spatial hand's fingertip touches where its joints put it, found by inverse kinematics",
+                    contact.finger
+                );
+            }
+            let (index, _) = snap_contact(&object, &problem, false, i, contact)?;
+            let ContactSpec::Point(p) = contact.at else {
+                unreachable!("angles are refused above")
+            };
+            initial.push((contact.finger, index, None));
+            points.push((contact.finger, surface.closest(&p).point));
+        }
+        one_free(config, &hand)?;
+        let section = Surface::new(
+            &object.section,
+            [object.centre_of_mass.x, object.centre_of_mass.y],
+        );
+        Ok(Self {
+            object,
+            problem,
+            hand,
+            initial,
+            surface: section,
+            spatial: Some(SpatialSetup {
+                surface,
+                initial: points,
+            }),
+        })
+    }
+
+    /// The spatial planner's scenario, for a spatial hand ([`Setup::spatial`]).
+    pub fn spatial_scenario<'a>(&'a self, config: &Config) -> Option<SpatialScenario<'a>> {
+        let s = self.spatial.as_ref()?;
+        Some(SpatialScenario {
+            problem: &self.problem,
+            hand: &self.hand,
+            surface: &s.surface,
+            centre: self.object.centre_of_mass,
+            initial: s.initial.clone(),
+            start_rotation: 0.0,
+            settings: config.plan.clone(),
+            spatial: Spatial {
+                axis: config.turn.axis,
+                link_radius: config.plant.link_radius,
+                min_mobility: config.turn.min_mobility,
+                substeps: icrflow_plan::spatial::SUBSTEPS,
+            },
         })
     }
 
@@ -125,6 +259,21 @@ impl Setup {
             settings: config.plan.clone(),
         }
     }
+}
+
+/// A plan needs a free finger to take over when one reaches its limit.
+fn one_free(config: &Config, hand: &Hand) -> Result<()> {
+    if hand
+        .fingers
+        .iter()
+        .all(|f| config.grasp.contacts.iter().any(|c| c.finger == f.id))
+    {
+        bail!(
+            "grasp.contacts: every finger of the hand ({:?}) is in contact, so none is free to take over when one reaches its limit; leave one out",
+            hand.fingers.iter().map(|f| f.id).collect::<Vec<_>>()
+        );
+    }
+    Ok(())
 }
 
 /// How far a configured contact point may lie from the object's surface (m): 1 mm, or 1 % of

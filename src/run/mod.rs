@@ -127,6 +127,11 @@ pub fn run(
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
+    if setup.spatial.is_some() {
+        anyhow::bail!(
+            "hand: its fingers are planned in space (`icrflow plan` takes it), but the pipeline's plants and estimator roll fingertips in the hand's plane only: `run` does not take a spatial hand yet"
+        );
+    }
     slip(&config, setup.surface()?)?;
     match setup.scenario(&config).start() {
         Ok(_) => {}

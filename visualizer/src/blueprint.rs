@@ -29,12 +29,16 @@ pub struct Layout {
     pub hand_radius: f32,
     /// A pipeline run (latency row, `time` timeline) rather than a plan (`step` only).
     pub run: bool,
+    /// A spatial hand's plan: the hand and object seen from an oblique eye, not from the top.
+    pub spatial: bool,
 }
 
 /// The views' names, as the viewer shows them (the tests look for them).
 pub mod names {
     /// The hand and the object seen from above (paper Fig. 10).
     pub const HAND: &str = "Hand and object (top view)";
+    /// A spatial hand and the object, seen from the side of the palm.
+    pub const HAND_3D: &str = "Hand and object (3D; the axis of the turn in white)";
     /// The wrench space (paper Fig. 9).
     pub const WRENCH: &str = "Wrench space: GWS green, alpha OWS gold";
     /// The angles (paper Fig. 11).
@@ -153,12 +157,24 @@ pub fn messages(app: &'static str, recording_id: &str, layout: &Layout) -> Resul
         .with_eye_up([0.0, 1.0, 0.0]);
     let no_grid = LineGrid3D::new().with_visible(false);
     let dark = Background::new(BackgroundKind::SolidColor).with_color(0x16181cff);
+    // A spatial hand: from in front of the palm (+x), to the side (-y) and above (+z), the
+    // object's centre and the palm's middle in view.
+    let side = EyeControls3D::new()
+        .with_kind(Eye3DKind::Orbital)
+        .with_position([0.85 * r, -0.95 * r, 0.4 * r])
+        .with_look_target([-0.15 * r, 0.0, -0.25 * r])
+        .with_eye_up([0.0, 0.0, 1.0]);
+    let (hand_name, eye) = if layout.spatial {
+        (names::HAND_3D, &side)
+    } else {
+        (names::HAND, &top)
+    };
     let hand = w.view(
         "3D",
-        names::HAND,
+        hand_name,
         paths::SCENE,
         &[
-            ("EyeControls3D", &top),
+            ("EyeControls3D", eye),
             ("LineGrid3D", &no_grid),
             ("Background", &dark),
         ],

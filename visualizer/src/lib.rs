@@ -91,10 +91,17 @@ impl State {
     }
 }
 
-/// What a recording of `setup` with the margin `alpha` shows from the start; `run`: of a
-/// pipeline run (else of a plan).
-pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64, run: bool) -> Statics {
+/// What a recording of `setup` with the margin `alpha` shows from the start, the object turning
+/// about the unit `axis` (hand frame); `run`: of a pipeline run (else of a plan).
+pub(crate) fn statics(
+    setup: &icrflow_scenario::Setup,
+    id: &str,
+    alpha: f64,
+    axis: &Vec3,
+    run: bool,
+) -> Statics {
     let radius = setup.object.max_radius();
+    let arrow = axis * (1.5 * radius);
     Statics {
         recording_id: id.to_string(),
         object: geometry::object_mesh(&setup.object),
@@ -105,14 +112,12 @@ pub(crate) fn statics(setup: &icrflow_scenario::Setup, id: &str, alpha: f64, run
         ),
         ows: geometry::hull_mesh(&geometry::scaled_ows(&setup.problem, alpha)),
         alpha,
-        axis: (
-            p3(&setup.object.centre_of_mass),
-            [0.0, 0.0, 1.5 * radius as f32],
-        ),
+        axis: (p3(&setup.object.centre_of_mass), p3(&arrow)),
         fingers: setup.hand.fingers.iter().map(|f| f.id).collect(),
         layout: blueprint::Layout {
             hand_radius: geometry::hand_radius(&setup.hand, radius) as f32,
             run,
+            spatial: setup.spatial.is_some(),
         },
     }
 }
@@ -135,7 +140,7 @@ pub fn run(ctx: &Context<Loaded>) -> Result<()> {
     let commands = ctx.bus.subscriber(topics::HAND_COMMAND)?;
     let plans = ctx.bus.slice_subscriber(topics::PLAN_STEP)?;
     let truths = ctx.bus.subscriber(topics::PLANT_TRUTH)?;
-    let statics = statics(setup, id, alpha, true);
+    let statics = statics(setup, id, alpha, &Vec3::z(), true);
     // The recording thread: it owns the stream, so only it can block on a lagging viewer.
     let (tx, rx) = sync_channel::<Frame>(spec.queue);
     let (opened_tx, opened_rx) = sync_channel::<Result<()>>(1);

@@ -14,7 +14,7 @@ use icrflow_grasp::math::Vec3;
 use icrflow_plan::planner::Step;
 use icrflow_runtime::launch::RecordingLaunch;
 use icrflow_scenario::{Config, Recording, Setup};
-use nalgebra::UnitQuaternion;
+use nalgebra::{Unit, UnitQuaternion};
 use serde::Deserialize;
 
 use crate::geometry::p3;
@@ -50,7 +50,7 @@ pub fn run(config: &Path, trajectory: &Path, launch: &RecordingLaunch) -> Result
         .iter()
         .map(|step| frames(step, &config, &setup))
         .collect::<Result<Vec<_>>>()?;
-    let statics = crate::statics(&setup, &id, alpha, false);
+    let statics = crate::statics(&setup, &id, alpha, &config.turn.axis, false);
     let rec = record::open(&recording, &id, true, &statics.layout)?;
     record::statics(&rec, &statics)?;
     let logged = record::log_frames(&rec, alpha, frames.into_iter().flatten())?;
@@ -113,24 +113,26 @@ fn frames(step: &Step, config: &Config, setup: &Setup) -> Result<[Frame; 2]> {
     Ok([step_frame, scene(step, config, setup)])
 }
 
-/// The scene of a planned step: the object turned by the step's rotation about its centre of
-/// mass (held at the hand frame's origin), the contacts, their cones, and the fingers.
+/// The scene of a planned step: the object turned by the step's rotation about the plan's
+/// axis through its centre of mass (held at the hand frame's origin), the contacts (a spatial
+/// plan's exact points and normals, a planar plan's candidates), their cones, and the fingers.
 fn scene(step: &Step, config: &Config, setup: &Setup) -> Frame {
     let com = setup.object.centre_of_mass;
     let theta = step.rotation;
-    let rotation = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), theta);
+    let rotation = UnitQuaternion::from_axis_angle(&Unit::new_normalize(config.turn.axis), theta);
     let translation = -(rotation * com);
     let candidates = setup.problem.candidates();
     let (contacts, cones) = crate::contacts_view(
         step.fingers
             .iter()
-            .filter_map(|f| f.contact)
-            .filter(|&c| c < candidates.points.len())
-            .map(|c| {
-                (
-                    translation + rotation * candidates.points[c],
-                    rotation * candidates.normals[c],
-                )
+            .filter(|f| f.contact.is_some_and(|c| c < candidates.points.len()))
+            .map(|f| {
+                let c = f.contact.unwrap_or_default();
+                let (p, n) = match (f.point, f.normal) {
+                    (Some(p), Some(n)) => (Vec3::from(p), Vec3::from(n)),
+                    _ => (candidates.points[c], candidates.normals[c]),
+                };
+                (translation + rotation * p, rotation * n)
             }),
         &config.grasp,
     );

@@ -1,0 +1,1270 @@
+//! The spatial in-hand rolling planner: a hand of serial fingers ending in fingertip spheres
+//! (the Allegro hand's four 4-joint fingers, or any such URDF) turns an object about any axis
+//! through its centre of mass, the contacts rolling without slipping inside their 6D ICRs, a
+//! free finger taking over at a rendezvous point when one reaches a limit: the planar
+//! planner's algorithm ([`crate::planner`]) in space.
+//!
+//! # Model
+//! - The object's centre of mass is held at the hand frame's origin; the object turns by
+//!   `theta` about the unit axis `a` (hand frame): body point `b` is at `R(a, theta) (b - c)`.
+//! - The object's surface, where the fingertips roll, is a smooth convex surface
+//!   ([`surface::Convex`]: the exact sphere or ellipsoid the mesh approximates). A contact is
+//!   an exact surface point; its grasp is evaluated at the nearest candidate of the grasp
+//!   problem (the mesh's facets: 6D ICRs by the zone rule, rendezvous regions by brute force).
+//! - A finger in contact has its fingertip centre at `p_w + r_f n_w`, its joints given by
+//!   forward kinematics; what part of the fingertip touches follows from its joints.
+//!
+//! # Rolling step
+//! The object turns by `step` in [`Spatial::substeps`] equal parts. Over each, every finger's
+//! joint rates keep its fingertip's material point at the contact moving with the object's
+//! (`A q' = w_o x p_w`, [`rolling`]): rolling without slipping. That is three equations; a
+//! finger with more joints spends the rest on moving away from its joint limits (null-space
+//! descent of [`Finger::limit_cost`]). The contact then is where the fingertip touches
+//! ([`surface::Convex::closest`] of its centre), with a Newton correction of the fingertip
+//! centre along the normal against the integration's drift (second-order midpoint steps). The
+//! contact's candidate must stay in its ICR (shrunk by [`Settings::region_erosion`]) at every
+//! part; the finger must stay inside its joint limits, touch within its fingertip cap (the
+//! angle from the cap axis at most the cap's half-angle less the margin), keep its mobility
+//! (the smallest singular value of its fingertip centre's Jacobian at least
+//! [`Spatial::min_mobility`]), keep its links' capsules off the object, and be able to press on
+//! ([`Settings::squeeze_reserve`]); fingers keep their fingertips and link capsules off each
+//! other. A finger that cannot is blocked; a switch may help.
+//!
+//! # Finger switching
+//! As in the planar planner: the exact rendezvous region by brute force over the candidates
+//! (beside the zone rule and eq. 8), the free finger placed by inverse kinematics (its
+//! redundancy used to centre its joints) at each candidate of the region, ahead of the
+//! released contact about the axis first, then the most rolling room, the attach and detach
+//! grasps verified, and one rolling step of lookahead.
+
+pub mod rolling;
+pub mod surface;
+
+use std::f64::consts::PI;
+
+use icrflow_grasp::icr::IcrError;
+use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::quality::{GraspError, GraspProblem};
+use nalgebra::{DMatrix, DVector, Rotation3, Unit};
+
+use crate::hand::{Finger, Hand};
+use crate::planner::{
+    FingerState, Phase, Plan, PlanError, QUALITY_SLACK, SQUEEZE_PROBE, Settings, Step, Summary,
+    Switch,
+};
+use surface::Convex;
+
+/// What the spatial planner needs beyond the planar planner's [`Settings`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spatial {
+    /// The unit axis (hand frame) the object turns about, positive by the right-hand rule.
+    pub axis: Vec3,
+    /// The radius of the capsules the fingers' links are taken as (m): kept off the object
+    /// and off each other.
+    pub link_radius: Real,
+    /// Smallest admissible singular value of a finger's fingertip-centre Jacobian in contact
+    /// (m per rad): how fast the fingertip can move in its worst direction.
+    pub min_mobility: Real,
+    /// Parts a rolling step is integrated in (>= 1).
+    pub substeps: usize,
+}
+
+/// The spatial planning problem.
+#[derive(Clone)]
+pub struct SpatialScenario<'a> {
+    /// Grasp problem whose candidates are the object's facets, its cones' tangent rule about
+    /// the axis ([`icrflow_grasp::wrench::WrenchFrame::with_tangent_axis`]).
+    pub problem: &'a GraspProblem,
+    /// The hand.
+    pub hand: &'a Hand,
+    /// The surface the fingertips roll on (body frame).
+    pub surface: &'a Convex,
+    /// The object's centre of mass (body frame).
+    pub centre: Vec3,
+    /// Initial contacts: (finger, body-frame point on the surface, within its tolerance).
+    pub initial: Vec<(u32, Vec3)>,
+    /// The object's rotation the plan starts at (rad, about the axis).
+    pub start_rotation: Real,
+    /// Planner settings (the planar planner's; `attach_resolution` and `min_manipulability`
+    /// are not used).
+    pub settings: Settings,
+    /// The spatial settings.
+    pub spatial: Spatial,
+}
+
+/// A finger in contact.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Touch {
+    /// Finger number.
+    pub finger: u32,
+    /// Body-frame contact point on the surface.
+    pub point: Vec3,
+    /// Body-frame outward normal there.
+    pub normal: Vec3,
+    /// The grasp problem's candidate nearest the point.
+    pub candidate: usize,
+    /// Joint angles (rad).
+    pub q: Vec<Real>,
+}
+
+/// A finger's links and fingertip as capsules: (from, to, radius); the fingertip a capsule
+/// of zero length.
+type Capsules = Vec<(Vec3, Vec3, Real)>;
+
+/// What a spatial rolling step found.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Roll {
+    /// Every finger moved; the new contacts and their quality.
+    Moved(Vec<Touch>, Real),
+    /// Contact `.0` cannot move, for reason `.1`: a switch may help.
+    Blocked(usize, String),
+    /// The grasp as a whole cannot go on.
+    Stuck(String),
+}
+
+/// How a finger with more joints than rolling needs spends the rest over a rolling step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Steer {
+    /// Its contact kept as still on the object as it can (the least contact velocity over
+    /// the surface): a contact near the axis stays there, spinning.
+    Still,
+    /// Its joints moved off their limits (down [`Finger::limit_cost`]).
+    Centre,
+}
+
+/// The ways a finger may steer its contact, tried in order in each rolling step.
+pub const STEERS: [Steer; 2] = [Steer::Still, Steer::Centre];
+
+/// Parts a rolling step is integrated in ([`Spatial::substeps`] of a config's plan): a 5 deg
+/// step in 1 deg parts.
+pub const SUBSTEPS: usize = 5;
+
+/// Newton corrections of the fingertip centre onto the surface per integration part.
+const CORRECTIONS: usize = 3;
+
+/// How many of a switch's reachable options (best limit margin first) get their rolling room
+/// simulated.
+const ROOM_OPTIONS: usize = 12;
+
+/// Most rolling steps simulated for a rendezvous option's rolling room.
+const ROOM_LIMIT: usize = 36;
+
+impl SpatialScenario<'_> {
+    fn finger(&self, id: u32) -> &Finger {
+        self.hand.finger(id).expect("fingers are checked up front")
+    }
+
+    fn rotation(&self, theta: Real) -> Rotation3<Real> {
+        Rotation3::from_axis_angle(&Unit::new_normalize(self.spatial.axis), theta)
+    }
+
+    /// World (hand frame) position of body point `b` with the object at `theta`.
+    pub fn to_world(&self, theta: Real, b: &Vec3) -> Vec3 {
+        self.rotation(theta) * (b - self.centre)
+    }
+
+    /// Body point at world position `w` with the object at `theta`.
+    pub fn to_body(&self, theta: Real, w: &Vec3) -> Vec3 {
+        self.rotation(theta).inverse() * w + self.centre
+    }
+
+    fn describe(&self, p: &Vec3) -> String {
+        format!("[{:.1}, {:.1}, {:.1}] mm", 1e3 * p.x, 1e3 * p.y, 1e3 * p.z)
+    }
+
+    /// The candidate nearest `p`, walking the candidates' adjacency from `from` to ever
+    /// nearer neighbours, every one passed (but `from`) checked to be in `region` if given:
+    /// `Err` with the first outside.
+    fn walk(&self, from: usize, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
+        let cands = self.problem.candidates();
+        let dist = |i: usize| (cands.points[i] - p).norm_squared();
+        let mut at = from;
+        loop {
+            let next = cands
+                .adjacency
+                .neighbours(at)
+                .iter()
+                .map(|&m| m as usize)
+                .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+            match next {
+                Some(n) if dist(n) < dist(at) => {
+                    if region.is_some_and(|r| r.binary_search(&(n as u32)).is_err()) {
+                        return Err(n);
+                    }
+                    at = n;
+                }
+                _ => return Ok(at),
+            }
+        }
+    }
+
+    /// The candidate nearest `p` (all of them compared).
+    fn nearest(&self, p: &Vec3) -> usize {
+        let pts = &self.problem.candidates().points;
+        (0..pts.len())
+            .min_by(|&a, &b| {
+                (pts[a] - p)
+                    .norm_squared()
+                    .total_cmp(&(pts[b] - p).norm_squared())
+            })
+            .unwrap_or(0)
+    }
+
+    /// Where finger `f` at `q` touches the surface with the object at `theta`: the body
+    /// point, normal and signed distance of the fingertip centre from the surface.
+    fn touch_of(&self, f: &Finger, q: &[Real], theta: Real) -> surface::Closest {
+        let b = self.to_body(theta, &f.tip_centre(q));
+        self.surface.closest(&b)
+    }
+
+    /// Joint rates (per unit of object rotation) that keep finger `f`'s fingertip rolling
+    /// without slipping on the object turning about the axis, the rest of its joints' freedom
+    /// spent as `steer` says.
+    fn rates(&self, f: &Finger, q: &[Real], theta: Real, steer: Steer) -> Option<DVector<Real>> {
+        let c = self.touch_of(f, q, theta);
+        let r = self.rotation(theta);
+        let (p_w, n_w) = (r * (c.point - self.centre), r * c.normal);
+        let a = f.contact_jacobian(q, &n_w);
+        let axis = self.spatial.axis;
+        let v = axis.cross(&p_w);
+        let pinv = a.clone().pseudo_inverse(1e-9).ok()?;
+        let track = &pinv * DVector::from_column_slice(v.as_slice());
+        let n = f.dof();
+        let projector = DMatrix::<Real>::identity(n, n) - &pinv * &a;
+        match steer {
+            Steer::Centre => {
+                let free = -(&projector * limit_gradient(f, q));
+                let norm = free.norm();
+                // As much self-motion as tracking motion at most.
+                let free = if norm > 1e-12 {
+                    free * (track.norm().min(norm * 0.05) / norm)
+                } else {
+                    free
+                };
+                Some(track + free)
+            }
+            Steer::Still => {
+                // The contact's velocity over the object is G (J_v q' - w_o x b) (the
+                // fingertip centre's velocity relative to the object, through (I + r_f W)^-1
+                // on the tangent plane): its least-squares zero over the null space of A.
+                let w = r.matrix() * self.surface.shape_operator(&c.point) * r.matrix().transpose();
+                let (t1, t2) = icrflow_grasp::wrench::tangent_basis_about(&axis, &n_w);
+                let tb = nalgebra::Matrix3x2::from_columns(&[t1, t2]);
+                let k = tb.transpose() * (nalgebra::Matrix3::identity() + w * f.tip_radius) * tb;
+                let g = k.try_inverse()? * tb.transpose();
+                let g = DMatrix::from_row_slice(2, 3, g.transpose().as_slice());
+                let jv = f.jacobian6(q).rows(0, 3).into_owned();
+                let drift = axis.cross(&f.tip_centre(q));
+                let g0 = &g * (&jv * &track - DVector::from_column_slice(drift.as_slice()));
+                let m = &g * &jv * &projector;
+                let z = m.pseudo_inverse(1e-9).ok()? * (-g0);
+                Some(track + &projector * z)
+            }
+        }
+    }
+
+    /// Moves finger `f`'s fingertip centre onto the surface (distance `r_f`) along the normal.
+    fn settle(&self, f: &Finger, q: &mut [Real], theta: Real) {
+        for _ in 0..CORRECTIONS {
+            let c = self.touch_of(f, q, theta);
+            let gap = c.distance - f.tip_radius;
+            if gap.abs() < 1e-12 {
+                break;
+            }
+            let n_w = self.rotation(theta) * c.normal;
+            let jac = f.jacobian6(q).rows(0, 3).into_owned();
+            let Ok(pinv) = jac.pseudo_inverse(1e-9) else {
+                break;
+            };
+            let dq = pinv * DVector::from_column_slice((-n_w * gap).as_slice());
+            for (a, d) in q.iter_mut().zip(dq.iter()) {
+                *a += d;
+            }
+        }
+    }
+
+    /// What stops finger `f` at `q` touching at `touch` with the object at `theta`, if
+    /// anything: its joint limits, its fingertip cap, its mobility, its links' capsules in
+    /// the object, and with `squeeze` its squeeze reserve.
+    fn pose_check(
+        &self,
+        f: &Finger,
+        q: &[Real],
+        theta: Real,
+        touch: &surface::Closest,
+        squeeze: bool,
+    ) -> Option<String> {
+        let s = &self.settings;
+        if let Some(e) = f.limit_violation(q, 1e-9) {
+            return Some(e.to_string());
+        }
+        let (_, axis) = f.fk_tip(q);
+        let n_w = self.rotation(theta) * touch.normal;
+        let cap = axis.dot(&-n_w).clamp(-1.0, 1.0).acos();
+        if cap > f.cap_half_angle - s.cap_margin {
+            return Some(format!(
+                "the contact would leave the fingertip cap ({:.1} deg from its axis)",
+                cap.to_degrees()
+            ));
+        }
+        let m = mobility(f, q);
+        if m < self.spatial.min_mobility {
+            return Some(format!(
+                "mobility lost (the fingertip moves at least {:.2} mm/rad in its worst direction)",
+                m * 1e3
+            ));
+        }
+        let (clear, link) = self.link_clearance(f, q, theta);
+        if clear < self.spatial.link_radius {
+            return Some(format!(
+                "its link {link} would come {:.2} mm from the object (its capsule's radius is {:.1} mm)",
+                clear * 1e3,
+                self.spatial.link_radius * 1e3
+            ));
+        }
+        if squeeze && s.squeeze_reserve > 0.0 {
+            let reach = f.reach_along(q, &-n_w, s.squeeze_reserve);
+            if reach < s.squeeze_reserve * (1.0 - 1e-6) {
+                return Some(format!(
+                    "the finger could press only {:.2} mm further into the object (needs {:.2} mm)",
+                    reach * 1e3,
+                    s.squeeze_reserve * 1e3
+                ));
+            }
+        }
+        None
+    }
+
+    /// How close finger `f`'s links (as lines) come to the object's surface at `q` with the
+    /// object at `theta` (m; negative inside), and which link.
+    pub fn link_clearance(&self, f: &Finger, q: &[Real], theta: Real) -> (Real, usize) {
+        let mut closest = (Real::INFINITY, 0);
+        f.link_segments(q, |link, a, b| {
+            let (a, b) = (self.to_body(theta, &a), self.to_body(theta, &b));
+            let d = segment_surface_distance(self.surface, &a, &b);
+            if d < closest.0 {
+                closest = (d, link);
+            }
+        });
+        closest
+    }
+
+    /// Which two fingers of `touches` (the others at their home poses) come closer than their
+    /// fingertips' radii or their link capsules allow, if any, with the object at `theta`;
+    /// and any free finger at home in the object.
+    fn clash(&self, touches: &[Touch], theta: Real) -> Option<(String, [u32; 2])> {
+        let poses: Vec<(u32, &Finger, Vec<Real>)> = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let q = touches
+                    .iter()
+                    .find(|t| t.finger == f.id)
+                    .map_or_else(|| f.home.clone(), |t| t.q.clone());
+                (f.id, f, q)
+            })
+            .collect();
+        let parts: Vec<(u32, Capsules)> = poses
+            .iter()
+            .map(|(id, f, q)| {
+                let mut segs = Vec::new();
+                f.link_segments(q, |_, a, b| segs.push((a, b, self.spatial.link_radius)));
+                let tip = f.tip_centre(q);
+                segs.push((tip, tip, f.tip_radius));
+                (*id, segs)
+            })
+            .collect();
+        for (i, (a, sa)) in parts.iter().enumerate() {
+            for (b, sb) in &parts[i + 1..] {
+                for x in sa {
+                    for y in sb {
+                        let d = segment_segment_distance(&x.0, &x.1, &y.0, &y.1);
+                        if d < x.2 + y.2 {
+                            return Some((
+                                format!(
+                                    "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed)",
+                                    d * 1e3,
+                                    (x.2 + y.2) * 1e3
+                                ),
+                                [*a, *b],
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        for (id, f, q) in &poses {
+            if touches.iter().any(|t| t.finger == *id) {
+                continue;
+            }
+            let tip = self.to_body(theta, &f.tip_centre(q));
+            let (clear, _) = self.link_clearance(f, q, theta);
+            let tip_clear = self.surface.closest(&tip).distance - f.tip_radius;
+            if clear < self.spatial.link_radius || tip_clear < 0.0 {
+                return Some((
+                    format!("free finger {id} at its home pose would be in the object"),
+                    [*id, *id],
+                ));
+            }
+        }
+        None
+    }
+
+    /// Finger `f` placed by inverse kinematics (joints centred) touching the surface at the
+    /// body point nearest `p`, with the object at `theta`, from `seed`.
+    fn place(
+        &self,
+        f: &Finger,
+        p: &Vec3,
+        theta: Real,
+        seed: &[Real],
+        squeeze: bool,
+    ) -> Result<Touch, String> {
+        let c = self.surface.closest(p);
+        let target = self.to_world(theta, &(c.point + c.normal * f.tip_radius));
+        // Out of reach is found by the plain solution, faster.
+        f.ik_position(&target, seed).map_err(|e| e.to_string())?;
+        let q = f
+            .ik_position_centred(&target, seed)
+            .map_err(|e| e.to_string())?;
+        let touch = self.touch_of(f, &q, theta);
+        if let Some(why) = self.pose_check(f, &q, theta, &touch, squeeze) {
+            return Err(why);
+        }
+        Ok(Touch {
+            finger: f.id,
+            point: touch.point,
+            normal: touch.normal,
+            candidate: self.nearest(&touch.point),
+            q,
+        })
+    }
+
+    /// Finger `t.finger` rolled from `t` as the object turns from `theta` by `step`, its
+    /// contact's candidate kept in `region` (sorted) if given.
+    fn roll_finger(
+        &self,
+        t: &Touch,
+        theta: Real,
+        step: Real,
+        region: Option<&[u32]>,
+        squeeze: bool,
+        steer: Steer,
+    ) -> Result<Touch, String> {
+        let f = self.finger(t.finger);
+        let parts = self.spatial.substeps.max(1);
+        let h = step / parts as Real;
+        let mut q = t.q.clone();
+        let mut candidate = t.candidate;
+        let mut at = theta;
+        for _ in 0..parts {
+            // Midpoint rule.
+            let k1 = self
+                .rates(f, &q, at, steer)
+                .ok_or("its contact Jacobian is singular")?;
+            let mid: Vec<Real> = q
+                .iter()
+                .zip(k1.iter())
+                .map(|(a, d)| a + 0.5 * h * d)
+                .collect();
+            let k2 = self
+                .rates(f, &mid, at + 0.5 * h, steer)
+                .ok_or("its contact Jacobian is singular")?;
+            for (a, d) in q.iter_mut().zip(k2.iter()) {
+                *a += h * d;
+            }
+            at += h;
+            self.settle(f, &mut q, at);
+            if let Some(e) = f.limit_violation(&q, 1e-9) {
+                return Err(e.to_string());
+            }
+            let touch = self.touch_of(f, &q, at);
+            candidate = self.walk(candidate, &touch.point, region).map_err(|out| {
+                format!(
+                    "its contact would roll out of its ICR (from {} past {})",
+                    self.describe(&t.point),
+                    self.describe(&self.problem.candidates().points[out])
+                )
+            })?;
+        }
+        let touch = self.touch_of(f, &q, at);
+        if let Some(why) = self.pose_check(f, &q, at, &touch, squeeze) {
+            return Err(why);
+        }
+        Ok(Touch {
+            finger: t.finger,
+            point: touch.point,
+            normal: touch.normal,
+            candidate,
+            q,
+        })
+    }
+
+    /// Steps finger `t.finger` could roll alone from `t` (no ICR), up to `limit`.
+    fn room(&self, t: &Touch, mut theta: Real, limit: usize) -> usize {
+        let mut t = t.clone();
+        for k in 0..limit {
+            match STEERS.iter().find_map(|&w| {
+                self.roll_finger(&t, theta, self.settings.step, None, false, w)
+                    .ok()
+            }) {
+                Some(next) => t = next,
+                None => return k,
+            }
+            theta += self.settings.step;
+        }
+        limit
+    }
+
+    fn quality(&self, touches: &[Touch]) -> Result<Real, GraspError> {
+        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        let e = self.problem.evaluate(&idx)?;
+        Ok(if e.force_closure() { e.quality } else { 0.0 })
+    }
+
+    fn check(&self) -> Result<(), PlanError> {
+        let s = &self.settings;
+        let positive = |name: &str, x: Real| {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(PlanError::Settings(format!(
+                    "plan.{name}: must be a finite number > 0, got {x}"
+                )))
+            }
+        };
+        positive("rotation_deg", s.goal)?;
+        positive("step_deg", s.step)?;
+        if s.step > crate::planner::MAX_STEP {
+            return Err(PlanError::Settings(format!(
+                "plan.step_deg: at most {} deg",
+                crate::planner::MAX_STEP.to_degrees()
+            )));
+        }
+        let axis = self.spatial.axis;
+        if !(axis.iter().all(|x| x.is_finite()) && (axis.norm() - 1.0).abs() < 1e-9) {
+            return Err(PlanError::Settings(format!(
+                "plan.axis: must be a unit vector, got [{}, {}, {}]",
+                axis.x, axis.y, axis.z
+            )));
+        }
+        let known: Vec<u32> = self.hand.fingers.iter().map(|f| f.id).collect();
+        for &(id, _) in &self.initial {
+            if self.hand.finger(id).is_none() {
+                return Err(PlanError::UnknownFinger { finger: id, known });
+            }
+        }
+        for f in &self.hand.fingers {
+            if f.dof() < 3 {
+                return Err(PlanError::Settings(format!(
+                    "finger {}: {} joints cannot place a fingertip in space (at least 3)",
+                    f.id,
+                    f.dof()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The initial grasp, checked (force closure, quality >= alpha, every finger placed, no
+    /// fingers touching): its contacts and quality.
+    pub fn start(&self) -> Result<(Vec<Touch>, Real), PlanError> {
+        self.check()?;
+        let alpha = self.settings.alpha;
+        let theta = self.start_rotation;
+        let mut touches = Vec::with_capacity(self.initial.len());
+        for (id, p) in &self.initial {
+            let f = self.finger(*id);
+            let t = self.place(f, p, theta, &f.home, true).map_err(|reason| {
+                PlanError::Unreachable {
+                    finger: *id,
+                    where_: self.describe(p),
+                    reason,
+                }
+            })?;
+            touches.push(t);
+        }
+        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        let e = self.problem.evaluate(&idx)?;
+        if !e.force_closure() {
+            return Err(PlanError::NotForceClosure { epsilon: e.epsilon });
+        }
+        if e.quality < alpha * (1.0 - QUALITY_SLACK) {
+            return Err(PlanError::BelowMargin {
+                quality: e.quality,
+                alpha,
+            });
+        }
+        if let Some((why, _)) = self.clash(&touches, theta) {
+            return Err(PlanError::Settings(format!("the initial grasp: {why}")));
+        }
+        Ok((touches, e.quality))
+    }
+
+    /// One rolling step of every contact, the object turning from `theta` by `step`.
+    pub fn roll(&self, touches: &[Touch], theta: Real, step: Real) -> Result<Roll, PlanError> {
+        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        let eval = self.problem.evaluate(&idx)?;
+        let regions = match self.problem.icrs(&idx, &eval, self.settings.alpha) {
+            Ok(r) => r,
+            Err(e @ (IcrError::NotForceClosure | IcrError::MarginAboveQuality { .. })) => {
+                return Ok(Roll::Stuck(format!("the grasp lost its margin: {e}")));
+            }
+            Err(e) => return Ok(Roll::Stuck(e.to_string())),
+        };
+        let mut next = Vec::with_capacity(touches.len());
+        for (i, (t, region)) in touches.iter().zip(&regions).enumerate() {
+            let members = if self.settings.region_erosion == 0 {
+                region.members.clone()
+            } else {
+                self.problem
+                    .candidates()
+                    .adjacency
+                    .erode(&region.members, self.settings.region_erosion)
+            };
+            let mut first = None;
+            let mut moved = None;
+            for steer in STEERS {
+                match self.roll_finger(t, theta, step, Some(&members), true, steer) {
+                    Ok(n) => {
+                        moved = Some(n);
+                        break;
+                    }
+                    Err(why) => {
+                        first.get_or_insert(why);
+                    }
+                }
+            }
+            match (moved, first) {
+                (Some(n), _) => next.push(n),
+                (None, why) => return Ok(Roll::Blocked(i, why.unwrap_or_default())),
+            }
+        }
+        if let Some((why, fingers)) = self.clash(&next, theta + step) {
+            // The first finger of the two that is in contact stops (a switch may free it).
+            return Ok(
+                match next.iter().position(|t| fingers.contains(&t.finger)) {
+                    Some(i) => Roll::Blocked(i, why),
+                    None => Roll::Stuck(format!("rolling on: {why}")),
+                },
+            );
+        }
+        let quality = self.quality(&next)?;
+        if quality < self.settings.alpha * (1.0 - QUALITY_SLACK) {
+            return Ok(Roll::Stuck(format!(
+                "the next grasp would have quality {quality:.6} < alpha = {} (a defect: the ICRs guarantee the margin)",
+                self.settings.alpha
+            )));
+        }
+        Ok(Roll::Moved(next, quality))
+    }
+
+    /// The signed angle (rad, in [0, 2 pi)) about the axis from body point `a` to `b`, or
+    /// `None` where either is within a millimetre of the axis.
+    fn ahead(&self, a: &Vec3, b: &Vec3) -> Option<Real> {
+        let axis = self.spatial.axis;
+        let flat = |p: &Vec3| {
+            let v = p - self.centre;
+            v - axis * axis.dot(&v)
+        };
+        let (u, v) = (flat(a), flat(b));
+        if u.norm() < 1e-3 || v.norm() < 1e-3 {
+            return None;
+        }
+        let angle = axis.dot(&u.cross(&v)).atan2(u.dot(&v));
+        Some(angle.rem_euclid(2.0 * PI))
+    }
+
+    /// Switches finger `touches[k]` for the best free finger.
+    #[allow(clippy::type_complexity)]
+    fn switch(
+        &self,
+        touches: &[Touch],
+        k: usize,
+        theta: Real,
+        why: &str,
+        maps: &[ReachMap],
+    ) -> Result<Result<(Vec<Touch>, Vec<Touch>, Switch, Real, Real), String>, PlanError> {
+        let released = touches[k].finger;
+        let free: Vec<&Finger> = self
+            .hand
+            .fingers
+            .iter()
+            .filter(|f| touches.iter().all(|t| t.finger != f.id))
+            .collect();
+        if free.is_empty() {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}) and no free finger can take over"
+            )));
+        }
+        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
+        let chosen_from: Vec<usize> = if self.settings.region_erosion == 0 {
+            regions.exact.clone()
+        } else {
+            let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
+            self.problem
+                .candidates()
+                .adjacency
+                .erode(&exact, self.settings.region_erosion)
+                .into_iter()
+                .map(|c| c as usize)
+                .collect()
+        };
+        let cands = self.problem.candidates();
+        let here = touches[k].point;
+        // Every reachable placement: (ahead, limit margin, touch).
+        let mut options: Vec<(Option<Real>, Real, Touch)> = Vec::new();
+        let is_ahead = |a: Option<Real>| a.is_some_and(|a| a > 0.0 && a < PI);
+        // The candidates ahead first; those behind only if too few ahead are reachable (only
+        // the first ROOM_OPTIONS are ever tried).
+        let (ahead, behind): (Vec<usize>, Vec<usize>) = chosen_from
+            .iter()
+            .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
+        for (tier, f) in [&ahead, &behind]
+            .into_iter()
+            .flat_map(|tier| free.iter().map(move |f| (tier, f)))
+        {
+            if tier.as_ptr() == behind.as_ptr() && options.len() >= ROOM_OPTIONS {
+                break;
+            }
+            let map = maps.iter().find(|m| m.finger == f.id);
+            for &c in tier {
+                // Far from every sampled pose of the finger: out of its reach (or nearly),
+                // not worth an inverse kinematics; else the nearest sample seeds it.
+                let p = self.surface.closest(&cands.points[c]);
+                let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
+                let seed = match map.map(|m| m.nearest(&tip)) {
+                    Some(Some((d, _))) if d > REACH_MAP_GAP => continue,
+                    Some(Some((_, q))) => q,
+                    _ => &f.home,
+                };
+                let Ok(t) = self.place(f, &cands.points[c], theta, seed, false) else {
+                    continue;
+                };
+                if t.candidate != c {
+                    continue;
+                }
+                let mut trial = touches.to_vec();
+                trial.push(t.clone());
+                if self.clash(&trial, theta).is_some() {
+                    continue;
+                }
+                let ahead = self.ahead(&here, &t.point);
+                options.push((ahead, f.limit_margin(&t.q), t));
+            }
+        }
+        // Ahead first, then the best centred joints; the rolling room of the first few.
+        options.sort_by(|x, y| {
+            is_ahead(y.0)
+                .cmp(&is_ahead(x.0))
+                .then(y.1.total_cmp(&x.1))
+                .then(x.2.finger.cmp(&y.2.finger))
+                .then(x.2.candidate.cmp(&y.2.candidate))
+        });
+        let limit = ((self.settings.goal - theta) / self.settings.step)
+            .ceil()
+            .clamp(1.0, ROOM_LIMIT as Real) as usize;
+        let mut ranked: Vec<(usize, Option<Real>, Touch)> = options
+            .into_iter()
+            .take(ROOM_OPTIONS)
+            .map(|(ahead, _, t)| (self.room(&t, theta, limit), ahead, t))
+            .collect();
+        ranked.sort_by(|x, y| {
+            is_ahead(y.1)
+                .cmp(&is_ahead(x.1))
+                .then(y.0.cmp(&x.0))
+                .then(x.2.finger.cmp(&y.2.finger))
+                .then(x.2.candidate.cmp(&y.2.candidate))
+        });
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        let mut rejected = Vec::new();
+        let mut chosen = None;
+        for (room, ahead, t) in ranked {
+            let f = self.finger(t.finger);
+            let touch = self.touch_of(f, &t.q, theta);
+            if let Some(why) = self.pose_check(f, &t.q, theta, &touch, true) {
+                rejected.push(format!(
+                    "{} by finger {}: {why}",
+                    self.describe(&t.point),
+                    t.finger
+                ));
+                continue;
+            }
+            let mut attach = touches.to_vec();
+            attach.push(t.clone());
+            let q_attach = self.quality(&attach)?;
+            let mut detach = attach.clone();
+            detach.remove(k);
+            let q_detach = self.quality(&detach)?;
+            if q_attach < floor || q_detach < floor {
+                return Ok(Err(format!(
+                    "switch of finger {released} to finger {} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                    t.finger,
+                    self.describe(&t.point),
+                    self.settings.alpha
+                )));
+            }
+            let step = self.settings.step.min(self.settings.goal - theta);
+            if step > 1e-12 {
+                let new = detach.len() - 1;
+                match self.roll(&detach, theta, step)? {
+                    Roll::Blocked(j, why) if j == new => {
+                        rejected.push(format!(
+                            "{} by finger {}: {why}",
+                            self.describe(&t.point),
+                            t.finger
+                        ));
+                        continue;
+                    }
+                    Roll::Stuck(why) => {
+                        rejected.push(format!(
+                            "{} by finger {}: {why}",
+                            self.describe(&t.point),
+                            t.finger
+                        ));
+                        continue;
+                    }
+                    _ => {}
+                }
+            }
+            chosen = Some((room, ahead, t, attach, detach, q_attach, q_detach));
+            break;
+        }
+        let Some((room, ahead, t, attach, detach, q_attach, q_detach)) = chosen else {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it{}",
+                chosen_from.len(),
+                free.iter().map(|f| f.id).collect::<Vec<_>>(),
+                if rejected.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (tried {})", rejected.join("; "))
+                }
+            )));
+        };
+        let info = Switch {
+            released,
+            attached: t.finger,
+            reason: why.to_string(),
+            icr_region: regions.icr.clone(),
+            lp_region: regions.lp.clone(),
+            brute_force: regions.exact.clone(),
+            chosen_from: chosen_from.len(),
+            rendezvous: t.candidate,
+            rendezvous_angle: None,
+            room_steps: room,
+            ahead: ahead.unwrap_or(0.0),
+        };
+        Ok(Ok((attach, detach, info, q_attach, q_detach)))
+    }
+
+    fn record(
+        &self,
+        step: usize,
+        phase: Phase,
+        theta: Real,
+        quality: Real,
+        touches: &[Touch],
+    ) -> Step {
+        let fingers = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let touch = touches.iter().find(|t| t.finger == f.id);
+                let q = touch.map_or(&f.home, |t| &t.q);
+                let (centre, axis) = f.fk_tip(q);
+                let n_w = touch.map(|t| self.rotation(theta) * t.normal);
+                FingerState {
+                    finger: f.id,
+                    contact: touch.map(|t| t.candidate),
+                    point: touch.map(|t| [t.point.x, t.point.y, t.point.z]),
+                    normal: touch.map(|t| [t.normal.x, t.normal.y, t.normal.z]),
+                    angle: None,
+                    cap_angle: n_w.map(|n| axis.dot(&-n).clamp(-1.0, 1.0).acos()),
+                    tip_rotation: axis.y.atan2(axis.x),
+                    tip_centre: [centre.x, centre.y, centre.z],
+                    joints: q.to_vec(),
+                }
+            })
+            .collect();
+        Step {
+            step,
+            phase,
+            rotation: theta,
+            quality,
+            fingers,
+            switch: None,
+        }
+    }
+
+    /// Plans the scenario. `progress` is called after every step with the rotation done
+    /// (rad).
+    pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+        let s = self.settings.clone();
+        let mut theta = self.start_rotation;
+        let (mut touches, quality) = self.start()?;
+        let maps: Vec<ReachMap> = self.hand.fingers.iter().map(ReachMap::new).collect();
+        let mut steps = vec![self.record(0, Phase::Start, theta, quality, &touches)];
+        let mut min_quality = quality;
+        let mut switches = 0;
+        let mut stop_reason = None;
+        let mut switches_in_a_row = 0;
+        let mut just_attached: Option<u32> = None;
+        while theta < s.goal - 1e-9 {
+            if steps.len() >= s.max_steps {
+                stop_reason = Some(format!(
+                    "stopped after plan.max_steps = {} steps",
+                    s.max_steps
+                ));
+                break;
+            }
+            let step = s.step.min(s.goal - theta);
+            match self.roll(&touches, theta, step)? {
+                Roll::Stuck(reason) => {
+                    stop_reason = Some(reason);
+                    break;
+                }
+                Roll::Moved(next, quality) => {
+                    switches_in_a_row = 0;
+                    just_attached = None;
+                    touches = next;
+                    theta += step;
+                    min_quality = min_quality.min(quality);
+                    steps.push(self.record(steps.len(), Phase::Rolling, theta, quality, &touches));
+                    progress(theta);
+                }
+                Roll::Blocked(k, why) => {
+                    if just_attached == Some(touches[k].finger)
+                        || switches_in_a_row >= self.hand.fingers.len()
+                    {
+                        stop_reason = Some(format!(
+                            "finger {} cannot roll on ({why}) right after it attached: the hand has no way forward",
+                            touches[k].finger
+                        ));
+                        break;
+                    }
+                    match self.switch(&touches, k, theta, &why, &maps)? {
+                        Ok((attach, detach, info, q_attach, q_detach)) => {
+                            min_quality = min_quality.min(q_attach).min(q_detach);
+                            just_attached = Some(info.attached);
+                            let mut a =
+                                self.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
+                            a.switch = Some(info);
+                            steps.push(a);
+                            steps.push(self.record(
+                                steps.len(),
+                                Phase::Detach,
+                                theta,
+                                q_detach,
+                                &detach,
+                            ));
+                            touches = detach;
+                            switches += 1;
+                            switches_in_a_row += 1;
+                            progress(theta);
+                        }
+                        Err(reason) => {
+                            stop_reason = Some(reason);
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        let switch_list = || steps.iter().filter_map(|s| s.switch.as_ref());
+        let lp_region_unsafe = switch_list()
+            .map(|s| {
+                s.lp_region
+                    .iter()
+                    .filter(|q| s.brute_force.binary_search(q).is_err())
+                    .count()
+            })
+            .sum();
+        let clearance = self.plan_link_clearance(&steps);
+        if clearance.0 < 0.0 {
+            return Err(PlanError::LinkInObject {
+                finger: clearance.1,
+                link: clearance.2,
+                step: clearance.3,
+                depth_mm: -clearance.0 * 1e3,
+            });
+        }
+        let summary = Summary {
+            completed: stop_reason.is_none(),
+            stop_reason,
+            rotation: theta,
+            goal: s.goal,
+            axis: [
+                self.spatial.axis.x,
+                self.spatial.axis.y,
+                self.spatial.axis.z,
+            ],
+            switches,
+            steps: steps.len(),
+            rolling_steps: steps.iter().filter(|s| s.phase == Phase::Rolling).count(),
+            min_quality,
+            alpha: s.alpha,
+            max_rolling_residual: self.contact_residual(&steps),
+            icr_region_candidates: switch_list().map(|s| s.icr_region.len()).sum(),
+            lp_region_candidates: switch_list().map(|s| s.lp_region.len()).sum(),
+            lp_region_unsafe,
+            brute_force_candidates: switch_list().map(|s| s.brute_force.len()).sum(),
+            chosen_from_candidates: switch_list().map(|s| s.chosen_from).sum(),
+            region_erosion: s.region_erosion,
+            min_link_clearance_mm: Some(clearance.0 * 1e3),
+            min_squeeze_reserve_mm: Some(self.min_squeeze_reserve(&steps) * 1e3),
+        };
+        Ok(Plan { summary, steps })
+    }
+
+    /// The largest distance (m) of a planned fingertip in contact from touching the surface
+    /// (`|d(centre, surface) - r_f|`, from forward kinematics of the planned joints).
+    pub fn contact_residual(&self, steps: &[Step]) -> Real {
+        let mut worst: Real = 0.0;
+        for step in steps {
+            for fs in &step.fingers {
+                if fs.contact.is_none() {
+                    continue;
+                }
+                let f = self.finger(fs.finger);
+                let c = self.touch_of(f, &fs.joints, step.rotation);
+                worst = worst.max((c.distance - f.tip_radius).abs());
+            }
+        }
+        worst
+    }
+
+    /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at
+    /// any of `steps`.
+    fn min_squeeze_reserve(&self, steps: &[Step]) -> Real {
+        let mut least = SQUEEZE_PROBE;
+        for step in steps {
+            for fs in &step.fingers {
+                let Some(n) = fs.normal else { continue };
+                let f = self.finger(fs.finger);
+                let n_w = self.rotation(step.rotation) * Vec3::from(n);
+                least = least.min(f.reach_along(&fs.joints, &-n_w, SQUEEZE_PROBE));
+            }
+        }
+        least
+    }
+
+    /// How close any finger's links (as lines) come to the object, at every step and along
+    /// the straight joint-space moves between them ([`crate::route::SAMPLES`] poses, the
+    /// object's rotation interpolated alike): (distance m, finger, link, step).
+    pub fn plan_link_clearance(&self, steps: &[Step]) -> (Real, u32, usize, usize) {
+        let mut closest = (Real::INFINITY, 0, 0, 0);
+        for (k, step) in steps.iter().enumerate() {
+            let previous = if k > 0 { &steps[k - 1] } else { step };
+            let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
+            for (a, b) in previous.fingers.iter().zip(&step.fingers) {
+                let f = self.finger(b.finger);
+                for i in 0..samples {
+                    let s = if samples > 1 {
+                        i as Real / (samples - 1) as Real
+                    } else {
+                        1.0
+                    };
+                    let q: Vec<Real> = a
+                        .joints
+                        .iter()
+                        .zip(&b.joints)
+                        .map(|(x, y)| x + s * (y - x))
+                        .collect();
+                    let theta = previous.rotation + s * (step.rotation - previous.rotation);
+                    let (d, link) = self.link_clearance(f, &q, theta);
+                    if d < closest.0 {
+                        closest = (d, b.finger, link, step.step);
+                    }
+                }
+            }
+        }
+        closest
+    }
+}
+
+/// Joint values per joint of a [`ReachMap`]'s grid.
+const REACH_MAP_GRID: usize = 7;
+
+/// How far (m) a fingertip target may be from every pose of a finger's [`ReachMap`] and still
+/// be tried: a little more than the grid's spacing at the fingertip (a sixth of a joint's
+/// range at a 50 mm lever).
+const REACH_MAP_GAP: Real = 0.012;
+
+/// A finger's reach map: its fingertip centre at poses on a grid over its joint ranges, to
+/// rule out targets far from all of them and to seed the inverse kinematics of the others.
+pub struct ReachMap {
+    /// The finger.
+    pub finger: u32,
+    /// (fingertip centre, joints) at each pose of the grid.
+    pub poses: Vec<(Vec3, Vec<Real>)>,
+}
+
+impl ReachMap {
+    /// The map of finger `f`: [`REACH_MAP_GRID`] values per joint, its ends inside the limits.
+    pub fn new(f: &Finger) -> Self {
+        let n = f.dof();
+        let count = REACH_MAP_GRID.pow(n.min(6) as u32);
+        let poses = (0..count)
+            .map(|mut k| {
+                let q: Vec<Real> = f
+                    .joints
+                    .iter()
+                    .map(|j| {
+                        let i = k % REACH_MAP_GRID;
+                        k /= REACH_MAP_GRID;
+                        let u = (i as Real + 0.5) / REACH_MAP_GRID as Real;
+                        j.lower + u * (j.upper - j.lower)
+                    })
+                    .collect();
+                (f.tip_centre(&q), q)
+            })
+            .collect();
+        Self {
+            finger: f.id,
+            poses,
+        }
+    }
+
+    /// The pose whose fingertip centre is nearest `target`: its distance and joints.
+    pub fn nearest(&self, target: &Vec3) -> Option<(Real, &[Real])> {
+        self.poses
+            .iter()
+            .map(|(p, q)| ((p - target).norm_squared(), q))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(d, q)| (d.sqrt(), q.as_slice()))
+    }
+}
+
+/// The gradient of [`Finger::limit_cost`] at `q`, its joints kept a hair inside their limits.
+fn limit_gradient(f: &Finger, q: &[Real]) -> DVector<Real> {
+    DVector::from_iterator(
+        f.dof(),
+        f.joints.iter().zip(q).map(|(j, &a)| {
+            let range = j.upper - j.lower;
+            if range <= 0.0 {
+                return 0.0;
+            }
+            let hair = 1e-6 * range;
+            let a = a.clamp(j.lower + hair, j.upper - hair);
+            let (up, down) = (j.upper - a, a - j.lower);
+            -(range * range * (up - down) / (4.0 * up * up * down * down))
+        }),
+    )
+}
+
+/// The smallest singular value of finger `f`'s fingertip-centre Jacobian at `q` (m per rad).
+pub fn mobility(f: &Finger, q: &[Real]) -> Real {
+    let jac = f.jacobian6(q).rows(0, 3).into_owned();
+    jac.singular_values().min()
+}
+
+/// The distance of the segment `ab` (body frame) from the surface (m; negative: a point of it
+/// inside, by how deep the deepest sampled point is). Exact for a sphere; for other surfaces
+/// the smallest over points 0.5 mm apart ([`crate::planner::LINK_SPACING`]).
+pub fn segment_surface_distance(surface: &Convex, a: &Vec3, b: &Vec3) -> Real {
+    match surface {
+        Convex::Sphere { centre, radius } => point_segment_distance(centre, a, b) - radius,
+        _ => {
+            let n = ((b - a).norm() / crate::planner::LINK_SPACING)
+                .ceil()
+                .max(1.0) as usize;
+            (0..=n)
+                .map(|j| {
+                    surface
+                        .closest(&(a + (b - a) * (j as Real / n as Real)))
+                        .distance
+                })
+                .fold(Real::INFINITY, Real::min)
+        }
+    }
+}
+
+/// Distance from point `p` to segment `ab`.
+fn point_segment_distance(p: &Vec3, a: &Vec3, b: &Vec3) -> Real {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * t - p).norm()
+}
+
+/// Distance between segments `p0 p1` and `q0 q1` (Ericson, Real-Time Collision Detection,
+/// 5.1.9); either may be a point.
+pub fn segment_segment_distance(p0: &Vec3, p1: &Vec3, q0: &Vec3, q1: &Vec3) -> Real {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.norm_squared(), d2.norm_squared(), d2.dot(&r));
+    let eps = 1e-18;
+    let (s, t);
+    if a <= eps && e <= eps {
+        return r.norm();
+    }
+    if a <= eps {
+        s = 0.0;
+        t = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = d1.dot(&r);
+        if e <= eps {
+            t = 0.0;
+            s = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = d1.dot(&d2);
+            let denom = a * e - b * b;
+            let mut s0 = if denom > eps {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let mut t0 = (b * s0 + f) / e;
+            if t0 < 0.0 {
+                t0 = 0.0;
+                s0 = (-c / a).clamp(0.0, 1.0);
+            } else if t0 > 1.0 {
+                t0 = 1.0;
+                s0 = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            s = s0;
+            t = t0;
+        }
+    }
+    ((p0 + d1 * s) - (q0 + d2 * t)).norm()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segment_distances() {
+        let z = Vec3::zeros();
+        let d = segment_segment_distance(
+            &z,
+            &Vec3::x(),
+            &Vec3::new(0.5, 1.0, -1.0),
+            &Vec3::new(0.5, 1.0, 1.0),
+        );
+        assert!((d - 1.0).abs() < 1e-15);
+        let d = segment_segment_distance(
+            &z,
+            &Vec3::x(),
+            &Vec3::new(2.0, 0.0, 0.0),
+            &Vec3::new(3.0, 0.0, 0.0),
+        );
+        assert!((d - 1.0).abs() < 1e-15);
+        let d =
+            segment_segment_distance(&z, &z, &Vec3::new(0.0, 2.0, 0.0), &Vec3::new(0.0, 2.0, 0.0));
+        assert!((d - 2.0).abs() < 1e-15);
+        let s = Convex::Sphere {
+            centre: z,
+            radius: 1.0,
+        };
+        let d = segment_surface_distance(&s, &Vec3::new(-2.0, 1.5, 0.0), &Vec3::new(2.0, 1.5, 0.0));
+        assert!((d - 0.5).abs() < 1e-15);
+    }
+}

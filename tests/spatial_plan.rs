@@ -1,0 +1,286 @@
+//! The spatial planner on `config/allegro_sphere.toml`: the Allegro hand turns a 7 cm sphere a
+//! whole turn about the hand's y axis, in space. The plan is checked from scratch: every
+//! step's quality by a grasp problem built anew, every contact by forward kinematics of the
+//! planned joints on the exact sphere, the joints inside their limits, the contacts inside
+//! their fingertip caps, the links' capsules off the object; then `plan`, `validate` and `run`
+//! through the real binary, and the configs a spatial hand refuses.
+
+mod common;
+
+use common::{icrflow, root, scratch};
+use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::quality::GraspProblem;
+use icrflow_grasp::wrench::{Space, WrenchFrame};
+use icrflow_plan::planner::Phase;
+use icrflow_scenario::{Config, Setup};
+
+#[test]
+fn allegro_sphere_turns_a_whole_turn_keeping_the_margin_checked_from_scratch() {
+    check_from_scratch("config/allegro_sphere.toml", Vec3::y());
+}
+
+#[test]
+fn allegro_ellipsoid_turns_a_whole_turn_about_a_tilted_axis_checked_from_scratch() {
+    check_from_scratch(
+        "config/allegro_ellipsoid.toml",
+        Vec3::new(0.2, 1.0, 0.2).normalize(),
+    );
+}
+
+/// Plans `name` and checks the plan from scratch: the goal, switches, the axis, every step's
+/// quality recomputed, every contact on the surface where the planned joints put the
+/// fingertip, inside the fingertip cap, on its nearest facet, the joints inside their limits,
+/// the links' capsules off the object.
+fn check_from_scratch(name: &str, axis: Vec3) {
+    let config = Config::load(&root().join(name)).unwrap();
+    let setup = Setup::new(&config).unwrap();
+    let scenario = setup
+        .spatial_scenario(&config)
+        .expect("the Allegro is a spatial hand");
+    let plan = scenario.plan(&mut |_| {}).unwrap();
+    let s = &plan.summary;
+    assert!(s.completed, "{:?}", s.stop_reason);
+    assert!((s.rotation.to_degrees() - 360.0).abs() < 1e-6);
+    assert!(s.switches >= 3, "{} switches", s.switches);
+    assert!((Vec3::from(s.axis) - axis).norm() < 1e-15, "{:?}", s.axis);
+    let alpha = config.grasp.alpha;
+    // A grasp problem of the same facets, built anew.
+    let object = config.object.build().unwrap();
+    let frame = WrenchFrame::new(object.centre_of_mass, object.max_radius(), Space::Spatial)
+        .unwrap()
+        .with_tangent_axis(config.turn.axis)
+        .unwrap();
+    let fresh = GraspProblem::new(
+        &object.facets,
+        object.facets.clone(),
+        frame,
+        config.grasp.model,
+    )
+    .unwrap();
+    let link_radius = config.plant.link_radius;
+    for step in &plan.steps {
+        assert!(
+            step.quality >= alpha,
+            "step {}: {}",
+            step.step,
+            step.quality
+        );
+        let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
+        let e = fresh.evaluate(&contacts).unwrap();
+        assert!(e.force_closure(), "step {}", step.step);
+        assert!(
+            (e.quality - step.quality).abs() <= 1e-12,
+            "step {}: {} recomputed, {} planned",
+            step.step,
+            e.quality,
+            step.quality
+        );
+        let expected = match step.phase {
+            Phase::Attach => 4,
+            _ => 3,
+        };
+        assert_eq!(contacts.len(), expected, "step {}", step.step);
+        for fs in &step.fingers {
+            let f = setup.hand.finger(fs.finger).unwrap();
+            assert!(
+                f.limit_violation(&fs.joints, 1e-9).is_none(),
+                "step {}",
+                step.step
+            );
+            // The links' capsules stay off the sphere (centred at the hand's origin).
+            let (clear, link) = scenario.link_clearance(f, &fs.joints, step.rotation);
+            assert!(
+                clear >= link_radius - 1e-12,
+                "step {}: finger {} link {link} {clear} m from the sphere",
+                step.step,
+                fs.finger
+            );
+            let Some(c) = fs.contact else { continue };
+            let (centre, cap_axis) = f.fk_tip(&fs.joints);
+            // The fingertip touches the exact surface at the recorded point, with its normal.
+            let body = Vec3::from(fs.point.unwrap());
+            let on = scenario.surface.closest(&body);
+            assert!(on.distance.abs() < 1e-12 && (on.point - body).norm() < 1e-12);
+            assert!((on.normal - Vec3::from(fs.normal.unwrap())).norm() < 1e-9);
+            let point = scenario.to_world(step.rotation, &body);
+            let normal = scenario.to_world(step.rotation, &(on.normal + scenario.centre));
+            assert!(
+                (centre - (point + normal * f.tip_radius)).norm() < 1e-9,
+                "step {}",
+                step.step
+            );
+            // Within the fingertip cap, less the margin.
+            let cap = cap_axis.dot(&-normal).clamp(-1.0, 1.0).acos();
+            assert!(cap <= f.cap_half_angle - config.plan.cap_margin + 1e-9);
+            assert!((fs.cap_angle.unwrap() - cap).abs() < 1e-9);
+            // The contact's candidate is the facet nearest the point.
+            let nearest = (0..object.facets.points.len())
+                .min_by(|&a, &b| {
+                    (object.facets.points[a] - body)
+                        .norm()
+                        .total_cmp(&(object.facets.points[b] - body).norm())
+                })
+                .unwrap();
+            assert_eq!(c, nearest, "step {}", step.step);
+        }
+    }
+    // Every finger takes part: the free finger of the start attaches somewhere.
+    let attached: std::collections::BTreeSet<u32> = plan
+        .steps
+        .iter()
+        .filter_map(|s| s.switch.as_ref().map(|w| w.attached))
+        .collect();
+    assert!(attached.contains(&2), "{attached:?}");
+}
+
+#[test]
+fn plan_json_gains_the_axis_and_run_refuses_a_spatial_hand_by_name() {
+    let dir = scratch("plan-spatial");
+    let out = dir.join("out");
+    let o = icrflow(&[
+        "plan",
+        "config/allegro_sphere.toml",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["completed"], true);
+    assert_eq!(s["axis"], serde_json::json!([0.0, 1.0, 0.0]));
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("trajectory.json")).unwrap())
+            .unwrap();
+    let first = &t["steps"][0]["fingers"];
+    let index = first
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["finger"] == 1)
+        .unwrap();
+    for key in [
+        "contact",
+        "point",
+        "normal",
+        "cap_angle_deg",
+        "joints_deg",
+        "tip_centre",
+    ] {
+        assert!(!index[key].is_null(), "finger 1 lacks {key}");
+    }
+    assert_eq!(index["joints_deg"].as_array().unwrap().len(), 4);
+    // The planar plan's files keep their shape: no normals.
+    let planar = dir.join("planar");
+    let o = icrflow(&[
+        "plan",
+        "config/paper_sphere.toml",
+        "--json",
+        "--out",
+        planar.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["axis"], serde_json::json!([0.0, 0.0, 1.0]));
+    let text = std::fs::read_to_string(planar.join("trajectory.json")).unwrap();
+    assert!(!text.contains("\"normal\""));
+
+    let o = icrflow(&["validate", "config/allegro_sphere.toml"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("in space") && text.contains("alpha* ="),
+        "{text}"
+    );
+
+    let o = icrflow(&["run", "config/allegro_sphere.toml"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("does not take a spatial hand yet"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `config/allegro_sphere.toml`'s text with the URDF's path made absolute (for copies
+/// elsewhere).
+fn allegro() -> String {
+    let text = std::fs::read_to_string(root().join("config/allegro_sphere.toml")).unwrap();
+    let urdf = root().join("config/hands/allegro_right.urdf");
+    let replaced = text.replace(
+        "urdf = \"hands/allegro_right.urdf\"",
+        &format!("urdf = \"{}\"", urdf.display()),
+    );
+    assert_ne!(replaced, text);
+    replaced
+}
+
+#[test]
+fn configs_a_spatial_plan_refuses_are_named_by_their_key() {
+    let dir = scratch("spatial-bad");
+    let allegro = allegro();
+    let paper = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let cases = [
+        (
+            "zero-axis",
+            allegro.replace("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 0.0, 0.0]"),
+            "plan.axis: [0, 0, 0] is not a direction",
+        ),
+        (
+            "planar-axis",
+            paper.replace("[plan]", "[plan]\naxis = [1.0, 0.0, 0.0]"),
+            "turns objects about the hand's z axis only",
+        ),
+        (
+            "planar-space",
+            allegro.replace("space = \"spatial\"", "space = \"planar\""),
+            "grasp.space",
+        ),
+        (
+            "angle",
+            allegro.replace("point = [0.0, 0.034826, 0.003483]", "angle_deg = 90.0"),
+            "give point = [x, y, z]",
+        ),
+        (
+            "cuboid",
+            allegro.replace(
+                "shape = \"sphere\"\nradius = 0.035\nsegments = [64, 32]",
+                "shape = \"cuboid\"\nhalf_extents = [0.03, 0.03, 0.03]",
+            ),
+            "a sphere or an ellipsoid",
+        ),
+        (
+            "off-surface",
+            allegro.replace(
+                "point = [0.0, 0.034826, 0.003483]",
+                "point = [0.0, 0.05, 0.0]",
+            ),
+            "grasp.contacts[0].point",
+        ),
+    ];
+    for (name, text, needle) in cases {
+        assert_ne!(text, allegro, "{name}: the replacement did not apply");
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let o = icrflow(&["validate", path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains(needle), "{name}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Radians inside: the summary's axis is a unit vector whatever length the config gives.
+#[test]
+fn the_axis_is_normalised() {
+    let dir = scratch("spatial-axis");
+    let allegro = allegro();
+    let path = dir.join("long.toml");
+    std::fs::write(
+        &path,
+        allegro.replace("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 3.0, 0.0]"),
+    )
+    .unwrap();
+    let config = Config::load(&path).unwrap();
+    let a: Real = config.turn.axis.norm();
+    assert!((a - 1.0).abs() < 1e-15);
+    assert_eq!(config.turn.axis, Vec3::y());
+    let _ = std::fs::remove_dir_all(&dir);
+}
