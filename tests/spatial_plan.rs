@@ -124,6 +124,64 @@ fn check_from_scratch(name: &str, axis: Vec3) {
             assert_eq!(c, nearest, "step {}", step.step);
         }
     }
+    // Every switch's approach (home -> its poses -> the rendezvous point) and retreat (the
+    // released contact -> its poses -> home), straight joint-space moves sampled finely: the
+    // fingertip never inside the object, the links' capsules off it, the moving fingertip off
+    // every other fingertip.
+    for (k, step) in plan.steps.iter().enumerate() {
+        let Some(w) = &step.switch else { continue };
+        for (finger, vias, at) in [
+            (w.attached, w.approach.as_ref().unwrap(), step),
+            (w.released, w.retreat.as_ref().unwrap(), &plan.steps[k]),
+        ] {
+            let f = setup.hand.finger(finger).unwrap();
+            let contact = &at
+                .fingers
+                .iter()
+                .find(|x| x.finger == finger)
+                .unwrap()
+                .joints;
+            let mut way: Vec<&[Real]> = vec![&f.home];
+            way.extend(vias.iter().map(Vec::as_slice));
+            way.push(contact);
+            for pair in way.windows(2) {
+                for i in 0..=200 {
+                    let s = i as Real / 200.0;
+                    let q: Vec<Real> = pair[0]
+                        .iter()
+                        .zip(pair[1])
+                        .map(|(a, b)| a + s * (b - a))
+                        .collect();
+                    let tip = f.tip_centre(&q);
+                    let body = scenario.to_body(step.rotation, &tip);
+                    assert!(
+                        scenario.surface.closest(&body).distance >= f.tip_radius - 1e-6,
+                        "step {}: finger {finger}'s way passes into the object",
+                        step.step
+                    );
+                    let (clear, _) = scenario.link_clearance(f, &q, step.rotation);
+                    assert!(
+                        clear >= link_radius - 2e-4,
+                        "step {}: finger {finger}: {clear}",
+                        step.step
+                    );
+                    for other in &step.fingers {
+                        if other.finger == finger || other.contact.is_none() {
+                            continue;
+                        }
+                        let g = setup.hand.finger(other.finger).unwrap();
+                        let d = (g.tip_centre(&other.joints) - tip).norm();
+                        assert!(
+                            d >= f.tip_radius + g.tip_radius - 2e-4,
+                            "step {}: fingers {finger} and {}",
+                            step.step,
+                            other.finger
+                        );
+                    }
+                }
+            }
+        }
+    }
     // Every finger takes part: the free finger of the start attaches somewhere.
     let attached: std::collections::BTreeSet<u32> = plan
         .steps

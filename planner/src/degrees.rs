@@ -62,3 +62,38 @@ pub mod list {
         Vec::<Real>::deserialize(d).map(|v| v.into_iter().map(Real::to_radians).collect())
     }
 }
+
+/// The same for an optional list of poses, each a list of angles (`null` when absent).
+pub mod option_poses {
+    use super::*;
+
+    /// Writes radians as degrees.
+    pub fn serialize<S: Serializer>(
+        radians: &Option<Vec<Vec<Real>>>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        radians
+            .as_ref()
+            .map(|poses| {
+                poses
+                    .iter()
+                    .map(|v| v.iter().map(|a| a.to_degrees()).collect::<Vec<_>>())
+                    .collect::<Vec<_>>()
+            })
+            .serialize(s)
+    }
+
+    /// Reads degrees as radians.
+    pub fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<Vec<Vec<Real>>>, D::Error> {
+        Option::<Vec<Vec<Real>>>::deserialize(d).map(|p| {
+            p.map(|poses| {
+                poses
+                    .into_iter()
+                    .map(|v| v.into_iter().map(Real::to_radians).collect())
+                    .collect()
+            })
+        })
+    }
+}

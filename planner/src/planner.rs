@@ -307,6 +307,27 @@ pub struct Switch {
     /// in files).
     #[serde(rename = "ahead_deg", with = "crate::degrees")]
     pub ahead: Real,
+    /// A spatial plan's approach of the attaching finger: the joints (rad; `approach_deg` in
+    /// files) of the poses it passes through from its home pose to the rendezvous point, its
+    /// fingertip lifted off the point along the normal (the last [`crate::spatial::LIFT`]);
+    /// each straight joint-space move, home -> these -> the contact, is checked clear of the
+    /// object and of the other fingers.
+    #[serde(
+        rename = "approach_deg",
+        default,
+        skip_serializing_if = "Option::is_none",
+        with = "crate::degrees::option_poses"
+    )]
+    pub approach: Option<Vec<Vec<Real>>>,
+    /// A spatial plan's retreat of the released finger: the same poses off its last contact,
+    /// passed through in reverse on its way home (rad; `retreat_deg` in files).
+    #[serde(
+        rename = "retreat_deg",
+        default,
+        skip_serializing_if = "Option::is_none",
+        with = "crate::degrees::option_poses"
+    )]
+    pub retreat: Option<Vec<Vec<Real>>>,
 }
 
 /// One step of the trajectory.
@@ -1421,6 +1442,8 @@ impl Scenario<'_> {
             rendezvous_angle: self.angles.map(|a| a[c]),
             room_steps: room,
             ahead,
+            approach: None,
+            retreat: None,
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }

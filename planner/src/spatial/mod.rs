@@ -33,9 +33,16 @@
 //! # Finger switching
 //! As in the planar planner: the exact rendezvous region by brute force over the candidates
 //! (beside the zone rule and eq. 8), the free finger placed by inverse kinematics (its
-//! redundancy used to centre its joints) at each candidate of the region, ahead of the
-//! released contact about the axis first, then the most rolling room, the attach and detach
-//! grasps verified, and one rolling step of lookahead.
+//! redundancy used to centre its joints; seeded from its [`ReachMap`], which also rules out
+//! candidates far from its reach) at each candidate of the region, ahead of the released
+//! contact about the axis first, then the most rolling room, the attach and detach grasps
+//! verified, and one rolling step of lookahead. The attaching finger's approach from its home
+//! pose and the released finger's retreat to it are straight joint-space moves through poses
+//! with the fingertip lifted off the contact along its normal ([`LIFTS`]; first, if need be,
+//! through a pose turned at the finger's base but not yet curled, or the other way round),
+//! each checked clear of the object (the fingertip touching only at its end, the link capsules
+//! off it) and of the other fingers; they are recorded in the switch ([`Switch::approach`],
+//! [`Switch::retreat`]).
 
 pub mod rolling;
 pub mod surface;
@@ -138,6 +145,21 @@ pub const STEERS: [Steer; 2] = [Steer::Still, Steer::Centre];
 /// Parts a rolling step is integrated in ([`Spatial::substeps`] of a config's plan): a 5 deg
 /// step in 1 deg parts.
 pub const SUBSTEPS: usize = 5;
+
+/// How far (m) a finger's fingertip is lifted off its contact, along the normal, just before
+/// it touches at a switch and just after it leaves.
+pub const LIFT: Real = 0.01;
+
+/// The lifted poses a finger's way to and from its contact at a switch may pass through, tried
+/// in order (heights above the contact, m): none (straight from home, touching only at the
+/// end), 3 mm (a finger at a limit may lift little), one [`LIFT`], or farther off first.
+pub const LIFTS: [&[Real]; 5] = [
+    &[],
+    &[0.003],
+    &[LIFT],
+    &[3.0 * LIFT, LIFT],
+    &[5.0 * LIFT, 2.0 * LIFT, LIFT],
+];
 
 /// Newton corrections of the fingertip centre onto the surface per integration part.
 const CORRECTIONS: usize = 3;
@@ -501,6 +523,122 @@ impl SpatialScenario<'_> {
         })
     }
 
+    /// The way of finger `t.finger` between its home pose and its contact `t` (`what`: its
+    /// approach or its retreat), the fingers of `others` holding still, the object at `theta`:
+    /// straight joint-space moves from home (through a pose turned at the finger's base but
+    /// not yet curled, if the straight way is not clear) through poses with the fingertip
+    /// lifted off the contact along its normal ([`LIFTS`], the farthest first) to the
+    /// contact, each checked
+    /// at [`crate::route::SAMPLES`] poses: the fingertip off the object (touching only at the
+    /// contact), the link capsules off it, no two fingers touching. The first of [`LIFTS`]
+    /// whose way is clear: its poses; or why the way straight from home was not.
+    fn route(
+        &self,
+        t: &Touch,
+        others: &[Touch],
+        theta: Real,
+        what: &str,
+    ) -> Result<Vec<Vec<Real>>, String> {
+        let f = self.finger(t.finger);
+        let n_w = self.rotation(theta) * t.normal;
+        let contact = self.to_world(theta, &t.point);
+        let mut why: Option<String> = None;
+        'ways: for heights in LIFTS {
+            let mut vias = Vec::with_capacity(heights.len());
+            for h in heights {
+                let lifted = contact + n_w * (f.tip_radius + h);
+                match f.ik_position_centred(&lifted, &t.q) {
+                    Ok(q) => vias.push(q),
+                    Err(e) => {
+                        why.get_or_insert(format!(
+                            "on its {what} its fingertip cannot lift {:.0} mm off the contact: {e}",
+                            h * 1e3
+                        ));
+                        continue 'ways;
+                    }
+                }
+            }
+            // From home straight to the first lifted pose, or first to that pose with its
+            // distal joints (from the second, or the third, on) still at home (the finger
+            // turns at its base before it curls: a thumb swinging home past a fingertip), or
+            // with its base joints still at home (it curls first).
+            let first = vias.first().unwrap_or(&t.q);
+            let split = |from: usize, base_first: bool| -> Vec<Real> {
+                first
+                    .iter()
+                    .zip(&f.home)
+                    .enumerate()
+                    .map(|(j, (q, h))| if (j < from) == base_first { *q } else { *h })
+                    .collect()
+            };
+            let uncurled: Vec<Vec<Real>> = (1..f.dof().saturating_sub(1))
+                .flat_map(|from| [split(from, true), split(from, false)])
+                .collect();
+            'turns: for turn in std::iter::once(None).chain(uncurled.iter().map(Some)) {
+                let mut way: Vec<&[Real]> = vec![&f.home];
+                way.extend(turn.map(Vec::as_slice));
+                way.extend(vias.iter().map(Vec::as_slice));
+                way.push(&t.q);
+                let legs = way.len() - 1;
+                for (leg, pair) in way.windows(2).enumerate() {
+                    // The last leg ends touching: it may not press in.
+                    let floor = if leg + 1 == legs {
+                        f.tip_radius - 1e-9
+                    } else {
+                        f.tip_radius
+                    };
+                    if let Err(e) = self.clear_move(f, pair[0], pair[1], floor, t, others, theta) {
+                        why.get_or_insert(format!("on its {what} {e}"));
+                        continue 'turns;
+                    }
+                }
+                let mut poses: Vec<Vec<Real>> = turn.into_iter().cloned().collect();
+                poses.extend(vias);
+                return Ok(poses);
+            }
+        }
+        Err(why.unwrap_or_default())
+    }
+
+    /// Whether finger `f` moving straight in joint space from `from` to `to` (checked at
+    /// [`crate::route::SAMPLES`] poses) keeps its fingertip centre at least `floor` from the
+    /// object, its link capsules off it, and off the fingers of `others` (`t`: the finger's
+    /// contact, for its identity).
+    #[allow(clippy::too_many_arguments)]
+    fn clear_move(
+        &self,
+        f: &Finger,
+        from: &[Real],
+        to: &[Real],
+        floor: Real,
+        t: &Touch,
+        others: &[Touch],
+        theta: Real,
+    ) -> Result<(), String> {
+        let samples = crate::route::SAMPLES;
+        for i in 0..samples {
+            let s = i as Real / (samples - 1) as Real;
+            let q: Vec<Real> = from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect();
+            let tip = self.to_body(theta, &f.tip_centre(&q));
+            if self.surface.closest(&tip).distance < floor {
+                return Err("its fingertip would hit the object".into());
+            }
+            let (clear, link) = self.link_clearance(f, &q, theta);
+            if clear < self.spatial.link_radius {
+                return Err(format!(
+                    "its link {link} would come {:.2} mm from the object",
+                    clear * 1e3
+                ));
+            }
+            let mut trial = others.to_vec();
+            trial.push(Touch { q, ..t.clone() });
+            if let Some((why, _)) = self.clash(&trial, theta) {
+                return Err(why);
+            }
+        }
+        Ok(())
+    }
+
     /// Steps finger `t.finger` could roll alone from `t` (no ICR), up to `limit`.
     fn room(&self, t: &Touch, mut theta: Real, limit: usize) -> usize {
         let mut t = t.clone();
@@ -792,6 +930,28 @@ impl SpatialScenario<'_> {
                 ));
                 continue;
             }
+            // The approach from home and the released finger's retreat to it, each through a
+            // pose lifted off its contact.
+            let mut detach_set = touches.to_vec();
+            detach_set.push(t.clone());
+            let gone = detach_set.remove(k);
+            let routes = self
+                .route(&t, touches, theta, "approach")
+                .and_then(|approach| {
+                    self.route(&gone, &detach_set, theta, "retreat")
+                        .map(|retreat| (approach, retreat))
+                });
+            let (approach, retreat) = match routes {
+                Ok(r) => r,
+                Err(why) => {
+                    rejected.push(format!(
+                        "{} by finger {}: {why}",
+                        self.describe(&t.point),
+                        t.finger
+                    ));
+                    continue;
+                }
+            };
             let mut attach = touches.to_vec();
             attach.push(t.clone());
             let q_attach = self.quality(&attach)?;
@@ -829,10 +989,13 @@ impl SpatialScenario<'_> {
                     _ => {}
                 }
             }
-            chosen = Some((room, ahead, t, attach, detach, q_attach, q_detach));
+            chosen = Some((
+                room, ahead, t, attach, detach, q_attach, q_detach, approach, retreat,
+            ));
             break;
         }
-        let Some((room, ahead, t, attach, detach, q_attach, q_detach)) = chosen else {
+        let Some((room, ahead, t, attach, detach, q_attach, q_detach, approach, retreat)) = chosen
+        else {
             return Ok(Err(format!(
                 "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it{}",
                 chosen_from.len(),
@@ -856,6 +1019,8 @@ impl SpatialScenario<'_> {
             rendezvous_angle: None,
             room_steps: room,
             ahead: ahead.unwrap_or(0.0),
+            approach: Some(approach),
+            retreat: Some(retreat),
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
@@ -1053,31 +1218,58 @@ impl SpatialScenario<'_> {
     }
 
     /// How close any finger's links (as lines) come to the object, at every step and along
-    /// the straight joint-space moves between them ([`crate::route::SAMPLES`] poses, the
-    /// object's rotation interpolated alike): (distance m, finger, link, step).
+    /// the moves between them ([`crate::route::SAMPLES`] poses per straight joint-space move,
+    /// the object's rotation interpolated alike): a finger in contact in both steps, or free in
+    /// both, straight; an attaching finger along its approach and a released finger along its
+    /// retreat ([`Switch::approach`], [`Switch::retreat`]): (distance m, finger, link, step).
     pub fn plan_link_clearance(&self, steps: &[Step]) -> (Real, u32, usize, usize) {
         let mut closest = (Real::INFINITY, 0, 0, 0);
         for (k, step) in steps.iter().enumerate() {
             let previous = if k > 0 { &steps[k - 1] } else { step };
             let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
+            // The switch this move belongs to: attaching at `step`, or detaching after it.
+            let switch = match step.phase {
+                Phase::Attach => step.switch.as_ref(),
+                Phase::Detach => previous.switch.as_ref(),
+                _ => None,
+            };
             for (a, b) in previous.fingers.iter().zip(&step.fingers) {
                 let f = self.finger(b.finger);
-                for i in 0..samples {
-                    let s = if samples > 1 {
-                        i as Real / (samples - 1) as Real
-                    } else {
-                        1.0
-                    };
-                    let q: Vec<Real> = a
-                        .joints
-                        .iter()
-                        .zip(&b.joints)
-                        .map(|(x, y)| x + s * (y - x))
-                        .collect();
-                    let theta = previous.rotation + s * (step.rotation - previous.rotation);
-                    let (d, link) = self.link_clearance(f, &q, theta);
-                    if d < closest.0 {
-                        closest = (d, b.finger, link, step.step);
+                let vias: &[Vec<Real>] = match (switch, step.phase) {
+                    (Some(w), Phase::Attach) if w.attached == b.finger => {
+                        w.approach.as_deref().unwrap_or_default()
+                    }
+                    (Some(w), Phase::Detach) if w.released == b.finger => {
+                        w.retreat.as_deref().unwrap_or_default()
+                    }
+                    _ => &[],
+                };
+                // The way from a's joints to b's: an approach runs home -> vias -> contact, a
+                // retreat the same way back (its vias listed from home).
+                let mut way: Vec<&[Real]> = vec![&a.joints];
+                if step.phase == Phase::Detach {
+                    way.extend(vias.iter().rev().map(Vec::as_slice));
+                } else {
+                    way.extend(vias.iter().map(Vec::as_slice));
+                }
+                way.push(&b.joints);
+                for pair in way.windows(2) {
+                    for i in 0..samples {
+                        let s = if samples > 1 {
+                            i as Real / (samples - 1) as Real
+                        } else {
+                            1.0
+                        };
+                        let q: Vec<Real> = pair[0]
+                            .iter()
+                            .zip(pair[1])
+                            .map(|(x, y)| x + s * (y - x))
+                            .collect();
+                        let theta = previous.rotation + s * (step.rotation - previous.rotation);
+                        let (d, link) = self.link_clearance(f, &q, theta);
+                        if d < closest.0 {
+                            closest = (d, b.finger, link, step.step);
+                        }
                     }
                 }
             }
