@@ -39,6 +39,10 @@ pub struct Report {
     /// plane, the grasp validate, plan and run evaluate (`None`: planar analysis, whose grasp
     /// is that one, or the contacts do not lie in the hand's plane).
     pub section_quality: Option<Real>,
+    /// Whether the config's hand is spatial: `plan` then takes the contacts on the facets, the
+    /// cones' tangents about `plan.axis`, as this analysis does.
+    #[serde(skip)]
+    pub spatial_hand: bool,
     /// Why the regions were not computed, if they were not.
     pub icr_status: Option<String>,
     pub contacts: Vec<ContactReport>,
@@ -159,6 +163,20 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
     let g = &config.grasp;
     let rho = g.rho.unwrap_or_else(|| object.max_radius());
     let frame = WrenchFrame::new(object.centre_of_mass, rho, g.space).context("grasp.rho")?;
+    // A spatial hand's plan evaluates its grasps on the facets with the cones' tangents about
+    // its axis: so does the analysis (a hand that does not build is left to validate).
+    let spatial_hand = g.space == Space::Spatial
+        && config
+            .hand
+            .build()
+            .is_ok_and(|h| !h.fingers.iter().all(|f| f.in_hand_plane()));
+    let frame = if spatial_hand {
+        frame
+            .with_tangent_axis(config.turn.axis)
+            .context("plan.axis")?
+    } else {
+        frame
+    };
     let (candidates, angles) = match g.space {
         Space::Planar => {
             if object.section.samples.is_empty() {
@@ -184,6 +202,7 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
     // them on the section in the hand's plane: that grasp's quality too, so both are said.
     let section_quality = match g.space {
         Space::Planar => None,
+        Space::Spatial if spatial_hand => None,
         Space::Spatial if object.section.samples.is_empty() => None,
         Space::Spatial => {
             let section = section_problem(&object, frame, g.model, progress)?;
@@ -266,6 +285,7 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
             Space::Spatial => "facets",
         },
         section_quality,
+        spatial_hand,
         icr_status: regions.as_ref().err().map(|e| e.to_string()),
         contacts,
         warnings: object.warnings.iter().map(|w| w.to_string()).collect(),
@@ -356,6 +376,10 @@ fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
                 "          with the contacts on the nearest mesh facets (spatial analysis, its ICRs too);"
             )?;
             match r.section_quality {
+                _ if r.spatial_hand => writeln!(
+                    out,
+                    "          as plan takes them for this spatial hand (the cones' tangents about plan.axis)"
+                )?,
                 Some(q) => writeln!(
                     out,
                     "          on the section in the hand's plane (validate, plan, run): alpha* = {q:.6}"

@@ -468,11 +468,11 @@ fn print_text(
     if spatial {
         writeln!(
             o,
-            "           the contacts' nearest facets, 6D analysis (as analyze with the same points)"
+            "           the contacts' nearest facets, 6D analysis, the cones' tangents about the axis (as analyze)"
         )?;
         writeln!(
             o,
-            "rolling    largest distance of a fingertip in contact from touching = {:.3e} m",
+            "rolling    largest slip of a step (the contact's travel over the object less over the fingertip) = {:.3e} m",
             s.max_rolling_residual
         )?;
     } else {

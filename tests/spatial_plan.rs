@@ -42,6 +42,14 @@ fn check_from_scratch(name: &str, axis: Vec3) {
     assert!(s.completed, "{:?}", s.stop_reason);
     assert!((s.rotation.to_degrees() - 360.0).abs() < 1e-6);
     assert!(s.switches >= 3, "{} switches", s.switches);
+    // Rolling without slipping: per step, the contact travels (mm) as far over the object as
+    // over the fingertip, to within 10 um (an integration that let the fingertip drift off
+    // the surface and put it back slipped 6.6 mm).
+    assert!(
+        s.max_rolling_residual < 1e-5,
+        "slip {} m",
+        s.max_rolling_residual
+    );
     assert!((Vec3::from(s.axis) - axis).norm() < 1e-15, "{:?}", s.axis);
     let alpha = config.grasp.alpha;
     // A grasp problem of the same facets, built anew.
@@ -156,8 +164,9 @@ fn check_from_scratch(name: &str, axis: Vec3) {
                     let body = scenario.to_body(step.rotation, &tip);
                     assert!(
                         scenario.surface.closest(&body).distance >= f.tip_radius - 1e-6,
-                        "step {}: finger {finger}'s way passes into the object",
-                        step.step
+                        "step {}: finger {finger}'s way passes {} m into the object",
+                        step.step,
+                        f.tip_radius - scenario.surface.closest(&body).distance
                     );
                     let (clear, _) = scenario.link_clearance(f, &q, step.rotation);
                     assert!(
@@ -297,12 +306,12 @@ fn configs_a_spatial_plan_refuses_are_named_by_their_key() {
             "give point = [x, y, z]",
         ),
         (
-            "cuboid",
+            "not-convex",
             allegro.replace(
                 "shape = \"sphere\"\nradius = 0.035\nsegments = [64, 32]",
-                "shape = \"cuboid\"\nhalf_extents = [0.03, 0.03, 0.03]",
+                &format!("shape = \"mesh\"\npath = \"{}\"", l_prism(&dir).display()),
             ),
-            "a sphere or an ellipsoid",
+            "the mesh is not convex",
         ),
         (
             "off-surface",
@@ -323,6 +332,36 @@ fn configs_a_spatial_plan_refuses_are_named_by_their_key() {
         assert!(err.contains(needle), "{name}: {err}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// An L-shaped prism (not convex) as an OBJ file in `dir`.
+fn l_prism(dir: &std::path::Path) -> std::path::PathBuf {
+    let outline = [
+        (0.0, 0.0),
+        (2.0, 0.0),
+        (2.0, 1.0),
+        (1.0, 1.0),
+        (1.0, 2.0),
+        (0.0, 2.0),
+    ];
+    let mut text = String::new();
+    for z in [-1.0, 1.0] {
+        for (x, y) in outline {
+            text += &format!("v {} {} {}\n", 0.02 * x - 0.015, 0.02 * y - 0.015, 0.02 * z);
+        }
+    }
+    // The L's triangles (counter-clockwise seen from +z) on top, reversed below; the sides.
+    for [a, b, c] in [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]] {
+        text += &format!("f {} {} {}\n", a + 7, b + 7, c + 7);
+        text += &format!("f {} {} {}\n", c + 1, b + 1, a + 1);
+    }
+    for i in 0..6 {
+        let j = (i + 1) % 6;
+        text += &format!("f {} {} {} {}\n", i + 1, j + 1, j + 7, i + 7);
+    }
+    let path = dir.join("l_prism.obj");
+    std::fs::write(&path, text).unwrap();
+    path
 }
 
 /// Radians inside: the summary's axis is a unit vector whatever length the config gives.

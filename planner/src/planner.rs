@@ -196,7 +196,7 @@ pub enum PlanError {
     },
     /// A finger's link would pass through the object.
     #[error(
-        "finger {finger}'s link {link} would pass {depth_mm:.2} mm into the object's section at step {step}: the hand cannot make this plan"
+        "finger {finger}'s link {link} would pass {depth_mm:.2} mm into the object at step {step}: the hand cannot make this plan"
     )]
     LinkInObject {
         /// The finger.
@@ -308,10 +308,12 @@ pub struct Switch {
     #[serde(rename = "ahead_deg", with = "crate::degrees")]
     pub ahead: Real,
     /// A spatial plan's approach of the attaching finger: the joints (rad; `approach_deg` in
-    /// files) of the poses it passes through from its home pose to the rendezvous point, its
-    /// fingertip lifted off the point along the normal (the last [`crate::spatial::LIFT`]);
-    /// each straight joint-space move, home -> these -> the contact, is checked clear of the
-    /// object and of the other fingers.
+    /// files) of the poses it passes through from its home pose to the rendezvous point (none:
+    /// straight; else a pose turned at its base but not yet curled, or curled but not yet
+    /// turned, and poses with its fingertip lifted off the point along the normal, the nearest
+    /// last; [`crate::spatial::LIFTS`]); each straight joint-space move, home -> these -> the
+    /// contact, is checked clear of the object (its fingertip not pressing in) and of the
+    /// other fingers.
     #[serde(
         rename = "approach_deg",
         default,
@@ -377,8 +379,10 @@ pub struct Summary {
     pub min_quality: Real,
     /// The margin.
     pub alpha: Real,
-    /// Largest rolling-relation residual `|r_f dgamma + s|` (m), from forward kinematics of
-    /// the planned joint angles.
+    /// Largest rolling-relation residual (m): the planar planner's `|r_f dgamma + s|`, from
+    /// forward kinematics of the planned joint angles; the spatial planner's slip of a step,
+    /// the contact's travel over the object less its travel over the fingertip
+    /// ([`crate::spatial::Touch::slip`]).
     pub max_rolling_residual: Real,
     /// Rendezvous candidates found by the ICR zone rule, summed over the switches.
     pub icr_region_candidates: usize,

@@ -155,10 +155,13 @@ impl Setup {
                 centre: c,
                 semi_axes: Vec3::from(*semi_axes),
             },
-            other => bail!(
-                "object: a spatial hand's fingertips roll on a smooth convex surface, here a sphere or an ellipsoid (shape = \"sphere\" or \"ellipsoid\"); {} is not supported for a spatial hand yet",
-                other.describe()
-            ),
+            // Anything else as the convex polyhedron its mesh is.
+            other => Convex::polyhedron(&object).map_err(|e| {
+                anyhow::anyhow!(
+                    "object: {}: a spatial hand's fingertips cannot roll on it: {e}",
+                    other.describe()
+                )
+            })?,
         };
         let frame = frame
             .with_tangent_axis(config.turn.axis)
@@ -232,7 +235,7 @@ impl Setup {
                 axis: config.turn.axis,
                 link_radius: config.plant.link_radius,
                 min_mobility: config.turn.min_mobility,
-                substeps: icrflow_plan::spatial::SUBSTEPS,
+                part: icrflow_plan::spatial::PART,
             },
         })
     }

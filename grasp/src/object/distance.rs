@@ -21,45 +21,54 @@ impl Object {
     }
 }
 
-/// Distance from `p` to the triangle `abc` (Ericson, Real-Time Collision Detection, 5.1.5).
+/// Distance from `p` to the triangle `abc`.
 fn triangle_distance(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Real {
+    (p - closest_on_triangle(p, a, b, c)).norm()
+}
+
+/// The point of the triangle `abc` closest to `p` (Ericson, Real-Time Collision Detection,
+/// 5.1.5); a degenerate triangle's nearest vertex where its edges do not decide.
+pub fn closest_on_triangle(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3 {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
     if d1 <= 0.0 && d2 <= 0.0 {
-        return ap.norm();
+        return *a;
     }
     let bp = p - b;
     let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
     if d3 >= 0.0 && d4 <= d3 {
-        return bp.norm();
+        return *b;
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let t = d1 / (d1 - d3);
-        return (ap - ab * t).norm();
+        return a + ab * t;
     }
     let cp = p - c;
     let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
     if d6 >= 0.0 && d5 <= d6 {
-        return cp.norm();
+        return *c;
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let t = d2 / (d2 - d6);
-        return (ap - ac * t).norm();
+        return a + ac * t;
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (p - (b + (c - b) * t)).norm();
+        return b + (c - b) * t;
     }
     let denom = va + vb + vc;
     if denom.abs() < Real::MIN_POSITIVE {
-        // A degenerate triangle: its vertices (the edges are covered by the cases above).
-        return ap.norm().min(bp.norm()).min(cp.norm());
+        // A degenerate triangle: its nearest vertex (the edges are covered above).
+        return *[a, b, c]
+            .into_iter()
+            .min_by(|x, y| (p - *x).norm().total_cmp(&(p - *y).norm()))
+            .unwrap_or(a);
     }
     let (v, w) = (vb / denom, vc / denom);
-    (ap - ab * v - ac * w).norm()
+    a + ab * v + ac * w
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ mod samples;
 mod section;
 mod validate;
 
+pub use distance::closest_on_triangle;
 pub use error::{MeshWarning, ObjectError};
 pub use samples::{Adjacency, Polygons, Section, SurfaceSamples};
 

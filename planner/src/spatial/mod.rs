@@ -15,11 +15,14 @@
 //!   forward kinematics; what part of the fingertip touches follows from its joints.
 //!
 //! # Rolling step
-//! The object turns by `step` in [`Spatial::substeps`] equal parts. Over each, every finger's
+//! The object turns by `step` in equal parts of at most [`Spatial::part`]. Over each, every finger's
 //! joint rates keep its fingertip's material point at the contact moving with the object's
 //! (`A q' = w_o x p_w`, [`rolling`]): rolling without slipping. That is three equations; a
-//! finger with more joints spends the rest on moving away from its joint limits (null-space
-//! descent of [`Finger::limit_cost`]). The contact then is where the fingertip touches
+//! finger with more joints spends the rest ([`Steer`], tried in the order of [`STEERS`]) on
+//! keeping its contact as still on the object as it can, or else on moving away from its
+//! joint limits (null-space descent of [`Finger::limit_cost`]). What slipping the
+//! integration leaves is measured: the contact's travel over the object against its travel
+//! over the fingertip ([`Touch::slip`], the plan's `max_rolling_residual`). The contact then is where the fingertip touches
 //! ([`surface::Convex::closest`] of its centre), with a Newton correction of the fingertip
 //! centre along the normal against the integration's drift (second-order midpoint steps). The
 //! contact's candidate must stay in its ICR (shrunk by [`Settings::region_erosion`]) at every
@@ -72,8 +75,10 @@ pub struct Spatial {
     /// Smallest admissible singular value of a finger's fingertip-centre Jacobian in contact
     /// (m per rad): how fast the fingertip can move in its worst direction.
     pub min_mobility: Real,
-    /// Parts a rolling step is integrated in (>= 1).
-    pub substeps: usize,
+    /// The largest object rotation (rad, > 0) of one part of a rolling step's integration:
+    /// a step is integrated, and its contacts checked in their ICRs, in equal parts no
+    /// larger.
+    pub part: Real,
 }
 
 /// The spatial planning problem.
@@ -112,11 +117,36 @@ pub struct Touch {
     pub candidate: usize,
     /// Joint angles (rad).
     pub q: Vec<Real>,
+    /// How much the contact's travel over the object and over the fingertip differed in the
+    /// rolling step that brought it here (m; the chords of the step's parts summed on each; 0
+    /// when placed): what of the rolling was not without slipping.
+    pub slip: Real,
 }
 
 /// A finger's links and fingertip as capsules: (from, to, radius); the fingertip a capsule
 /// of zero length.
 type Capsules = Vec<(Vec3, Vec3, Real)>;
+
+/// A switch that passed its checks ([`SpatialScenario::try_switch`]).
+struct Chosen {
+    t: Touch,
+    attach: Vec<Touch>,
+    detach: Vec<Touch>,
+    q_attach: Real,
+    q_detach: Real,
+    approach: Vec<Vec<Real>>,
+    retreat: Vec<Vec<Real>>,
+}
+
+/// What trying one rendezvous placement found.
+enum Attempt {
+    /// It passed.
+    Chosen(Box<Chosen>),
+    /// It did not (said in the rejections).
+    Rejected,
+    /// Its grasps fell below the margin: a defect, which stops the plan.
+    Defect(String),
+}
 
 /// What a spatial rolling step found.
 #[derive(Debug, Clone, PartialEq)]
@@ -142,9 +172,9 @@ pub enum Steer {
 /// The ways a finger may steer its contact, tried in order in each rolling step.
 pub const STEERS: [Steer; 2] = [Steer::Still, Steer::Centre];
 
-/// Parts a rolling step is integrated in ([`Spatial::substeps`] of a config's plan): a 5 deg
-/// step in 1 deg parts.
-pub const SUBSTEPS: usize = 5;
+/// The largest part of a rolling step's integration ([`Spatial::part`] of a config's plan:
+/// 1 deg; a 5 deg step in five parts).
+pub const PART: Real = std::f64::consts::PI / 180.0;
 
 /// How far (m) a finger's fingertip is lifted off its contact, along the normal, just before
 /// it touches at a switch and just after it leaves.
@@ -160,6 +190,15 @@ pub const LIFTS: [&[Real]; 5] = [
     &[3.0 * LIFT, LIFT],
     &[5.0 * LIFT, 2.0 * LIFT, LIFT],
 ];
+
+/// How far (m) one integration part may leave a fingertip centre off the surface before the
+/// Newton correction puts it back (the correction turns the fingertip a little, which is
+/// slip); a part that leaves it farther is halved.
+const DRIFT: Real = 1e-6;
+
+/// The largest spacing (m) of the fingertip's travel between two poses at which an approach or
+/// a retreat is checked.
+const ROUTE_SPACING: Real = 0.1e-3;
 
 /// Newton corrections of the fingertip centre onto the surface per integration part.
 const CORRECTIONS: usize = 3;
@@ -250,7 +289,12 @@ impl SpatialScenario<'_> {
         let axis = self.spatial.axis;
         let v = axis.cross(&p_w);
         let pinv = a.clone().pseudo_inverse(1e-9).ok()?;
-        let track = &pinv * DVector::from_column_slice(v.as_slice());
+        let wanted = DVector::from_column_slice(v.as_slice());
+        let track = &pinv * &wanted;
+        // A contact Jacobian short of rank cannot keep the fingertip from slipping.
+        if (&a * &track - &wanted).norm() > 1e-9 * (1.0 + wanted.norm()) {
+            return None;
+        }
         let n = f.dof();
         let projector = DMatrix::<Real>::identity(n, n) - &pinv * &a;
         match steer {
@@ -332,7 +376,7 @@ impl SpatialScenario<'_> {
         let m = mobility(f, q);
         if m < self.spatial.min_mobility {
             return Some(format!(
-                "mobility lost (the fingertip moves at least {:.2} mm/rad in its worst direction)",
+                "mobility lost (the fingertip moves only {:.2} mm/rad in its worst direction)",
                 m * 1e3
             ));
         }
@@ -445,8 +489,6 @@ impl SpatialScenario<'_> {
     ) -> Result<Touch, String> {
         let c = self.surface.closest(p);
         let target = self.to_world(theta, &(c.point + c.normal * f.tip_radius));
-        // Out of reach is found by the plain solution, faster.
-        f.ik_position(&target, seed).map_err(|e| e.to_string())?;
         let q = f
             .ik_position_centred(&target, seed)
             .map_err(|e| e.to_string())?;
@@ -460,6 +502,7 @@ impl SpatialScenario<'_> {
             normal: touch.normal,
             candidate: self.nearest(&touch.point),
             q,
+            slip: 0.0,
         })
     }
 
@@ -475,33 +518,61 @@ impl SpatialScenario<'_> {
         steer: Steer,
     ) -> Result<Touch, String> {
         let f = self.finger(t.finger);
-        let parts = self.spatial.substeps.max(1);
-        let h = step / parts as Real;
+        let parts = ((step / self.spatial.part).ceil() as usize).max(1);
         let mut q = t.q.clone();
         let mut candidate = t.candidate;
         let mut at = theta;
-        for _ in 0..parts {
-            // Midpoint rule.
-            let k1 = self
-                .rates(f, &q, at, steer)
-                .ok_or("its contact Jacobian is singular")?;
-            let mid: Vec<Real> = q
-                .iter()
-                .zip(k1.iter())
-                .map(|(a, d)| a + 0.5 * h * d)
-                .collect();
-            let k2 = self
-                .rates(f, &mid, at + 0.5 * h, steer)
-                .ok_or("its contact Jacobian is singular")?;
-            for (a, d) in q.iter_mut().zip(k2.iter()) {
-                *a += h * d;
-            }
+        // The contact's travel over the object (body frame) and over the fingertip (its
+        // frame), summed chords of the parts: equal when it rolls without slipping.
+        let on_tip = |q: &[Real], at: Real, p: &Vec3| -> Vec3 {
+            let pose = f.fk(q);
+            pose.tip_rotation.inverse() * (self.to_world(at, p) - pose.tip_centre)
+        };
+        let (mut p, mut u) = (t.point, on_tip(&t.q, theta, &t.point));
+        let (mut over_object, mut over_tip) = (0.0, 0.0);
+        let end = theta + step;
+        let mut h = step / parts as Real;
+        while at < end - 1e-15 {
+            h = h.min(end - at);
+            // Midpoint rule, the part halved while it leaves the fingertip centre more than
+            // DRIFT off the surface (fast joint rates near a singular pose).
+            let next = loop {
+                let k1 = self
+                    .rates(f, &q, at, steer)
+                    .ok_or("its contact Jacobian is singular")?;
+                let mid: Vec<Real> = q
+                    .iter()
+                    .zip(k1.iter())
+                    .map(|(a, d)| a + 0.5 * h * d)
+                    .collect();
+                let k2 = self
+                    .rates(f, &mid, at + 0.5 * h, steer)
+                    .ok_or("its contact Jacobian is singular")?;
+                let next: Vec<Real> = q.iter().zip(k2.iter()).map(|(a, d)| a + h * d).collect();
+                let gap = self.touch_of(f, &next, at + h).distance - f.tip_radius;
+                if gap.abs() <= DRIFT {
+                    break next;
+                }
+                if h < step / parts as Real / 1024.0 {
+                    return Err(format!(
+                        "its rolling cannot be followed: the finger is near a singular pose ({:.3} mm off the surface after a part of {:.4} deg)",
+                        gap * 1e3,
+                        h.to_degrees()
+                    ));
+                }
+                h *= 0.5;
+            };
+            q = next;
             at += h;
             self.settle(f, &mut q, at);
             if let Some(e) = f.limit_violation(&q, 1e-9) {
                 return Err(e.to_string());
             }
             let touch = self.touch_of(f, &q, at);
+            let u_next = on_tip(&q, at, &touch.point);
+            over_object += (touch.point - p).norm();
+            over_tip += (u_next - u).norm();
+            (p, u) = (touch.point, u_next);
             candidate = self.walk(candidate, &touch.point, region).map_err(|out| {
                 format!(
                     "its contact would roll out of its ICR (from {} past {})",
@@ -520,6 +591,7 @@ impl SpatialScenario<'_> {
             normal: touch.normal,
             candidate,
             q,
+            slip: (over_object - over_tip).abs(),
         })
     }
 
@@ -601,7 +673,7 @@ impl SpatialScenario<'_> {
     }
 
     /// Whether finger `f` moving straight in joint space from `from` to `to` (checked at
-    /// [`crate::route::SAMPLES`] poses) keeps its fingertip centre at least `floor` from the
+    /// [`crate::route::SAMPLES`] poses, its fingertip also every [`ROUTE_SPACING`]) keeps its fingertip centre at least `floor` from the
     /// object, its link capsules off it, and off the fingers of `others` (`t`: the finger's
     /// contact, for its identity).
     #[allow(clippy::too_many_arguments)]
@@ -615,14 +687,23 @@ impl SpatialScenario<'_> {
         others: &[Touch],
         theta: Real,
     ) -> Result<(), String> {
-        let samples = crate::route::SAMPLES;
-        for i in 0..samples {
-            let s = i as Real / (samples - 1) as Real;
-            let q: Vec<Real> = from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect();
-            let tip = self.to_body(theta, &f.tip_centre(&q));
+        let at =
+            |s: Real| -> Vec<Real> { from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect() };
+        // The fingertip at least every ROUTE_SPACING of its straight-line travel: a fingertip
+        // grazing the object between two checked poses dips in by about the square of their
+        // spacing times the path's curvature.
+        let travel = (f.tip_centre(to) - f.tip_centre(from)).norm();
+        let fine = crate::route::SAMPLES.max((travel / ROUTE_SPACING).ceil() as usize + 1);
+        for i in 0..fine {
+            let tip = self.to_body(theta, &f.tip_centre(&at(i as Real / (fine - 1) as Real)));
             if self.surface.closest(&tip).distance < floor {
                 return Err("its fingertip would hit the object".into());
             }
+        }
+        // The links and the other fingers at the route's samples.
+        let samples = crate::route::SAMPLES;
+        for i in 0..samples {
+            let q = at(i as Real / (samples - 1) as Real);
             let (clear, link) = self.link_clearance(f, &q, theta);
             if clear < self.spatial.link_radius {
                 return Err(format!(
@@ -687,6 +768,30 @@ impl SpatialScenario<'_> {
                 axis.x, axis.y, axis.z
             )));
         }
+        if !self.start_rotation.is_finite() {
+            return Err(PlanError::Settings(format!(
+                "the start rotation must be finite, got {}",
+                self.start_rotation
+            )));
+        }
+        for (name, x) in [
+            ("the link radius", self.spatial.link_radius),
+            ("plan.min_mobility_mm", self.spatial.min_mobility),
+            ("plan.squeeze_reserve_mm", s.squeeze_reserve),
+            ("plan.cap_margin_deg", s.cap_margin),
+        ] {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(PlanError::Settings(format!(
+                    "{name}: must be >= 0, got {x}"
+                )));
+            }
+        }
+        if !(self.spatial.part.is_finite() && self.spatial.part > 0.0) {
+            return Err(PlanError::Settings(format!(
+                "the integration part must be > 0, got {}",
+                self.spatial.part
+            )));
+        }
         let known: Vec<u32> = self.hand.fingers.iter().map(|f| f.id).collect();
         for &(id, _) in &self.initial {
             if self.hand.finger(id).is_none() {
@@ -694,6 +799,14 @@ impl SpatialScenario<'_> {
             }
         }
         for f in &self.hand.fingers {
+            if f.cap_half_angle <= s.cap_margin {
+                return Err(PlanError::Settings(format!(
+                    "plan.cap_margin_deg: {} deg leaves no usable cap on finger {} (half-angle {} deg)",
+                    s.cap_margin.to_degrees(),
+                    f.id,
+                    f.cap_half_angle.to_degrees()
+                )));
+            }
             if f.dof() < 3 {
                 return Err(PlanError::Settings(format!(
                     "finger {}: {} joints cannot place a fingertip in space (at least 3)",
@@ -852,152 +965,100 @@ impl SpatialScenario<'_> {
         };
         let cands = self.problem.candidates();
         let here = touches[k].point;
-        // Every reachable placement: (ahead, limit margin, touch).
-        let mut options: Vec<(Option<Real>, Real, Touch)> = Vec::new();
         let is_ahead = |a: Option<Real>| a.is_some_and(|a| a > 0.0 && a < PI);
-        // The candidates ahead first; those behind only if too few ahead are reachable (only
-        // the first ROOM_OPTIONS are ever tried).
+        // The candidates ahead first; those behind only when none ahead serves.
         let (ahead, behind): (Vec<usize>, Vec<usize>) = chosen_from
             .iter()
             .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
-        for (tier, f) in [&ahead, &behind]
-            .into_iter()
-            .flat_map(|tier| free.iter().map(move |f| (tier, f)))
-        {
-            if tier.as_ptr() == behind.as_ptr() && options.len() >= ROOM_OPTIONS {
-                break;
-            }
-            let map = maps.iter().find(|m| m.finger == f.id);
-            for &c in tier {
-                // Far from every sampled pose of the finger: out of its reach (or nearly),
-                // not worth an inverse kinematics; else the nearest sample seeds it.
-                let p = self.surface.closest(&cands.points[c]);
-                let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
-                let seed = match map.map(|m| m.nearest(&tip)) {
-                    Some(Some((d, _))) if d > REACH_MAP_GAP => continue,
-                    Some(Some((_, q))) => q,
-                    _ => &f.home,
-                };
-                let Ok(t) = self.place(f, &cands.points[c], theta, seed, false) else {
-                    continue;
-                };
-                if t.candidate != c {
-                    continue;
+        // Every reachable placement of a tier: (limit margin, touch).
+        let placements = |tier: &[usize]| {
+            let mut options: Vec<(Real, Touch)> = Vec::new();
+            for f in &free {
+                let map = maps.iter().find(|m| m.finger == f.id);
+                for &c in tier {
+                    // Far from every sampled pose of the finger: out of its reach (or
+                    // nearly), not worth an inverse kinematics; else the nearest sample seeds
+                    // it.
+                    let p = self.surface.closest(&cands.points[c]);
+                    let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
+                    let seed = match map.map(|m| m.nearest(&tip)) {
+                        Some(Some((d, _))) if d > REACH_MAP_GAP => continue,
+                        Some(Some((_, q))) => q,
+                        _ => &f.home,
+                    };
+                    let Ok(t) = self.place(f, &cands.points[c], theta, seed, false) else {
+                        continue;
+                    };
+                    if t.candidate != c {
+                        continue;
+                    }
+                    let mut trial = touches.to_vec();
+                    trial.push(t.clone());
+                    if self.clash(&trial, theta).is_some() {
+                        continue;
+                    }
+                    options.push((f.limit_margin(&t.q), t));
                 }
-                let mut trial = touches.to_vec();
-                trial.push(t.clone());
-                if self.clash(&trial, theta).is_some() {
-                    continue;
-                }
-                let ahead = self.ahead(&here, &t.point);
-                options.push((ahead, f.limit_margin(&t.q), t));
             }
-        }
-        // Ahead first, then the best centred joints; the rolling room of the first few.
-        options.sort_by(|x, y| {
-            is_ahead(y.0)
-                .cmp(&is_ahead(x.0))
-                .then(y.1.total_cmp(&x.1))
-                .then(x.2.finger.cmp(&y.2.finger))
-                .then(x.2.candidate.cmp(&y.2.candidate))
-        });
-        let limit = ((self.settings.goal - theta) / self.settings.step)
-            .ceil()
-            .clamp(1.0, ROOM_LIMIT as Real) as usize;
-        let mut ranked: Vec<(usize, Option<Real>, Touch)> = options
-            .into_iter()
-            .take(ROOM_OPTIONS)
-            .map(|(ahead, _, t)| (self.room(&t, theta, limit), ahead, t))
-            .collect();
-        ranked.sort_by(|x, y| {
-            is_ahead(y.1)
-                .cmp(&is_ahead(x.1))
-                .then(y.0.cmp(&x.0))
-                .then(x.2.finger.cmp(&y.2.finger))
-                .then(x.2.candidate.cmp(&y.2.candidate))
-        });
+            // The best centred joints first; of the first ROOM_OPTIONS, the most rolling
+            // room first; then the rest (their room measured if one is chosen).
+            options.sort_by(|x, y| {
+                y.0.total_cmp(&x.0)
+                    .then(x.1.finger.cmp(&y.1.finger))
+                    .then(x.1.candidate.cmp(&y.1.candidate))
+            });
+            let limit = ((self.settings.goal - theta) / self.settings.step)
+                .ceil()
+                .clamp(1.0, ROOM_LIMIT as Real) as usize;
+            let rest = options.split_off(options.len().min(ROOM_OPTIONS));
+            let mut ranked: Vec<(Option<usize>, Touch)> = options
+                .into_iter()
+                .map(|(_, t)| (Some(self.room(&t, theta, limit)), t))
+                .collect();
+            ranked.sort_by(|x, y| {
+                y.0.cmp(&x.0)
+                    .then(x.1.finger.cmp(&y.1.finger))
+                    .then(x.1.candidate.cmp(&y.1.candidate))
+            });
+            ranked.extend(rest.into_iter().map(|(_, t)| (None, t)));
+            (ranked, limit)
+        };
         let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
         let mut rejected = Vec::new();
         let mut chosen = None;
-        for (room, ahead, t) in ranked {
-            let f = self.finger(t.finger);
-            let touch = self.touch_of(f, &t.q, theta);
-            if let Some(why) = self.pose_check(f, &t.q, theta, &touch, true) {
-                rejected.push(format!(
-                    "{} by finger {}: {why}",
-                    self.describe(&t.point),
-                    t.finger
-                ));
-                continue;
-            }
-            // The approach from home and the released finger's retreat to it, each through a
-            // pose lifted off its contact.
-            let mut detach_set = touches.to_vec();
-            detach_set.push(t.clone());
-            let gone = detach_set.remove(k);
-            let routes = self
-                .route(&t, touches, theta, "approach")
-                .and_then(|approach| {
-                    self.route(&gone, &detach_set, theta, "retreat")
-                        .map(|retreat| (approach, retreat))
-                });
-            let (approach, retreat) = match routes {
-                Ok(r) => r,
-                Err(why) => {
-                    rejected.push(format!(
-                        "{} by finger {}: {why}",
-                        self.describe(&t.point),
-                        t.finger
-                    ));
-                    continue;
-                }
-            };
-            let mut attach = touches.to_vec();
-            attach.push(t.clone());
-            let q_attach = self.quality(&attach)?;
-            let mut detach = attach.clone();
-            detach.remove(k);
-            let q_detach = self.quality(&detach)?;
-            if q_attach < floor || q_detach < floor {
-                return Ok(Err(format!(
-                    "switch of finger {released} to finger {} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
-                    t.finger,
-                    self.describe(&t.point),
-                    self.settings.alpha
-                )));
-            }
-            let step = self.settings.step.min(self.settings.goal - theta);
-            if step > 1e-12 {
-                let new = detach.len() - 1;
-                match self.roll(&detach, theta, step)? {
-                    Roll::Blocked(j, why) if j == new => {
-                        rejected.push(format!(
-                            "{} by finger {}: {why}",
-                            self.describe(&t.point),
-                            t.finger
-                        ));
-                        continue;
+        let mut tried = 0;
+        'tiers: for tier in [&ahead, &behind] {
+            let (ranked, limit) = placements(tier);
+            tried += ranked.len();
+            for (room, t) in ranked {
+                let room = room.unwrap_or_else(|| self.room(&t, theta, limit));
+                let ahead = self.ahead(&here, &t.point);
+                match self.try_switch(touches, k, theta, t, floor, &mut rejected)? {
+                    Attempt::Chosen(c) => {
+                        chosen = Some((room, ahead, *c));
+                        break 'tiers;
                     }
-                    Roll::Stuck(why) => {
-                        rejected.push(format!(
-                            "{} by finger {}: {why}",
-                            self.describe(&t.point),
-                            t.finger
-                        ));
-                        continue;
-                    }
-                    _ => {}
+                    Attempt::Rejected => {}
+                    Attempt::Defect(why) => return Ok(Err(why)),
                 }
             }
-            chosen = Some((
-                room, ahead, t, attach, detach, q_attach, q_detach, approach, retreat,
-            ));
-            break;
         }
-        let Some((room, ahead, t, attach, detach, q_attach, q_detach, approach, retreat)) = chosen
+        let Some((
+            room,
+            ahead,
+            Chosen {
+                t,
+                attach,
+                detach,
+                q_attach,
+                q_detach,
+                approach,
+                retreat,
+            },
+        )) = chosen
         else {
             return Ok(Err(format!(
-                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it{}",
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it ({tried} placements tried){}",
                 chosen_from.len(),
                 free.iter().map(|f| f.id).collect::<Vec<_>>(),
                 if rejected.is_empty() {
@@ -1023,6 +1084,81 @@ impl SpatialScenario<'_> {
             retreat: Some(retreat),
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
+    }
+
+    /// Finger `t.finger` attaching at `t` in place of `touches[k]` with the object at
+    /// `theta`, checked: its squeeze reserve, its approach and the released finger's retreat,
+    /// the attach and detach grasps' quality (against `floor`: below is a defect, the region
+    /// being exact), and one rolling step after it. Why not goes to `rejected`.
+    fn try_switch(
+        &self,
+        touches: &[Touch],
+        k: usize,
+        theta: Real,
+        t: Touch,
+        floor: Real,
+        rejected: &mut Vec<String>,
+    ) -> Result<Attempt, PlanError> {
+        let mut reject = |why: String| {
+            rejected.push(format!(
+                "{} by finger {}: {why}",
+                self.describe(&t.point),
+                t.finger
+            ));
+            Ok(Attempt::Rejected)
+        };
+        let f = self.finger(t.finger);
+        let touch = self.touch_of(f, &t.q, theta);
+        if let Some(why) = self.pose_check(f, &t.q, theta, &touch, true) {
+            return reject(why);
+        }
+        // The approach from home and the released finger's retreat to it.
+        let mut detach_set = touches.to_vec();
+        detach_set.push(t.clone());
+        let gone = detach_set.remove(k);
+        let routes = self
+            .route(&t, touches, theta, "approach")
+            .and_then(|approach| {
+                self.route(&gone, &detach_set, theta, "retreat")
+                    .map(|retreat| (approach, retreat))
+            });
+        let (approach, retreat) = match routes {
+            Ok(r) => r,
+            Err(why) => return reject(why),
+        };
+        let mut attach = touches.to_vec();
+        attach.push(t.clone());
+        let q_attach = self.quality(&attach)?;
+        let mut detach = attach.clone();
+        detach.remove(k);
+        let q_detach = self.quality(&detach)?;
+        if q_attach < floor || q_detach < floor {
+            return Ok(Attempt::Defect(format!(
+                "switch of finger {} to finger {} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                touches[k].finger,
+                t.finger,
+                self.describe(&t.point),
+                self.settings.alpha
+            )));
+        }
+        let step = self.settings.step.min(self.settings.goal - theta);
+        if step > 1e-12 {
+            let new = detach.len() - 1;
+            match self.roll(&detach, theta, step)? {
+                Roll::Blocked(j, why) if j == new => return reject(why),
+                Roll::Stuck(why) => return reject(why),
+                _ => {}
+            }
+        }
+        Ok(Attempt::Chosen(Box::new(Chosen {
+            t,
+            attach,
+            detach,
+            q_attach,
+            q_detach,
+            approach,
+            retreat,
+        })))
     }
 
     fn record(
@@ -1078,6 +1214,7 @@ impl SpatialScenario<'_> {
         let mut stop_reason = None;
         let mut switches_in_a_row = 0;
         let mut just_attached: Option<u32> = None;
+        let mut slip: Real = 0.0;
         while theta < s.goal - 1e-9 {
             if steps.len() >= s.max_steps {
                 stop_reason = Some(format!(
@@ -1095,6 +1232,7 @@ impl SpatialScenario<'_> {
                 Roll::Moved(next, quality) => {
                     switches_in_a_row = 0;
                     just_attached = None;
+                    slip = next.iter().map(|t| t.slip).fold(slip, Real::max);
                     touches = next;
                     theta += step;
                     min_quality = min_quality.min(quality);
@@ -1172,7 +1310,7 @@ impl SpatialScenario<'_> {
             rolling_steps: steps.iter().filter(|s| s.phase == Phase::Rolling).count(),
             min_quality,
             alpha: s.alpha,
-            max_rolling_residual: self.contact_residual(&steps),
+            max_rolling_residual: slip,
             icr_region_candidates: switch_list().map(|s| s.icr_region.len()).sum(),
             lp_region_candidates: switch_list().map(|s| s.lp_region.len()).sum(),
             lp_region_unsafe,
@@ -1183,23 +1321,6 @@ impl SpatialScenario<'_> {
             min_squeeze_reserve_mm: Some(self.min_squeeze_reserve(&steps) * 1e3),
         };
         Ok(Plan { summary, steps })
-    }
-
-    /// The largest distance (m) of a planned fingertip in contact from touching the surface
-    /// (`|d(centre, surface) - r_f|`, from forward kinematics of the planned joints).
-    pub fn contact_residual(&self, steps: &[Step]) -> Real {
-        let mut worst: Real = 0.0;
-        for step in steps {
-            for fs in &step.fingers {
-                if fs.contact.is_none() {
-                    continue;
-                }
-                let f = self.finger(fs.finger);
-                let c = self.touch_of(f, &fs.joints, step.rotation);
-                worst = worst.max((c.distance - f.tip_radius).abs());
-            }
-        }
-        worst
     }
 
     /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at
@@ -1282,7 +1403,7 @@ impl SpatialScenario<'_> {
 const REACH_MAP_GRID: usize = 7;
 
 /// How far (m) a fingertip target may be from every pose of a finger's [`ReachMap`] and still
-/// be tried: a little more than the grid's spacing at the fingertip (a sixth of a joint's
+/// be tried: a little more than the grid's spacing at the fingertip (a seventh of a joint's
 /// range at a 50 mm lever).
 const REACH_MAP_GAP: Real = 0.012;
 
@@ -1296,7 +1417,9 @@ pub struct ReachMap {
 }
 
 impl ReachMap {
-    /// The map of finger `f`: [`REACH_MAP_GRID`] values per joint, its ends inside the limits.
+    /// The map of finger `f`: [`REACH_MAP_GRID`] values per joint, its ends inside the limits
+    /// (of a finger of more than six joints, the seventh and eighth held at their lowest
+    /// grid value).
     pub fn new(f: &Finger) -> Self {
         let n = f.dof();
         let count = REACH_MAP_GRID.pow(n.min(6) as u32);
@@ -1355,25 +1478,39 @@ pub fn mobility(f: &Finger, q: &[Real]) -> Real {
 }
 
 /// The distance of the segment `ab` (body frame) from the surface (m; negative: a point of it
-/// inside, by how deep the deepest sampled point is). Exact for a sphere; for other surfaces
-/// the smallest over points 0.5 mm apart ([`crate::planner::LINK_SPACING`]).
+/// inside, by how deep). Exact for a sphere; for other surfaces the smallest of the signed
+/// distances at points along it, the next point as far on as the distance allows (the
+/// distance changes by at most the length moved, so nothing between two points comes within
+/// [`TRACE_TOLERANCE`] of the smallest found) and at most 0.5 mm ([`crate::planner::LINK_SPACING`])
+/// where it is closest.
 pub fn segment_surface_distance(surface: &Convex, a: &Vec3, b: &Vec3) -> Real {
     match surface {
         Convex::Sphere { centre, radius } => point_segment_distance(centre, a, b) - radius,
         _ => {
-            let n = ((b - a).norm() / crate::planner::LINK_SPACING)
-                .ceil()
-                .max(1.0) as usize;
-            (0..=n)
-                .map(|j| {
-                    surface
-                        .closest(&(a + (b - a) * (j as Real / n as Real)))
-                        .distance
-                })
-                .fold(Real::INFINITY, Real::min)
+            let length = (b - a).norm();
+            let mut at = 0.0;
+            let mut least = Real::INFINITY;
+            loop {
+                let x = if length > 0.0 {
+                    a + (b - a) * (at / length)
+                } else {
+                    *a
+                };
+                let d = surface.closest(&x).distance;
+                least = least.min(d);
+                if at >= length {
+                    return least;
+                }
+                let ahead = (d - least + TRACE_TOLERANCE).max(crate::planner::LINK_SPACING);
+                at = (at + ahead).min(length);
+            }
         }
     }
 }
+
+/// How close (m) to the smallest distance found a link's distance from a smooth surface or a
+/// polyhedron is traced ([`segment_surface_distance`]).
+pub const TRACE_TOLERANCE: Real = 0.05e-3;
 
 /// Distance from point `p` to segment `ab`.
 fn point_segment_distance(p: &Vec3, a: &Vec3, b: &Vec3) -> Real {

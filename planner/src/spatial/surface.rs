@@ -1,7 +1,14 @@
-//! Smooth convex surfaces that fingertip spheres roll on in space: the exact sphere and
-//! ellipsoid (body frame), with the closest point to a point, the outward normal, and the
-//! shape operator (the derivative of the normal along the surface) that the rolling
-//! kinematics ([`super::rolling`]) needs.
+//! Convex surfaces that fingertip spheres roll on in space: the exact sphere and ellipsoid
+//! (body frame), and a convex mesh as the polyhedron it is, with the closest point to a point,
+//! the outward normal, and the shape operator (the derivative of the normal along the surface)
+//! that the rolling kinematics ([`super::rolling`]) needs.
+//!
+//! On a polyhedron a fingertip sphere rolls across a face (the contact moves, the normal
+//! stays), and pivots about an edge or a vertex (the contact stays, the normal turns): its
+//! centre moves on the polyhedron's offset by `r_f`, which is smooth (continuously
+//! differentiable), so the rolling of [`super`] integrates on it as on the smooth surfaces;
+//! the shape operator is zero on the faces and unbounded at the edges, where the contact's
+//! velocity over the object is zero.
 //!
 //! A fingertip sphere of radius `r_f` touches a convex surface at `p` when its centre is
 //! `b = p + r_f n(p)`; `p` is then the surface's closest point to `b` ([`Convex::closest`]),
@@ -9,6 +16,7 @@
 //! orientation.
 
 use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::object::{Object, closest_on_triangle};
 use nalgebra::Matrix3;
 
 /// A smooth convex surface in the body frame.
@@ -27,6 +35,33 @@ pub enum Convex {
         centre: Vec3,
         /// Semi-axes along x, y, z (m, > 0).
         semi_axes: Vec3,
+    },
+    /// A convex polyhedron: a mesh's faces fanned into triangles ([`Convex::polyhedron`]).
+    Polyhedron {
+        /// The object's centre of mass.
+        centre: Vec3,
+        /// The triangles, counter-clockwise seen from outside.
+        triangles: Vec<[Vec3; 3]>,
+        /// Each triangle's outward unit normal and its plane's offset (`n . x = offset` on it).
+        planes: Vec<(Vec3, Real)>,
+    },
+}
+
+/// Why a mesh is not a polyhedron fingertips can roll on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PolyhedronError {
+    /// A vertex lies outside a face's plane.
+    #[error(
+        "the mesh is not convex: vertex {vertex} lies {outside_mm:.3} mm outside the plane of face {face}; fingertips roll on convex objects only"
+    )]
+    NotConvex {
+        /// The vertex.
+        vertex: usize,
+        /// The face.
+        face: usize,
+        /// How far outside (mm).
+        outside_mm: Real,
     },
 }
 
@@ -50,13 +85,62 @@ impl Convex {
                 "the exact ellipsoid of semi-axes [{}, {}, {}] m",
                 semi_axes.x, semi_axes.y, semi_axes.z
             ),
+            Convex::Polyhedron { triangles, .. } => format!(
+                "the mesh as a convex polyhedron ({} triangles: fingertips roll across its faces and pivot about its edges)",
+                triangles.len()
+            ),
         }
+    }
+
+    /// The convex polyhedron of `object`'s mesh, its faces fanned into triangles (degenerate
+    /// ones left out), its convexity checked: every vertex on or inside every face's plane
+    /// (to 1e-9 of the object's size, and the rounding of planar quads).
+    pub fn polyhedron(object: &Object) -> Result<Self, PolyhedronError> {
+        let v = &object.vertices;
+        let mut triangles = Vec::new();
+        let mut planes = Vec::new();
+        let mut face_of = Vec::new();
+        for (f, face) in object.faces.iter().enumerate() {
+            let a = v[face[0] as usize];
+            for w in face[1..].windows(2) {
+                let (b, c) = (v[w[0] as usize], v[w[1] as usize]);
+                let n = (b - a).cross(&(c - a));
+                // Degenerate (a sliver of no area): left out.
+                let Some(n) = n.try_normalize(1e-18) else {
+                    continue;
+                };
+                triangles.push([a, b, c]);
+                planes.push((n, n.dot(&a)));
+                face_of.push(f);
+            }
+        }
+        let size = object.max_radius().max(Real::MIN_POSITIVE);
+        let tolerance = 1e-7 * size;
+        for (i, (n, offset)) in planes.iter().enumerate() {
+            for (k, x) in v.iter().enumerate() {
+                let out = n.dot(x) - offset;
+                if out > tolerance {
+                    return Err(PolyhedronError::NotConvex {
+                        vertex: k,
+                        face: face_of[i],
+                        outside_mm: out * 1e3,
+                    });
+                }
+            }
+        }
+        Ok(Convex::Polyhedron {
+            centre: object.centre_of_mass,
+            triangles,
+            planes,
+        })
     }
 
     /// The surface's centre.
     pub fn centre(&self) -> Vec3 {
         match self {
-            Convex::Sphere { centre, .. } | Convex::Ellipsoid { centre, .. } => *centre,
+            Convex::Sphere { centre, .. }
+            | Convex::Ellipsoid { centre, .. }
+            | Convex::Polyhedron { centre, .. } => *centre,
         }
     }
 
@@ -67,13 +151,20 @@ impl Convex {
             Convex::Ellipsoid { centre, semi_axes } => (p - centre)
                 .component_div(&semi_axes.component_mul(semi_axes))
                 .normalize(),
+            // The plane the point lies nearest outside of (on an edge: one of its faces').
+            Convex::Polyhedron { planes, .. } => planes
+                .iter()
+                .map(|(n, o)| (n.dot(p) - o, n))
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+                .map_or(Vec3::z(), |(_, n)| *n),
         }
     }
 
     /// The shape operator at surface point `p`: `W = dn/dp` on the tangent plane (symmetric,
     /// positive semi-definite for a convex surface), as a 3 x 3 matrix that maps the normal to
     /// zero. Sphere of radius `R`: `(I - n n^T) / R`; ellipsoid `(x - c)^T Q (x - c) = 1`,
-    /// `Q = diag(1 / a_i^2)`: `P Q P / |Q (p - c)|`, `P = I - n n^T`.
+    /// `Q = diag(1 / a_i^2)`: `P Q P / |Q (p - c)|`, `P = I - n n^T`; polyhedron: zero (its
+    /// faces'; unbounded at its edges, which this does not say).
     pub fn shape_operator(&self, p: &Vec3) -> Matrix3<Real> {
         let n = self.normal(p);
         let proj = Matrix3::identity() - n * n.transpose();
@@ -84,6 +175,7 @@ impl Convex {
                 let g = (q * (p - centre)).norm();
                 proj * q * proj / g
             }
+            Convex::Polyhedron { .. } => Matrix3::zeros(),
         }
     }
 
@@ -104,7 +196,60 @@ impl Convex {
             Convex::Ellipsoid { centre, semi_axes } => {
                 closest_on_ellipsoid(&(x - centre), semi_axes, centre)
             }
+            Convex::Polyhedron {
+                triangles, planes, ..
+            } => closest_on_polyhedron(x, triangles, planes),
         }
+    }
+}
+
+/// The closest point of the convex polyhedron of `triangles` (with their `planes`) to `x`:
+/// outside, the nearest of the triangles' closest points (a triangle whose plane is farther
+/// than the best so far is passed over), the normal along `x - p` (the offset surface's); inside
+/// (every plane ahead), the foot on the nearest plane.
+fn closest_on_polyhedron(x: &Vec3, triangles: &[[Vec3; 3]], planes: &[(Vec3, Real)]) -> Closest {
+    let Some((first, ahead)) = planes
+        .iter()
+        .map(|(n, o)| n.dot(x) - o)
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    else {
+        return Closest {
+            point: *x,
+            normal: Vec3::z(),
+            distance: 0.0,
+        };
+    };
+    if ahead <= 0.0 {
+        let n = planes[first].0;
+        return Closest {
+            point: x - n * ahead,
+            normal: n,
+            distance: ahead,
+        };
+    }
+    let [a, b, c] = &triangles[first];
+    let mut point = closest_on_triangle(x, a, b, c);
+    let mut best = (x - point).norm();
+    for (t, (n, o)) in triangles.iter().zip(planes) {
+        if (n.dot(x) - o).abs() >= best {
+            continue;
+        }
+        let q = closest_on_triangle(x, &t[0], &t[1], &t[2]);
+        let d = (x - q).norm();
+        if d < best {
+            (point, best) = (q, d);
+        }
+    }
+    let normal = if best > 0.0 {
+        (x - point) / best
+    } else {
+        planes[first].0
+    };
+    Closest {
+        point,
+        normal,
+        distance: best,
     }
 }
 
@@ -210,11 +355,56 @@ mod tests {
                         Convex::Ellipsoid { centre, semi_axes } => {
                             centre + semi_axes.component_mul(&d) / d.norm()
                         }
+                        Convex::Polyhedron { .. } => unreachable!("not among these surfaces"),
                     };
                     assert!((q - x).norm() >= c.distance.abs() - 1e-12);
                 }
             }
         }
+    }
+
+    /// A box's mesh as a polyhedron: outside it, the closest point is on the mesh at the
+    /// mesh's own distance (every face compared), the normal along the offset; inside, the
+    /// nearest face's plane.
+    #[test]
+    fn a_polyhedron_s_closest_points_are_the_mesh_s() {
+        let object = Object::cuboid(Vec3::new(0.03, 0.02, 0.025), 3).unwrap();
+        let s = Convex::polyhedron(&object).unwrap();
+        let mut rng = 99u64;
+        let mut next = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
+        };
+        for _ in 0..500 {
+            let x = Vec3::new(next(), next(), next()) * 0.06;
+            let c = s.closest(&x);
+            if c.distance > 0.0 {
+                assert!((c.distance - object.surface_distance(&x)).abs() < 1e-12);
+                assert!(object.surface_distance(&c.point) < 1e-12);
+                assert!((c.point + c.normal * c.distance - x).norm() < 1e-12);
+            } else {
+                // The box's nearest face, by its plane.
+                let h = Vec3::new(0.03, 0.02, 0.025);
+                let inner = (0..3)
+                    .map(|i| h[i] - x[i].abs())
+                    .fold(Real::INFINITY, Real::min);
+                assert!(
+                    (c.distance + inner).abs() < 1e-12,
+                    "{} {}",
+                    c.distance,
+                    inner
+                );
+            }
+        }
+        // Not convex: a box with one vertex pushed in is refused, naming a vertex and a face.
+        let mut dented = object.clone();
+        dented.vertices[0] *= 0.5;
+        assert!(matches!(
+            Convex::polyhedron(&dented),
+            Err(PolyhedronError::NotConvex { .. })
+        ));
     }
 
     #[test]
