@@ -555,6 +555,24 @@ impl Finger {
             .sum()
     }
 
+    /// The gradient of [`Finger::limit_cost`] at `q`, its joints kept a hair (1e-6 of their
+    /// range) inside their limits.
+    pub fn limit_cost_gradient(&self, q: &[Real]) -> DVector<Real> {
+        DVector::from_iterator(
+            self.dof(),
+            self.joints.iter().zip(q).map(|(j, &a)| {
+                let range = j.upper - j.lower;
+                if range <= 0.0 {
+                    return 0.0;
+                }
+                let hair = 1e-6 * range;
+                let a = a.clamp(j.lower + hair, j.upper - hair);
+                let (up, down) = (j.upper - a, a - j.lower);
+                -(range * range * (up - down) / (4.0 * up * up * down * down))
+            }),
+        )
+    }
+
     /// [`Finger::ik_position`], then the finger's redundancy used to keep its joints off
     /// their limits: steps in the null space of the fingertip-centre Jacobian (which leave
     /// the centre where it is, to first order) down the gradient of [`Finger::limit_cost`],
@@ -573,21 +591,7 @@ impl Finger {
                 break;
             };
             let projector = DMatrix::<Real>::identity(n, n) - &pinv * &jac;
-            // The cost's gradient, its joints kept a hair inside their limits.
-            let gradient = DVector::from_iterator(
-                n,
-                self.joints.iter().zip(&q).map(|(j, &a)| {
-                    let range = j.upper - j.lower;
-                    if range <= 0.0 {
-                        return 0.0;
-                    }
-                    let hair = 1e-6 * range;
-                    let a = a.clamp(j.lower + hair, j.upper - hair);
-                    let (up, down) = (j.upper - a, a - j.lower);
-                    -(range * range * (up - down) / (4.0 * up * up * down * down))
-                }),
-            );
-            let dq = -(&projector * gradient);
+            let dq = -(&projector * self.limit_cost_gradient(&q));
             if dq.amax() < 1e-9 {
                 break;
             }

@@ -710,26 +710,7 @@ impl Scenario<'_> {
         target: &Vec3,
         region: Option<&[u32]>,
     ) -> Result<usize, usize> {
-        let cands = self.problem.candidates();
-        let dist = |i: usize| (cands.points[i] - target).norm_squared();
-        let mut at = from;
-        loop {
-            let next = cands
-                .adjacency
-                .neighbours(at)
-                .iter()
-                .map(|&m| m as usize)
-                .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
-            match next {
-                Some(n) if dist(n) < dist(at) => {
-                    if region.is_some_and(|r| r.binary_search(&(n as u32)).is_err()) {
-                        return Err(n);
-                    }
-                    at = n;
-                }
-                _ => return Ok(at),
-            }
-        }
+        walk_candidates(self.problem.candidates(), from, target, region)
     }
 
     /// Steps finger `finger` could roll alone from `(c, gamma, q)`, up to `limit`, keeping
@@ -1450,6 +1431,37 @@ impl Scenario<'_> {
             retreat: None,
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
+    }
+}
+
+/// The candidate of `cands` nearest to `target`, found by walking their adjacency from `from`
+/// to ever nearer neighbours (a local search: it touches only the points on the way), every
+/// point on the way (but `from`) checked to be in `region` (sorted candidate indices, if
+/// given): the end, or `Err` with the first point outside.
+pub(crate) fn walk_candidates(
+    cands: &icrflow_grasp::object::SurfaceSamples,
+    from: usize,
+    target: &Vec3,
+    region: Option<&[u32]>,
+) -> Result<usize, usize> {
+    let dist = |i: usize| (cands.points[i] - target).norm_squared();
+    let mut at = from;
+    loop {
+        let next = cands
+            .adjacency
+            .neighbours(at)
+            .iter()
+            .map(|&m| m as usize)
+            .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+        match next {
+            Some(n) if dist(n) < dist(at) => {
+                if region.is_some_and(|r| r.binary_search(&(n as u32)).is_err()) {
+                    return Err(n);
+                }
+                at = n;
+            }
+            _ => return Ok(at),
+        }
     }
 }
 

@@ -237,26 +237,7 @@ impl SpatialScenario<'_> {
     /// nearer neighbours, every one passed (but `from`) checked to be in `region` if given:
     /// `Err` with the first outside.
     fn walk(&self, from: usize, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
-        let cands = self.problem.candidates();
-        let dist = |i: usize| (cands.points[i] - p).norm_squared();
-        let mut at = from;
-        loop {
-            let next = cands
-                .adjacency
-                .neighbours(at)
-                .iter()
-                .map(|&m| m as usize)
-                .min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
-            match next {
-                Some(n) if dist(n) < dist(at) => {
-                    if region.is_some_and(|r| r.binary_search(&(n as u32)).is_err()) {
-                        return Err(n);
-                    }
-                    at = n;
-                }
-                _ => return Ok(at),
-            }
-        }
+        crate::planner::walk_candidates(self.problem.candidates(), from, p, region)
     }
 
     /// The candidate nearest `p` (all of them compared).
@@ -299,7 +280,7 @@ impl SpatialScenario<'_> {
         let projector = DMatrix::<Real>::identity(n, n) - &pinv * &a;
         match steer {
             Steer::Centre => {
-                let free = -(&projector * limit_gradient(f, q));
+                let free = -(&projector * f.limit_cost_gradient(q));
                 let norm = free.norm();
                 // As much self-motion as tracking motion at most.
                 let free = if norm > 1e-12 {
@@ -1452,23 +1433,6 @@ impl ReachMap {
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(d, q)| (d.sqrt(), q.as_slice()))
     }
-}
-
-/// The gradient of [`Finger::limit_cost`] at `q`, its joints kept a hair inside their limits.
-fn limit_gradient(f: &Finger, q: &[Real]) -> DVector<Real> {
-    DVector::from_iterator(
-        f.dof(),
-        f.joints.iter().zip(q).map(|(j, &a)| {
-            let range = j.upper - j.lower;
-            if range <= 0.0 {
-                return 0.0;
-            }
-            let hair = 1e-6 * range;
-            let a = a.clamp(j.lower + hair, j.upper - hair);
-            let (up, down) = (j.upper - a, a - j.lower);
-            -(range * range * (up - down) / (4.0 * up * up * down * down))
-        }),
-    )
 }
 
 /// The smallest singular value of finger `f`'s fingertip-centre Jacobian at `q` (m per rad).
