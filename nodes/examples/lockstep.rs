@@ -5,7 +5,8 @@
 //!
 //! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
 //! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's), every_s (the
-//! interval of the lines, 0.5 s unless given), push_at_s, push_fx, push_fy (N), push_tz
+//! interval of the lines, 0.5 s unless given), replan_s (simulated seconds a re-plan takes:
+//! `lockstep::run`'s `replan_s`, 0 unless given), push_at_s, push_fx, push_fy (N), push_tz
 //! (N m), push_ms (a push of the object: `pipeline.push_*`). Prints a line every `every_s` of
 //! simulated time (true, estimated and planned rotation; per fingertip its normal force, the
 //! commanded force's magnitude in brackets, friction use and slip speed in mm/s; each finger's
@@ -60,6 +61,7 @@ fn main() -> Result<()> {
     let mut config = Config::load(std::path::Path::new(path))?;
     let mut seconds = 40.0;
     let mut every = 0.5;
+    let mut replan_s = 0.0;
     for a in &args[1..] {
         if let Ok(s) = a.parse::<f64>() {
             seconds = s;
@@ -79,6 +81,7 @@ fn main() -> Result<()> {
             "rotation_deg" => config.plan.goal = v.to_radians(),
             "seed" => config.pipeline.seed = v as u64,
             "every_s" => every = v,
+            "replan_s" => replan_s = v,
             "push_at_s" | "push_fx" | "push_fy" | "push_tz" | "push_ms" => {
                 let p = config.pipeline.push.get_or_insert(icrflow_scenario::Push {
                     force: [0.0; 3],
@@ -103,7 +106,7 @@ fn main() -> Result<()> {
     let mut next_line = 0.0;
     let mut worst: Option<(f64, String)> = None;
     let started = std::time::Instant::now();
-    let ended = lockstep::run(&config, &setup, seconds, 0.5, &mut |tick| {
+    let ended = lockstep::run(&config, &setup, seconds, 0.5, replan_s, &mut |tick| {
         let Some(truth) = tick.truth else {
             return;
         };

@@ -71,12 +71,17 @@ pub struct Ended {
 
 /// Runs `config`'s scenario (`plant.kind` must be `"mujoco"`) in lockstep for at most
 /// `seconds` of simulated time, or until the planner is done and `settle` s more have passed;
-/// `observe` sees every tick.
+/// `observe` sees every tick. A plan made again from the estimate takes `replan_s` s of
+/// simulated time, as the planner node's takes time on the machine (1.2 to 1.6 s for the
+/// ellipsoid mesh on a 2-core VM): meanwhile the planner publishes nothing, its last step goes
+/// stale and the command node holds; then the new plan's first target is published. With 0 a
+/// re-plan takes no time.
 pub fn run(
     config: &Config,
     setup: &Setup,
     seconds: f64,
     settle: f64,
+    replan_s: f64,
     observe: &mut dyn FnMut(&Tick<'_>),
 ) -> Result<Ended> {
     anyhow::ensure!(
@@ -118,6 +123,9 @@ pub fn run(
     let mut holds = 0;
     let mut holding: Option<String> = None;
     let mut replanned = Vec::new();
+    let replan_ns = (replan_s.max(0.0) * 1e9) as u64;
+    // While the planner plans again (until then), it follows and publishes nothing.
+    let mut busy_until: Option<u64> = None;
     let end = t0 + (seconds * 1e9) as u64;
     let mut t = t0;
     while t < end {
@@ -158,8 +166,17 @@ pub fn run(
             );
             published = Some(m);
         };
+        // The new plan's first target, published when the planning is over.
+        let busy = busy_until.is_some_and(|b| t < b);
+        if !busy && busy_until.take().is_some() {
+            if let Some(k) = follower.current() {
+                publish(&follower, k, last_grasp);
+            }
+            next_republish = t + republish;
+        }
         if let Some(g) = &grasp
             && g.rotation.is_finite()
+            && !busy
         {
             last_grasp = Some(g.header);
             estimate(g, &setup.hand, &mut e);
@@ -167,6 +184,9 @@ pub fn run(
             match &followed.event {
                 Some(Event::Replanned(r)) => {
                     let mut said = r.to_string();
+                    for n in &r.notes {
+                        said += &format!("; {n}");
+                    }
                     if !r.plan.summary.completed {
                         said += &format!(
                             "; the new plan stops short of the goal: {}",
@@ -174,17 +194,22 @@ pub fn run(
                         );
                     }
                     replanned.push(((t - t0) as f64 * 1e-9, said));
+                    if replan_ns > 0 {
+                        busy_until = Some(t + replan_ns);
+                    }
                 }
                 Some(e @ Event::ReplanFailed { .. }) => {
                     replanned.push(((t - t0) as f64 * 1e-9, e.to_string()));
                 }
                 _ => {}
             }
-            for k in followed.commands() {
-                publish(&follower, k, last_grasp);
+            if busy_until.is_none() {
+                for k in followed.commands() {
+                    publish(&follower, k, last_grasp);
+                }
             }
         }
-        if t >= next_republish {
+        if t >= next_republish && busy_until.is_none() {
             next_republish = t + republish;
             if let Some(k) = follower.current() {
                 publish(&follower, k, last_grasp);

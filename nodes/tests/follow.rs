@@ -127,6 +127,66 @@ fn fingers_approach_and_leave_along_the_normal() {
 #[test]
 fn free_fingers_keep_off_a_non_circular_object() {
     let (_, setup, plan, list) = planned("ellipsoid_spatial.toml");
+    keep_off_the_curve(&setup, &plan, &list);
+}
+
+/// A contact pose that presses into the surface (0.3 mm here, beyond the 0.2 mm the legs next
+/// to a contact may go deeper than it; a plan made again from an estimate, its candidates
+/// moved onto the estimated contacts, can): every attach and detach still has its stand-off,
+/// reached straight from the contact pose without pressing deeper. (The follower's legs once
+/// took any gap below -0.2 mm as cutting into the object, found no stand-off for such a pose,
+/// and moved the finger straight between the contact and its free pose: in MuJoCo it struck
+/// the ellipsoid, which left the grasp.)
+#[test]
+fn a_contact_pose_pressing_into_the_object_keeps_its_stand_offs() {
+    let (_, setup, plan, _) = planned("ellipsoid_spatial.toml");
+    let mut steps = plan.steps.clone();
+    let mut pressed = 0;
+    for k in 1..steps.len() {
+        for slot in 0..steps[k].fingers.len() {
+            let (before, now) = (&steps[k - 1].fingers[slot], &steps[k].fingers[slot]);
+            let switching = match steps[k].phase {
+                Phase::Attach => before.contact.is_none() && now.contact.is_some(),
+                Phase::Detach => before.contact.is_some() && now.contact.is_none(),
+                Phase::Rolling | Phase::Start => false,
+            };
+            if !switching {
+                continue;
+            }
+            // The contact pose of the switch: the attach step's, or the detach's previous one.
+            let at = if steps[k].phase == Phase::Attach {
+                k
+            } else {
+                k - 1
+            };
+            let f = setup.hand.finger(steps[at].fingers[slot].finger).unwrap();
+            let q = steps[at].fingers[slot].joints.clone();
+            let (x, y, phi) = f.planar_pose(&q).unwrap();
+            let r = x.hypot(y);
+            let d = 3e-4;
+            let deeper = f
+                .ik_planar(x - d * x / r, y - d * y / r, phi, &q)
+                .expect("0.3 mm deeper is in reach");
+            steps[at].fingers[slot].joints = deeper;
+            pressed += 1;
+        }
+    }
+    assert_eq!(pressed, 2 * plan.summary.switches);
+    let surface = setup.surface().unwrap();
+    let mut notes = Vec::new();
+    let list = targets(&steps, &setup.hand, surface, CLEARANCE, &mut |n| {
+        notes.push(n)
+    });
+    assert!(notes.is_empty(), "{notes:?}");
+    let plan = Plan { steps, ..plan };
+    keep_off_the_curve(&setup, &plan, &list);
+}
+
+/// Every move between `list`'s targets of a finger that is not rolling keeps its fingertip off
+/// `setup`'s curved section (turned as in the move's targets): next to a contact pose no more
+/// than 0.2 mm deeper than that pose, elsewhere by the estimator's release distance; its links
+/// [`route::LINK_MARGIN`] off it; one approach and one retreat for each of `plan`'s switches.
+fn keep_off_the_curve(setup: &Setup, plan: &Plan, list: &[Target]) {
     let surface = setup.surface().unwrap();
     let hand = &setup.hand;
     assert!(matches!(surface, Surface::Curve(_)));
@@ -143,15 +203,18 @@ fn free_fingers_keep_off_a_non_circular_object() {
             if qa == qb || (touching(a) && touching(b)) {
                 continue;
             }
-            let margin = if touching(a) || touching(b) {
-                -2e-4
-            } else {
-                RELEASE
-            };
             for theta in [a.rotation, b.rotation] {
+                let gap = |q: &[f64]| surface.contact_of(&tip(f, q), f, theta).gap;
+                let margin = if touching(a) {
+                    gap(&qa).min(0.0) - 2e-4
+                } else if touching(b) {
+                    gap(&qb).min(0.0) - 2e-4
+                } else {
+                    RELEASE
+                };
                 let (mut lowest, mut links) = (f64::INFINITY, f64::INFINITY);
                 route::along(&qa, &qb, |q| {
-                    lowest = lowest.min(surface.contact_of(&tip(f, q), f, theta).gap);
+                    lowest = lowest.min(gap(q));
                     links = links.min(surface.link_gap(f, q, theta).0);
                     true
                 });
@@ -164,7 +227,7 @@ fn free_fingers_keep_off_a_non_circular_object() {
                     links * 1e3
                 );
                 assert!(
-                    lowest >= margin,
+                    lowest >= margin - 1e-9,
                     "steps {} -> {} ({:?} -> {:?}): finger {} comes {:.2} mm from the object \
                      (at least {:.2} mm wanted)",
                     a.step,
@@ -180,7 +243,7 @@ fn free_fingers_keep_off_a_non_circular_object() {
             retreats += usize::from(touching(a) && !touching(b));
         }
     }
-    one_approach_and_retreat_per_switch(approaches, retreats, &plan);
+    one_approach_and_retreat_per_switch(approaches, retreats, plan);
 }
 
 /// An estimate with the hand exactly at `step`'s joints (and its fingers in contact), the

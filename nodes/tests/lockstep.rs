@@ -1,6 +1,6 @@
 //! The loop in lockstep on MuJoCo ([`icrflow_nodes::lockstep`]): the nodes' own steps on
 //! simulated time, no processes. The paper's sphere turned toward 45 degrees; both MuJoCo
-//! scenarios pushed at ten times of their whole turn.
+//! scenarios pushed at ten times of their whole turn; the ellipsoid with re-plans that take time.
 
 use icrflow_interfaces::PlanPhase;
 use icrflow_nodes::lockstep;
@@ -27,7 +27,7 @@ fn paper(goal_deg: f64) -> (Config, Setup) {
 fn run(config: &Config, setup: &Setup, seconds: f64) -> (f64, [f64; 2], usize, lockstep::Ended) {
     let (mut gap, mut drift, mut fewest) = (0.0_f64, [0.0_f64; 2], usize::MAX);
     let mut start = None;
-    let ended = lockstep::run(config, setup, seconds, 0.5, &mut |tick| {
+    let ended = lockstep::run(config, setup, seconds, 0.5, 0.0, &mut |tick| {
         let Some(truth) = tick.truth else { return };
         if let Some(g) = tick.grasp {
             gap = gap.max((g.rotation - truth.rotation).abs());
@@ -74,7 +74,7 @@ fn the_paper_sphere_turns_in_lockstep_as_the_estimate_says() {
 fn a_lockstep_run_needs_the_mujoco_plant() {
     let (mut config, setup) = paper(45.0);
     config.plant.kind = icrflow_scenario::PlantKind::Kinematic;
-    let e = lockstep::run(&config, &setup, 1.0, 0.0, &mut |_| {})
+    let e = lockstep::run(&config, &setup, 1.0, 0.0, 0.0, &mut |_| {})
         .unwrap_err()
         .to_string();
     assert!(e.contains("plant.kind = \"mujoco\""), "{e}");
@@ -85,7 +85,7 @@ fn a_lockstep_run_needs_the_mujoco_plant() {
 /// how the run ended.
 fn pushed(config: &Config, setup: &Setup) -> (Option<Option<u32>>, f64, lockstep::Ended) {
     let (mut phase, mut drift, mut start) = (None, 0.0_f64, None);
-    let ended = lockstep::run(config, setup, 60.0, 0.5, &mut |tick| {
+    let ended = lockstep::run(config, setup, 60.0, 0.5, 0.0, &mut |tick| {
         if tick
             .plant
             .events()
@@ -154,4 +154,53 @@ fn every_push_of_the_sphere_is_recovered() {
 #[test]
 fn every_push_of_the_ellipsoid_under_gravity_is_recovered() {
     every_push_is_recovered("ellipsoid_mujoco.toml");
+}
+
+/// The ellipsoid's whole turn under gravity with re-plans that take 1.3 s of simulated time
+/// (the planner node's 1.2 to 1.6 s on the mesh on this project's 2-core machines: its last
+/// step goes stale and the hand holds meanwhile), under three seeds of the measurement noise:
+/// each run reaches the goal, the object in the hand. With seed 2 a plan made again from the
+/// estimate once had an attach whose contact pose pressed 0.27 mm into the mesh; the follower
+/// found no stand-off for it, moved the finger straight onto the object, and the strike knocked
+/// the ellipsoid 20 deg on and 14 mm off its place, short of the goal for good (as the real
+/// pipeline did in about half its runs of 2026-12-03).
+#[test]
+fn the_ellipsoid_turns_a_whole_turn_with_re_plans_that_take_time() {
+    let config = load("ellipsoid_mujoco.toml");
+    let setup = Setup::new(&config).unwrap();
+    for seed in [1, 2, 3] {
+        let mut config = config.clone();
+        config.pipeline.seed = seed;
+        let mut drift = 0.0_f64;
+        let mut start = None;
+        let ended = lockstep::run(&config, &setup, 40.0, 0.5, 1.3, &mut |tick| {
+            let c = tick.plant.sim().object_centre();
+            drift = drift.max((c - *start.get_or_insert(c)).norm());
+        })
+        .unwrap();
+        println!(
+            "seed {seed}: {:.1} deg after {:.1} s, {} re-plans, {} holds, centre at most {:.1} mm off: {:?}",
+            ended.rotation.to_degrees(),
+            ended.time,
+            ended.replans,
+            ended.holds,
+            drift * 1e3,
+            ended.replanned
+        );
+        assert!(ended.done, "seed {seed}: {ended:?}");
+        assert!(ended.replans >= 1, "seed {seed}: {ended:?}");
+        assert!(
+            (ended.rotation.to_degrees() - 360.0).abs() <= 0.02 * 360.0,
+            "seed {seed}: {ended:?}"
+        );
+        assert!(drift < 5e-3, "seed {seed}: the centre {drift} m off");
+        assert!(
+            ended
+                .replanned
+                .iter()
+                .all(|(_, r)| !r.contains("no stand-off")),
+            "seed {seed}: {:?}",
+            ended.replanned
+        );
+    }
 }

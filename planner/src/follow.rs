@@ -266,19 +266,24 @@ fn standoff(
     Some(t)
 }
 
-/// Whether the fingertip of `f` stays off the object (by -0.2 mm at most) all along the
-/// straight joint-space line from `a` to `b`, as the hand moves between targets, and its links
+/// Whether the fingertip of `f` stays off the object all along the straight joint-space line
+/// from `a`, a contact pose, to `b`, as the hand moves between targets: never more than 0.2 mm
+/// deeper than it is at `a` (a contact pose may press a fraction of a millimetre into the
+/// surface: on a mesh, or planned again from an estimate), and its links
 /// [`route::LINK_MARGIN`] off it. On a circular section (the sphere): the fingertip at least
-/// `r` (less 0.2 mm) from the centre, `r` a contact pose's fingertip distance, and the links
+/// `r` (less 0.2 mm) from the centre, `r` the contact pose's fingertip distance, and the links
 /// beyond the circle of radius `r` less the fingertip's. On another section: the fingertip's
 /// and the links' gaps to `surface` turned by `theta`.
 fn outside(f: &Finger, a: &[Real], b: &[Real], r: Real, surface: &Surface, theta: Real) -> bool {
     match surface {
         Surface::Circle { .. } => route::clear(f, a, b, Keepout::new(r - 2e-4, r - f.tip_radius)),
-        Surface::Curve(_) => route::along(a, b, |q| {
-            surface.contact_of(&tip(f, q), f, theta).gap >= -2e-4
-                && surface.link_gap(f, q, theta).0 >= route::LINK_MARGIN
-        }),
+        Surface::Curve(_) => {
+            let floor = surface.contact_of(&tip(f, a), f, theta).gap.min(0.0) - 2e-4;
+            route::along(a, b, |q| {
+                surface.contact_of(&tip(f, q), f, theta).gap >= floor
+                    && surface.link_gap(f, q, theta).0 >= route::LINK_MARGIN
+            })
+        }
     }
 }
 
