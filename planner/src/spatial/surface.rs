@@ -382,9 +382,9 @@ impl Convex {
 
 /// The closest point of the convex polyhedron of `triangles` (with their `planes`, searched
 /// through `tree`) to `x`: the nearest triangle's closest point. Outside (`x` outside the
-/// plane of a nearest triangle), the normal along `x - p` (the offset surface's); inside, the
-/// foot on the nearest plane (for a convex polyhedron the nearest triangle's point is that
-/// foot) and that plane's normal.
+/// plane of a nearest triangle), the normal along `x - p` (the offset surface's), the face's
+/// within [`ON_SURFACE`] of it; inside, the foot on the nearest plane (for a convex
+/// polyhedron the nearest triangle's point is that foot) and that plane's normal.
 fn closest_on_polyhedron(
     x: &Vec3,
     triangles: &[[Vec3; 3]],
@@ -398,19 +398,23 @@ fn closest_on_polyhedron(
             distance: 0.0,
         };
     };
-    if side > 0.0 && d > 0.0 {
-        return Closest {
-            point,
-            normal: (x - point) / d,
-            distance: d,
-        };
-    }
+    // On the surface to rounding (a point that is itself a closest point), `x - p` has no
+    // direction: the face's normal.
+    let normal = if side > 0.0 && d > ON_SURFACE {
+        (x - point) / d
+    } else {
+        planes[t].0
+    };
     Closest {
         point,
-        normal: planes[t].0,
-        distance: -d,
+        normal,
+        distance: if side > 0.0 { d } else { -d },
     }
 }
+
+/// Distance from a polyhedron within which a point counts as on it (m): its normal is then
+/// its face's, not the direction of the rounding between it and its closest point.
+const ON_SURFACE: Real = 1e-10;
 
 /// The closest point on the ellipsoid of semi-axes `a` (centred at the origin) to `y`, moved
 /// by `centre`. The closest point is `p_i = a_i^2 y_i / (a_i^2 + t)` for the root `t` of
@@ -625,6 +629,32 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// A point on a polyhedron's face (a contact candidate: a facet's centre, off the face's
+    /// plane by rounding only) has that face's normal, a unit vector of the mesh's, not the
+    /// direction of the rounding between the point and its closest point; a fingertip placed
+    /// its radius out along it touches there. (That direction once placed the Allegro's
+    /// fingertips sideways into the STL ellipsoid: its thumb could not roll at the start and
+    /// every placement of a switch hit the object.)
+    #[test]
+    fn a_point_on_a_polyhedron_has_its_face_s_normal() {
+        let object = Object::ellipsoid(Vec3::new(0.055, 0.045, 0.04), 64, 32).unwrap();
+        let s = Convex::polyhedron(&object).unwrap();
+        let Convex::Polyhedron {
+            triangles, planes, ..
+        } = &s
+        else {
+            unreachable!()
+        };
+        for (t, (n, _)) in triangles.iter().zip(planes) {
+            let p = (t[0] + t[1] + t[2]) / 3.0;
+            let c = s.closest(&p);
+            assert!(c.distance.abs() < 1e-15, "{p}: {}", c.distance);
+            assert!((c.normal - n).norm() < 1e-12, "{p}: {} vs {n}", c.normal);
+            let b = p + c.normal * 0.0144;
+            assert!((s.closest(&b).distance - 0.0144).abs() < 1e-12);
         }
     }
 
