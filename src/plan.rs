@@ -475,6 +475,16 @@ fn print_text(
             "rolling    largest slip of a step (the contact's travel over the object less over the fingertip) = {:.3e} m",
             s.max_rolling_residual
         )?;
+        if !matches!(
+            config.object,
+            icrflow_scenario::ObjectSpec::Sphere { .. }
+                | icrflow_scenario::ObjectSpec::Ellipsoid { .. }
+        ) {
+            writeln!(
+                o,
+                "           (on a polyhedron that includes pivoting about its edges, where the contact stays on the object and moves over the fingertip: rolling, not slip)"
+            )?;
+        }
     } else {
         for line in section_note(config) {
             writeln!(o, "           {line}")?;

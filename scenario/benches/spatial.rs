@@ -24,7 +24,7 @@ fn bench(c: &mut Criterion) {
     for name in [
         "paper_sphere.toml",
         "allegro_sphere.toml",
-        "allegro_ellipsoid.toml",
+        "allegro_ellipsoid_exact.toml",
     ] {
         let (config, setup) = load(name);
         let alpha = config.grasp.alpha;

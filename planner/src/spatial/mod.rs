@@ -233,11 +233,18 @@ impl SpatialScenario<'_> {
         format!("[{:.1}, {:.1}, {:.1}] mm", 1e3 * p.x, 1e3 * p.y, 1e3 * p.z)
     }
 
-    /// The candidate nearest `p`, walking the candidates' adjacency from `from` to ever
-    /// nearer neighbours, every one passed (but `from`) checked to be in `region` if given:
-    /// `Err` with the first outside.
-    fn walk(&self, from: usize, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
-        crate::planner::walk_candidates(self.problem.candidates(), from, p, region)
+    /// The candidate of contact point `p`: the nearest, all compared (a walk over the
+    /// candidates' adjacency to ever nearer neighbours, the planar planner's, stops at a local
+    /// minimum on a mesh of thin triangles: a contact on the STL ellipsoid was given a facet
+    /// 2 away), checked to be in `region` if given: `Err` with it when it is not. Called at
+    /// every part of a rolling step (at most 1 degree), so a contact leaving its ICR is caught
+    /// within a facet or two.
+    fn walk(&self, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
+        let n = self.nearest(p);
+        match region {
+            Some(r) if r.binary_search(&(n as u32)).is_err() => Err(n),
+            _ => Ok(n),
+        }
     }
 
     /// The candidate nearest `p` (all of them compared).
@@ -554,7 +561,7 @@ impl SpatialScenario<'_> {
             over_object += (touch.point - p).norm();
             over_tip += (u_next - u).norm();
             (p, u) = (touch.point, u_next);
-            candidate = self.walk(candidate, &touch.point, region).map_err(|out| {
+            candidate = self.walk(&touch.point, region).map_err(|out| {
                 format!(
                     "its contact would roll out of its ICR (from {} past {})",
                     self.describe(&t.point),
