@@ -1675,13 +1675,7 @@ mod tests {
             )
             .unwrap(),
         ];
-        let mut rng = 3u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
-        };
+        let mut next = surface::uniform(3);
         for s in &surfaces {
             for _ in 0..200 {
                 let a = Vec3::new(next(), next(), next()) * 0.09;

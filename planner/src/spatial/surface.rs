@@ -471,6 +471,18 @@ fn closest_on_ellipsoid(y: &Vec3, a: &Vec3, centre: &Vec3) -> Closest {
     }
 }
 
+/// A generator of numbers uniform in [-1, 1) from `seed` (a 64-bit LCG), for the tests.
+#[cfg(test)]
+pub(crate) fn uniform(seed: u64) -> impl FnMut() -> Real {
+    let mut rng = seed;
+    move || {
+        rng = rng
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -487,13 +499,7 @@ mod tests {
                 semi_axes: Vec3::new(0.055, 0.045, 0.04),
             },
         ];
-        let mut rng = 12345u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
-        };
+        let mut next = uniform(12345);
         for s in &surfaces {
             for _ in 0..500 {
                 let x = s.centre() + Vec3::new(next(), next(), next()) * 0.1;
@@ -533,13 +539,7 @@ mod tests {
     fn a_polyhedron_s_closest_points_are_the_mesh_s() {
         let object = Object::cuboid(Vec3::new(0.03, 0.02, 0.025), 3).unwrap();
         let s = Convex::polyhedron(&object).unwrap();
-        let mut rng = 99u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
-        };
+        let mut next = uniform(99);
         for _ in 0..500 {
             let x = Vec3::new(next(), next(), next()) * 0.06;
             let c = s.closest(&x);
@@ -581,13 +581,7 @@ mod tests {
             Object::ellipsoid(Vec3::new(0.055, 0.045, 0.04), 64, 32).unwrap(),
             Object::cuboid(Vec3::new(0.03, 0.03, 0.03), 8).unwrap(),
         ];
-        let mut rng = 7u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((rng >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
-        };
+        let mut next = uniform(7);
         for object in &objects {
             let s = Convex::polyhedron(object).unwrap();
             let Convex::Polyhedron {
