@@ -843,14 +843,7 @@ impl Scenario<'_> {
             }
         }
         for f in &self.hand.fingers {
-            if f.cap_half_angle <= s.cap_margin {
-                return Err(PlanError::Settings(format!(
-                    "plan.cap_margin_deg: {} deg leaves no usable cap on finger {} (half-angle {} deg)",
-                    s.cap_margin.to_degrees(),
-                    f.id,
-                    f.cap_half_angle.to_degrees()
-                )));
-            }
+            cap_left(f, s.cap_margin)?;
         }
         Ok(())
     }
@@ -1432,6 +1425,20 @@ impl Scenario<'_> {
         };
         Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
+}
+
+/// Whether finger `f`'s fingertip cap leaves room for contacts `cap_margin` (rad) inside its
+/// edge (both planners' settings check): an error naming `plan.cap_margin_deg` if not.
+pub(crate) fn cap_left(f: &Finger, cap_margin: Real) -> Result<(), PlanError> {
+    if f.cap_half_angle <= cap_margin {
+        return Err(PlanError::Settings(format!(
+            "plan.cap_margin_deg: {} deg leaves no usable cap on finger {} (half-angle {} deg)",
+            cap_margin.to_degrees(),
+            f.id,
+            f.cap_half_angle.to_degrees()
+        )));
+    }
+    Ok(())
 }
 
 /// The candidate of `cands` nearest to `target`, found by walking their adjacency from `from`

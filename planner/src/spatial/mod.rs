@@ -234,12 +234,12 @@ impl SpatialScenario<'_> {
     }
 
     /// The candidate of contact point `p`: the nearest, all compared (a walk over the
-    /// candidates' adjacency to ever nearer neighbours, the planar planner's, stops at a local
+    /// candidates' adjacency to ever nearer neighbours, the planar planner's `walk_candidates`, stops at a local
     /// minimum on a mesh of thin triangles: a contact on the STL ellipsoid was given a facet
     /// 2 away), checked to be in `region` if given: `Err` with it when it is not. Called at
     /// every part of a rolling step (at most 1 degree), so a contact leaving its ICR is caught
     /// within a facet or two.
-    fn walk(&self, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
+    fn candidate_of(&self, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
         let n = self.nearest(p);
         match region {
             Some(r) if r.binary_search(&(n as u32)).is_err() => Err(n),
@@ -561,7 +561,7 @@ impl SpatialScenario<'_> {
             over_object += (touch.point - p).norm();
             over_tip += (u_next - u).norm();
             (p, u) = (touch.point, u_next);
-            candidate = self.walk(&touch.point, region).map_err(|out| {
+            candidate = self.candidate_of(&touch.point, region).map_err(|out| {
                 format!(
                     "its contact would roll out of its ICR (from {} past {})",
                     self.describe(&t.point),
@@ -818,14 +818,7 @@ impl SpatialScenario<'_> {
             }
         }
         for f in &self.hand.fingers {
-            if f.cap_half_angle <= s.cap_margin {
-                return Err(PlanError::Settings(format!(
-                    "plan.cap_margin_deg: {} deg leaves no usable cap on finger {} (half-angle {} deg)",
-                    s.cap_margin.to_degrees(),
-                    f.id,
-                    f.cap_half_angle.to_degrees()
-                )));
-            }
+            crate::planner::cap_left(f, s.cap_margin)?;
             if f.dof() < 3 {
                 return Err(PlanError::Settings(format!(
                     "finger {}: {} joints cannot place a fingertip in space (at least 3)",
