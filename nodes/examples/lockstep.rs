@@ -105,6 +105,10 @@ fn main() -> Result<()> {
     let mut stats: BTreeMap<&'static str, PhaseStats> = BTreeMap::new();
     let mut next_line = 0.0;
     let mut worst: Option<(f64, String)> = None;
+    // Per finger id: touched since planned in contact, truths off in a row; and the losses
+    // as `run` counts them (off for 3 truths in a row once made, while still planned).
+    let mut made: BTreeMap<u32, (bool, u32)> = BTreeMap::new();
+    let mut losses: Vec<String> = Vec::new();
     let started = std::time::Instant::now();
     let ended = lockstep::run(&config, &setup, seconds, 0.5, replan_s, &mut |tick| {
         let Some(truth) = tick.truth else {
@@ -116,6 +120,28 @@ fn main() -> Result<()> {
         s.ticks += 1;
         if let Some(plan) = plan {
             let n = (plan.finger_count as usize).min(MAX_FINGERS);
+            for slot in 0..truth.finger_count as usize {
+                let finger = truth.finger_ids[slot];
+                let planned = plan.targets[..n]
+                    .iter()
+                    .any(|t| t.finger == finger && t.in_contact == 1);
+                let on = truth.in_contact[slot] == 1;
+                let (m, off) = made.entry(finger).or_default();
+                *m = planned && (*m || on);
+                if *m && !on {
+                    *off += 1;
+                    if *off == 3 {
+                        losses.push(format!(
+                            "t {:.3} s, step {} {phase}, finger {finger} (true {:.2} deg)",
+                            tick.time,
+                            plan.step,
+                            truth.rotation.to_degrees()
+                        ));
+                    }
+                } else {
+                    *off = 0;
+                }
+            }
             for k in 0..n {
                 let target = &plan.targets[k];
                 if target.in_contact != 1 {
@@ -251,6 +277,13 @@ fn main() -> Result<()> {
     );
     for (t, said) in &ended.replanned {
         eprintln!("  at {t:.2} s: {said}");
+    }
+    eprintln!(
+        "  {} contacts lost while planned (3 truths off in a row)",
+        losses.len()
+    );
+    for l in &losses {
+        eprintln!("    lost: {l}");
     }
     for (phase, s) in &stats {
         eprintln!(

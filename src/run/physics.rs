@@ -14,7 +14,7 @@
 //! its size from the start).
 
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
-use icrflow_interfaces::{MAX_FINGERS, PlanStepHeader, PlantEngine, PlantTruth};
+use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlanStepHeader, PlantEngine, PlantTruth};
 use icrflow_scenario::{Config, Setup};
 use serde::Serialize;
 
@@ -23,6 +23,24 @@ use serde::Serialize;
 pub const LOST_AFTER: u32 = 3;
 /// The object is dropped when its centre has moved this fraction of its largest radius.
 pub const DROP_FRACTION: Real = 0.5;
+
+/// The losses a summary lists (it counts them all).
+pub const LOSSES_KEPT: usize = 16;
+
+/// A contact lost while planned: when, and what the plan was doing.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Loss {
+    /// The finger.
+    pub finger: u32,
+    /// The newest plan step when it was lost, and its phase (`"rolling"`, `"attach"`, ...).
+    pub step: u64,
+    /// See `step`.
+    pub phase: &'static str,
+    /// The object's true rotation then (deg).
+    pub rotation_deg: Real,
+    /// Seconds since the first truth.
+    pub at_s: Real,
+}
 
 /// The summary's `physics`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -39,6 +57,8 @@ pub struct PhysicsSummary {
     pub max_friction_use: Real,
     /// Contacts lost while planned.
     pub unplanned_losses: u32,
+    /// When each of them was lost (the first [`LOSSES_KEPT`]).
+    pub losses: Vec<Loss>,
     /// The smallest alpha* of the true contacts over the plan steps (`None`: no step had a
     /// grasp in force closure to evaluate, or none came).
     pub min_true_quality: Option<Real>,
@@ -62,6 +82,9 @@ pub struct PhysicsTrack {
     max_slip: Real,
     max_use: Real,
     losses: u32,
+    lost: Vec<Loss>,
+    first_stamp: Option<u64>,
+    phase: &'static str,
     min_quality: Option<Real>,
     evaluated: u32,
     not_closed: u32,
@@ -103,6 +126,9 @@ impl PhysicsTrack {
             max_slip: 0.0,
             max_use: 0.0,
             losses: 0,
+            lost: Vec::new(),
+            first_stamp: None,
+            phase: "none",
             min_quality: None,
             evaluated: 0,
             not_closed: 0,
@@ -122,6 +148,7 @@ impl PhysicsTrack {
     pub fn plan_step(&mut self, p: &PlanStepHeader) {
         let n = (p.finger_count as usize).min(MAX_FINGERS);
         self.planned = [(0, false); MAX_FINGERS];
+        self.phase = phase_name(p.phase);
         for (slot, t) in p.targets.iter().enumerate().take(n) {
             self.planned[slot] = (t.finger, t.in_contact == 1);
         }
@@ -144,6 +171,7 @@ impl PhysicsTrack {
         if t.engine != PlantEngine::Mujoco as u32 {
             return;
         }
+        self.first_stamp.get_or_insert(t.header.source_time_ns);
         let centre = Vec3::from(t.position);
         let start = *self.start.get_or_insert(centre);
         self.drift = self.drift.max((centre - start).norm());
@@ -178,6 +206,16 @@ impl PhysicsTrack {
                 if *count >= LOST_AFTER && !*counted {
                     *counted = true;
                     self.losses += 1;
+                    if self.lost.len() < LOSSES_KEPT {
+                        let first = *self.first_stamp.get_or_insert(t.header.source_time_ns);
+                        self.lost.push(Loss {
+                            finger,
+                            step: self.last_step.unwrap_or(0),
+                            phase: self.phase,
+                            rotation_deg: t.rotation.to_degrees(),
+                            at_s: t.header.source_time_ns.saturating_sub(first) as Real * 1e-9,
+                        });
+                    }
                 }
             } else {
                 *count = 0;
@@ -253,11 +291,24 @@ impl PhysicsTrack {
             max_slip_m_s: self.max_slip,
             max_friction_use: self.max_use,
             unplanned_losses: self.losses,
+            losses: self.lost.clone(),
             min_true_quality: min_quality,
             steps_evaluated: evaluated,
             steps_not_closed: not_closed,
             dropped: self.dropped,
         }
+    }
+}
+
+/// A plan phase's name, as the summary writes it.
+fn phase_name(phase: u32) -> &'static str {
+    match phase {
+        x if x == PlanPhase::Start as u32 => "start",
+        x if x == PlanPhase::Rolling as u32 => "rolling",
+        x if x == PlanPhase::Attach as u32 => "attach",
+        x if x == PlanPhase::Detach as u32 => "detach",
+        x if x == PlanPhase::Done as u32 => "done",
+        _ => "unknown",
     }
 }
 
@@ -337,21 +388,38 @@ mod tests {
     fn a_contact_is_lost_only_once_it_was_made() {
         let (config, c) = paper();
         let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        // Truths 10 ms apart, as the plant publishes them.
+        let mut sent = 0u64;
+        let mut feed = |track: &mut PhysicsTrack, t: &PlantTruth| {
+            let mut t = *t;
+            t.header.source_time_ns = 5_000_000_000 + sent * 10_000_000;
+            sent += 1;
+            track.truth(&t);
+        };
         // Finger 3 (slot 2) attaches at a candidate between fingers 2's and 4's.
         let attach = (c[1] + c[2]) / 2;
-        track.plan_step(&step(5, [true, true, true, true]));
+        let mut attaching = step(5, [true, true, true, true]);
+        attaching.phase = PlanPhase::Attach as u32;
+        track.plan_step(&attaching);
         let approaching = truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]);
         for _ in 0..10 {
-            track.truth(&approaching);
+            feed(&mut track, &approaching);
         }
         assert_eq!(track.summary().unplanned_losses, 0);
         let touching = truth(&config, [Some(c[0]), Some(c[1]), Some(attach), Some(c[2])]);
-        track.truth(&touching);
+        feed(&mut track, &touching);
         for k in 0..LOST_AFTER {
             assert_eq!(track.summary().unplanned_losses, 0, "after {k} truths off");
-            track.truth(&approaching);
+            feed(&mut track, &approaching);
         }
-        assert_eq!(track.summary().unplanned_losses, 1);
+        let s = track.summary();
+        assert_eq!(s.unplanned_losses, 1);
+        // The summary says which finger, in which step and phase, and when: the loss is
+        // counted at the run's fourteenth truth, 130 ms after its first.
+        assert_eq!(s.losses.len(), 1);
+        let l = &s.losses[0];
+        assert_eq!((l.finger, l.step, l.phase), (3, 5, "attach"));
+        assert!((l.at_s - 0.13).abs() < 1e-9, "{l:?}");
     }
 
     /// A plan step's grasp is taken at its last truth, as the hand has made it: at the first

@@ -448,6 +448,13 @@ impl RunSummary {
                 p.max_friction_use,
                 p.unplanned_losses
             )?;
+            for l in &p.losses {
+                writeln!(
+                    o,
+                    "           lost: finger {} at {:.2} s (step {}, {}; the object at {:.1} deg)",
+                    l.finger, l.at_s, l.step, l.phase, l.rotation_deg
+                )?;
+            }
             match p.min_true_quality {
                 Some(q) => writeln!(
                     o,
