@@ -48,8 +48,15 @@ fn ticks(c: &mut Criterion) {
             })
         });
         // The same scenario on the kinematic plant.
-        let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let (joints, touching) = setup.initial_grip(&config).unwrap();
+        let roller = setup.roller(&config).unwrap();
+        let mut plant = Plant::new(
+            &setup.hand,
+            roller,
+            (joints, &touching),
+            &config.pipeline,
+            T0,
+        );
         let mut t = T0;
         let stem = format!("{}_kinematic", stem.trim_end_matches("_mujoco"));
         group.bench_function(&stem, |b| {

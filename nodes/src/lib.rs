@@ -41,4 +41,12 @@ mod testing {
         let setup = Setup::new(&config).unwrap();
         (config, setup)
     }
+
+    /// The Allegro hand's sphere (`config/allegro_sphere.toml`): a spatial hand.
+    pub fn allegro_sphere() -> (Config, Setup) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let config = Config::load(&dir.join("allegro_sphere.toml")).unwrap();
+        let setup = Setup::new(&config).unwrap();
+        (config, setup)
+    }
 }

@@ -5,8 +5,11 @@
 //! Each tick (`pipeline.rate_hz`): each finger's joints move toward the last tracked command
 //! along a straight line in joint space, the largest at `pipeline.joint_speed_deg_s` for the
 //! time since the last tick; a held command keeps them still. The fingers commanded with
-//! a force that touch the object before and after the move roll it ([`icrflow_plan::rolling`]): the
-//! object's rotation is the mean of what each implies. Encoders get Gaussian noise
+//! a force that touch the object before and after the move roll it
+//! ([`icrflow_plan::rolling::Roller`]): a planar hand's section turns about the hand's z axis
+//! by the mean of what each finger implies; a spatial hand's object turns about its plan's
+//! axis by the least squares of the fingers' rolling without slipping
+//! ([`icrflow_plan::spatial::rolling`]). The object's centre stays where it is. Encoders get Gaussian noise
 //! (`pipeline.joint_noise_deg`); every `1 / pipeline.pose_rate_hz` s a pose measurement of the
 //! rotation `pipeline.pose_latency_ms` ago, with noise `pipeline.pose_noise_deg`, is published.
 //! A command older than `pipeline.max_input_age_ms` is not followed: the hand holds still.
@@ -39,8 +42,7 @@ use icrflow_interfaces::{
     PlantTruth, topics,
 };
 use icrflow_plan::hand::Hand;
-use icrflow_plan::planner::Contact;
-use icrflow_plan::rolling::{Surface, tip};
+use icrflow_plan::rolling::Roller;
 use icrflow_scenario::{PipelineSpec, PlantKind};
 
 use crate::Context;
@@ -172,7 +174,7 @@ pub struct Output {
 #[derive(Debug)]
 pub struct Plant<'a> {
     hand: &'a Hand,
-    surface: &'a Surface,
+    roller: Roller<'a>,
     /// Joint speed (rad/s), joint and pose noise (rad), slip (rad).
     joint_speed: f64,
     joint_noise: f64,
@@ -209,19 +211,20 @@ pub struct Plant<'a> {
 }
 
 impl<'a> Plant<'a> {
-    /// The plant of `hand` holding an object of section `surface` in the initial grasp
-    /// `contacts`, under `pipeline`'s rates, noise and slip, started at `now_ns`.
+    /// The plant of `hand` holding the object `roller` rolls on in the initial grasp: every
+    /// finger's `joints`, the fingers `touching` it ([`icrflow_scenario::Setup::initial_grip`]),
+    /// under `pipeline`'s rates, noise and slip, started at `now_ns`.
     pub fn new(
         hand: &'a Hand,
-        surface: &'a Surface,
-        contacts: &[Contact],
+        roller: Roller<'a>,
+        (joints, touching): (Vec<Vec<f64>>, &[u32]),
         p: &PipelineSpec,
         now_ns: u64,
     ) -> Self {
         let n = hand.fingers.len();
         Self {
             hand,
-            surface,
+            roller,
             joint_speed: p.joint_speed,
             joint_noise: p.joint_noise,
             pose_noise: p.pose_noise,
@@ -231,11 +234,11 @@ impl<'a> Plant<'a> {
             latency_ns: (p.pose_latency * 1e9) as u64,
             pose_every: (p.rate_hz / p.pose_rate_hz).round().max(1.0) as u64,
             slip_at_ns: now_ns.saturating_add(Duration::from_secs_f64(p.slip_at).as_nanos() as u64),
-            q: initial_joints(hand, contacts),
+            q: joints,
             contact: hand
                 .fingers
                 .iter()
-                .map(|f| contacts.iter().any(|c| c.finger == f.id))
+                .map(|f| touching.contains(&f.id))
                 .collect(),
             intruding: vec![false; n],
             link_intruding: vec![false; n],
@@ -358,15 +361,16 @@ impl<'a> Plant<'a> {
     /// Moves the joints by at most `max_step` toward the target; rolls the object with the
     /// fingers that press on it.
     fn roll(&mut self, max_step: f64) {
-        let (hand, surface, theta) = (self.hand, self.surface, self.theta);
+        let (hand, roller, theta) = (self.hand, self.roller, self.theta);
         let Some(c) = &self.target else {
             return;
         };
-        let mut turn = 0.0;
-        let mut rolling = 0;
+        let (mut turn, mut weight) = (0.0, 0.0);
         for (slot, f) in hand.fingers.iter().enumerate() {
             let q = &mut self.q[slot];
-            let before = tip(f, q);
+            let mut before = [0.0; MAX_JOINTS];
+            let n = q.len().min(MAX_JOINTS);
+            before[..n].copy_from_slice(&q[..n]);
             let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id) else {
                 continue;
             };
@@ -384,11 +388,10 @@ impl<'a> Plant<'a> {
                 *a += scale * (goal[j] - *a);
             }
             let pressing = c.forces[k].iter().any(|x| *x != 0.0);
-            let after = tip(f, q);
             // The simulation lets a fingertip pass through the object; a real one would
             // hit it. Said on entering, always: it is a planning or tracking fault.
             // The fingertip's gap to the object (the object turns after every finger moved).
-            let gap = surface.contact_of(&after, f, theta).gap;
+            let gap = roller.gap(f, q, theta);
             let depth = -gap;
             let inside = !self.contact[slot] && depth > TOUCH;
             if inside && !self.intruding[slot] {
@@ -399,7 +402,7 @@ impl<'a> Plant<'a> {
             }
             self.intruding[slot] = inside;
             // The same for the links (the planner keeps them off the object).
-            let (link_gap, link) = surface.link_gap(f, q, theta);
+            let (link_gap, link) = roller.link_gap(f, q, theta);
             let through = link_gap < -TOUCH;
             if through && !self.link_intruding[slot] {
                 self.events.push(Event::LinkThrough {
@@ -410,8 +413,9 @@ impl<'a> Plant<'a> {
             }
             self.link_intruding[slot] = through;
             if self.contact[slot] && pressing {
-                turn += surface.rotation(&before, &after, f, theta);
-                rolling += 1;
+                let (t, w) = roller.turn(f, &before[..n], q, theta);
+                turn += t;
+                weight += w;
             }
             // A pressing finger comes into contact where its motion ends on the surface.
             let was = self.contact[slot];
@@ -423,8 +427,8 @@ impl<'a> Plant<'a> {
                 });
             }
         }
-        if rolling > 0 {
-            self.theta += turn / rolling as f64;
+        if weight > 0.0 {
+            self.theta += turn / weight;
         }
     }
 
@@ -444,9 +448,8 @@ impl<'a> Plant<'a> {
             }
         }
         let truth = self.ticks.is_multiple_of(TRUTH_EVERY).then(|| {
-            let half = 0.5 * self.theta;
             let mut truth = PlantTruth {
-                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                orientation: self.roller.orientation(self.theta),
                 rotation: self.theta,
                 finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
                 ..Default::default()
@@ -467,11 +470,10 @@ impl<'a> Plant<'a> {
                 .or(self.history.front())
                 .map_or(self.theta, |(_, th)| *th);
             let measured = past + self.noise.gauss(self.pose_noise);
-            let half = 0.5 * measured;
             ObjectPose {
                 captured_time_ns: captured,
                 position: [0.0; 3],
-                orientation: [half.cos(), 0.0, 0.0, half.sin()],
+                orientation: self.roller.orientation(measured),
                 ..Default::default()
             }
         });
@@ -531,17 +533,24 @@ pub fn run(ctx: &Context) -> Result<()> {
     let config = &ctx.scenario.config;
     let setup = &ctx.scenario.setup;
     let p = &config.pipeline;
-    // The true state starts in the initial grasp, as the planner computes it.
-    let (contacts, _) = setup
-        .scenario(config)
-        .start()
-        .context("the initial grasp")?;
     let mut plant = match config.plant.kind {
         PlantKind::Kinematic => {
-            let plant = Plant::new(&setup.hand, setup.surface()?, &contacts, p, now());
+            // The true state starts in the initial grasp, as the planner computes it.
+            let (joints, touching) = setup.initial_grip(config)?;
+            let plant = Plant::new(
+                &setup.hand,
+                setup.roller(config)?,
+                (joints, &touching),
+                p,
+                now(),
+            );
             Any::Kinematic(Box::new(plant))
         }
         PlantKind::Mujoco => {
+            let (contacts, _) = setup
+                .scenario(config)
+                .start()
+                .context("the initial grasp")?;
             let physical = crate::physical::Physical::new(config, setup, &contacts, now())?;
             eprintln!(
                 "icrflow-plant: MuJoCo {}, the object {:.3} kg",
@@ -611,7 +620,11 @@ pub fn run(ctx: &Context) -> Result<()> {
 mod tests {
     use super::*;
     use crate::testing::paper;
+    use icrflow_plan::rolling::tip;
     use icrflow_scenario::{Config, Setup};
+
+    /// The initial grasp: every finger's joints and the fingers touching.
+    type Grip = (Vec<Vec<f64>>, Vec<u32>);
 
     /// A start time (ns).
     const T0: u64 = 1_000_000_000_000;
@@ -644,25 +657,27 @@ mod tests {
 
     /// The paper's plant without noise, its initial grasp, and the slots of the fingers in
     /// contact and of those free.
-    fn still(config: &mut Config, setup: &Setup) -> (Vec<Contact>, Vec<usize>, Vec<usize>) {
+    fn still(config: &mut Config, setup: &Setup) -> (Grip, Vec<usize>, Vec<usize>) {
         config.pipeline.joint_noise = 0.0;
         config.pipeline.pose_noise = 0.0;
-        let (contacts, _) = setup.scenario(config).start().unwrap();
-        let (touching, free): (Vec<usize>, Vec<usize>) =
-            (0..setup.hand.fingers.len()).partition(|&s| {
-                contacts
-                    .iter()
-                    .any(|c| c.finger == setup.hand.fingers[s].id)
-            });
-        (contacts, touching, free)
+        let grip = setup.initial_grip(config).unwrap();
+        let (touching, free): (Vec<usize>, Vec<usize>) = (0..setup.hand.fingers.len())
+            .partition(|&s| grip.1.contains(&setup.hand.fingers[s].id));
+        (grip, touching, free)
     }
 
     #[test]
     fn a_commanded_finger_in_contact_rolls_the_object_as_the_rolling_kinematics_say() {
         let (mut config, setup) = paper();
-        let (contacts, touching, _) = still(&mut config, &setup);
+        let (grip, touching, _) = still(&mut config, &setup);
         let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let mut plant = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            &config.pipeline,
+            T0,
+        );
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let slot = touching[0];
         let f = &setup.hand.fingers[slot];
@@ -709,10 +724,16 @@ mod tests {
     #[test]
     fn a_finger_off_the_object_does_not_turn_it() {
         let (mut config, setup) = paper();
-        let (contacts, touching, free) = still(&mut config, &setup);
+        let (grip, touching, free) = still(&mut config, &setup);
         assert!(!free.is_empty(), "the paper's hand has a free finger");
         let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let mut plant = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            &config.pipeline,
+            T0,
+        );
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let mut to = plant.joints().to_vec();
         for slot in [free[0], touching[0]] {
@@ -750,7 +771,7 @@ mod tests {
     #[test]
     fn the_pose_measurement_comes_after_the_delay_with_the_noise() {
         let (mut config, setup) = paper();
-        let (contacts, _, _) = still(&mut config, &setup);
+        let (grip, _, _) = still(&mut config, &setup);
         let p = &mut config.pipeline;
         p.pose_latency = 0.1;
         p.slip = 10f64.to_radians();
@@ -761,7 +782,13 @@ mod tests {
         let latency = (p.pose_latency * 1e9) as u64;
         let slip_at = T0 + (p.slip_at * 1e9) as u64;
         // Without noise: the rotation of `latency` ago, every `every` ticks.
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, p, T0);
+        let mut plant = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            p,
+            T0,
+        );
         let mut poses = 0;
         for k in 1..=1000 {
             let t = T0 + k * dt;
@@ -792,7 +819,13 @@ mod tests {
         let sigma = 0.5_f64.to_radians();
         p.pose_noise = sigma;
         p.slip = 0.0;
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, p, T0);
+        let mut plant = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            p,
+            T0,
+        );
         let errors: Vec<f64> = (1..=30_000)
             .filter_map(|k| plant.tick(T0 + k * dt, None).pose)
             .map(|pose| 2.0 * pose.orientation[3].atan2(pose.orientation[0]))
@@ -808,16 +841,28 @@ mod tests {
     #[test]
     fn a_saved_state_is_resumed() {
         let (mut config, setup) = paper();
-        let (contacts, touching, _) = still(&mut config, &setup);
+        let (grip, touching, _) = still(&mut config, &setup);
         let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(&setup.hand, surface, &contacts, &config.pipeline, T0);
+        let mut plant = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            &config.pipeline,
+            T0,
+        );
         let mut to = plant.joints().to_vec();
         to[touching[0]][0] += 0.05_f64.to_radians();
         let c = command(&setup, &[touching[0]], &to, true, T0);
         plant.tick(T0 + 1_000_000, Some(&c));
         let mut text = String::new();
         plant.save(&mut text);
-        let mut resumed = Plant::new(&setup.hand, surface, &[], &config.pipeline, T0);
+        let mut resumed = Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &[]),
+            &config.pipeline,
+            T0,
+        );
         assert!(resumed.restore(&text));
         assert_eq!(resumed.rotation(), plant.rotation());
         assert_eq!(resumed.joints(), plant.joints());
@@ -825,5 +870,86 @@ mod tests {
         // Another hand's state changes nothing.
         assert!(!resumed.restore("0.5 1 0 0.1"));
         assert_eq!(resumed.rotation(), plant.rotation());
+    }
+
+    /// A spatial hand's fingers rolling the object as its plan has them turn it: the plant
+    /// commanded the Allegro's joints of each of the sphere's first rolling steps (1 deg
+    /// each, about the hand's y axis) turns it by the plan's rotation, the fingertips staying
+    /// on the surface; the pose it measures is that rotation about the axis.
+    #[test]
+    fn a_spatial_hand_rolling_as_planned_turns_the_object_as_planned() {
+        let (mut config, setup) = crate::testing::allegro_sphere();
+        let (grip, _, _) = still(&mut config, &setup);
+        let scenario = setup.spatial_scenario(&config).unwrap();
+        let roller = setup.roller(&config).unwrap();
+        let mut plant = Plant::new(
+            &setup.hand,
+            roller,
+            (grip.0.clone(), &grip.1),
+            &config.pipeline,
+            T0,
+        );
+        let (mut touches, _) = scenario.start().unwrap();
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let slots: Vec<usize> = touches
+            .iter()
+            .map(|t| {
+                setup
+                    .hand
+                    .fingers
+                    .iter()
+                    .position(|f| f.id == t.finger)
+                    .unwrap()
+            })
+            .collect();
+        let (mut theta, mut now) = (0.0, T0);
+        let mut worst = 0.0_f64;
+        for _ in 0..10 {
+            let step = 1f64.to_radians();
+            let icrflow_plan::spatial::Roll::Moved(next, _) =
+                scenario.roll(&touches, theta, step).unwrap()
+            else {
+                panic!("the plan's first steps roll");
+            };
+            touches = next;
+            theta += step;
+            let mut joints = plant.joints().to_vec();
+            for (t, &slot) in touches.iter().zip(&slots) {
+                joints[slot] = t.q.clone();
+            }
+            let c = command(&setup, &slots, &joints, true, now);
+            for _ in 0..200 {
+                now += dt;
+                plant.tick(now, Some(&c));
+                if slots.iter().all(|&s| plant.joints()[s] == joints[s]) {
+                    break;
+                }
+            }
+            assert!(slots.iter().all(|&s| plant.joints()[s] == joints[s]));
+            worst = worst.max((plant.rotation() - theta).abs());
+            for &s in &slots {
+                let f = &setup.hand.fingers[s];
+                let gap = roller.gap(f, &plant.joints()[s], plant.rotation());
+                assert!(gap.abs() < 0.05e-3, "finger {}: {gap} m off", f.id);
+            }
+        }
+        assert!(
+            worst < 0.02f64.to_radians(),
+            "the plant turned it {} deg off the plan",
+            worst.to_degrees()
+        );
+        assert!(plant.events().is_empty(), "{:?}", plant.events());
+        // The pose measured (no noise; the object still for longer than the latency) is the
+        // rotation about the plan's axis.
+        let still_until = now + (config.pipeline.pose_latency * 1e9) as u64;
+        let mut pose = None;
+        while pose.is_none() || now <= still_until {
+            now += dt;
+            pose = plant.tick(now, None).pose;
+        }
+        let measured = roller.rotation_of(pose.unwrap().orientation);
+        assert!((measured - plant.rotation()).abs() < 1e-12);
+        let [_, x, y, z] = pose.unwrap().orientation;
+        assert!(x.abs() < 1e-15 && z.abs() < 1e-15 && y > 0.0, "about +y");
     }
 }

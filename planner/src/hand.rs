@@ -293,6 +293,12 @@ impl Finger {
         )
     }
 
+    /// The last joint frame at `q` (the fingertip's: its centre is at `frame * tip`), without
+    /// allocating.
+    pub fn tip_frame(&self, q: &[Real]) -> Isometry3 {
+        self.chain(q, |_| {})
+    }
+
     /// The last joint frame at `q`, calling `at_joint` with each joint frame's origin.
     fn chain(&self, q: &[Real], mut at_joint: impl FnMut(Vec3)) -> Isometry3 {
         let mut t = self.base;

@@ -126,6 +126,76 @@ pub enum Surface {
     Curve(Curve),
 }
 
+/// What the pipeline's kinematic plant and its estimator roll fingertips on: a planar hand's
+/// section of the object in its plane ([`Surface`], turned about the hand's z axis), or a
+/// spatial hand's object turning about its plan's axis
+/// ([`crate::spatial::rolling::Turning`]).
+#[derive(Debug, Clone, Copy)]
+pub enum Roller<'a> {
+    /// The section in the hand's plane.
+    Section(&'a Surface),
+    /// The object in space.
+    Space(crate::spatial::rolling::Turning<'a>),
+}
+
+impl Roller<'_> {
+    /// The unit axis (hand frame) the object turns about.
+    pub fn axis(&self) -> [f64; 3] {
+        match self {
+            Self::Section(_) => [0.0, 0.0, 1.0],
+            Self::Space(t) => [t.axis.x, t.axis.y, t.axis.z],
+        }
+    }
+
+    /// Signed distance of finger `finger`'s fingertip at `q` from the object at `theta`
+    /// (m; 0 touching, negative inside).
+    pub fn gap(&self, finger: &Finger, q: &[f64], theta: f64) -> f64 {
+        match self {
+            Self::Section(s) => s.contact_of(&tip(finger, q), finger, theta).gap,
+            Self::Space(t) => t.contact_of(finger, q, theta).gap,
+        }
+    }
+
+    /// How close the links of `finger` at `q` come to the object at `theta` (m, negative
+    /// inside), and which link.
+    pub fn link_gap(&self, finger: &Finger, q: &[f64], theta: f64) -> (f64, usize) {
+        match self {
+            Self::Section(s) => s.link_gap(finger, q, theta),
+            Self::Space(t) => t.link_gap(finger, q, theta),
+        }
+    }
+
+    /// The object's rotation implied by `finger` rolling from joints `qa` to `qb`, the object
+    /// at `theta` before, as `(numerator, weight)`: over several fingers the object turns by
+    /// the sums' quotient (on a section every finger weighs 1: the mean of what each
+    /// implies; in space, the least squares of [`crate::spatial::rolling`]).
+    pub fn turn(&self, finger: &Finger, qa: &[f64], qb: &[f64], theta: f64) -> (f64, f64) {
+        match self {
+            Self::Section(s) => (
+                s.rotation(&tip(finger, qa), &tip(finger, qb), finger, theta),
+                1.0,
+            ),
+            Self::Space(t) => t.turn(finger, qa, qb, theta),
+        }
+    }
+
+    /// The object's orientation at `theta` as a unit quaternion `[w, x, y, z]`.
+    pub fn orientation(&self, theta: f64) -> [f64; 4] {
+        let [x, y, z] = self.axis();
+        let (s, c) = (0.5 * theta).sin_cos();
+        [c, s * x, s * y, s * z]
+    }
+
+    /// The object's rotation about the axis that orientation `q` (`[w, x, y, z]`) has: the
+    /// angle of its twist about the axis (rad, in `(-pi, pi]`); `q`'s swing off the axis,
+    /// which the object's model does not have, is left out.
+    pub fn rotation_of(&self, q: [f64; 4]) -> f64 {
+        let [x, y, z] = self.axis();
+        let along = q[1] * x + q[2] * y + q[3] * z;
+        wrap(2.0 * along.atan2(q[0]))
+    }
+}
+
 /// The samples of a [`Surface::Curve`], in order of increasing polar angle.
 #[derive(Debug, Clone)]
 pub struct Curve {

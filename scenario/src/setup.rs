@@ -8,7 +8,8 @@ use icrflow_grasp::quality::{GraspError, GraspProblem};
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
-use icrflow_plan::rolling::{Surface, SurfaceError};
+use icrflow_plan::rolling::{Roller, Surface, SurfaceError};
+use icrflow_plan::spatial::rolling::Turning;
 use icrflow_plan::spatial::surface::Convex;
 use icrflow_plan::spatial::{Spatial, SpatialScenario};
 
@@ -238,6 +239,48 @@ impl Setup {
                 part: icrflow_plan::spatial::PART,
             },
         })
+    }
+
+    /// What the pipeline's plant and estimator roll fingertips on: a planar hand's section
+    /// ([`Setup::surface`], or why there is none), a spatial hand's object turning about
+    /// `plan.axis`.
+    pub fn roller(&self, config: &Config) -> Result<Roller<'_>> {
+        Ok(match &self.spatial {
+            Some(s) => Roller::Space(Turning {
+                surface: &s.surface,
+                centre: self.object.centre_of_mass,
+                axis: nalgebra::Unit::new_normalize(config.turn.axis),
+            }),
+            None => Roller::Section(self.surface()?),
+        })
+    }
+
+    /// The initial grasp as the hand takes it: every finger's joints (in the hand's order;
+    /// the free fingers at home) and the fingers in contact, by the planar or the spatial
+    /// planner's start.
+    pub fn initial_grip(&self, config: &Config) -> Result<(Vec<Vec<Real>>, Vec<u32>)> {
+        let placed: Vec<(u32, Vec<Real>)> = match self.spatial_scenario(config) {
+            Some(s) => {
+                let (touches, _) = s.start().context("the initial grasp")?;
+                touches.into_iter().map(|t| (t.finger, t.q)).collect()
+            }
+            None => {
+                let (contacts, _) = self.scenario(config).start().context("the initial grasp")?;
+                contacts.into_iter().map(|c| (c.finger, c.q)).collect()
+            }
+        };
+        let joints = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                placed
+                    .iter()
+                    .find(|(id, _)| *id == f.id)
+                    .map_or_else(|| f.home.clone(), |(_, q)| q.clone())
+            })
+            .collect();
+        Ok((joints, placed.into_iter().map(|(id, _)| id).collect()))
     }
 
     /// The object's section as the pipeline's plant and estimator roll fingertips on it, or

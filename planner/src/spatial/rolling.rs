@@ -26,11 +26,107 @@
 //! point's, `v_o + w_o x (p - c)`: three equations on the finger's joint rates. A four-joint
 //! finger keeps one free direction, along which it rolls on the object (the object still) in
 //! the one direction its joints allow.
+//!
+//! # The object turned by the fingers
+//! The other way round, as the pipeline's kinematic plant and its estimator use it
+//! ([`Turning`]): the object held at its centre `c` and turning about the unit axis `a`, a
+//! finger in contact at `p` (hand frame) moves its joints over a tick, its fingertip frame
+//! from `(R_1, b_1)` to `(R_2, b_2)`. Its material point at the contact moves by
+//! `d = b_2 - b_1 + (R_2 R_1^T - I)(p - b_1)`; the object's material point there by
+//! `dtheta a x (p - c)` to first order. Without slipping the two are equal; the rotation that
+//! comes nearest, in least squares over the fingers `i` in contact, is
+//! `dtheta = sum_i (a x (p_i - c)) . d_i / sum_i |a x (p_i - c)|^2`: each finger's
+//! tangential displacement about the axis, weighted by its lever arm (a contact on the axis
+//! turns nothing). On a plan's own joint motions the fingers agree and this is the plan's
+//! rotation (`tests`: the Allegro's plan of the sphere, to its integration's accuracy).
 
 use icrflow_grasp::math::{Real, Vec3};
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::{Matrix2, Rotation3, Unit, Vector2};
 
 use super::surface::Convex;
+use crate::hand::Finger;
+
+/// An object turning about an axis through its centre of mass, which is held at the hand
+/// frame's origin (the spatial planner's model): where fingertips touch it and how far their
+/// rolling turns it ([`Turning::turn`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Turning<'a> {
+    /// The surface the fingertips roll on (body frame).
+    pub surface: &'a Convex,
+    /// The object's centre of mass (body frame).
+    pub centre: Vec3,
+    /// The unit axis (hand frame) it turns about.
+    pub axis: Unit<Vec3>,
+}
+
+/// Where a fingertip is against a [`Turning`] object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TipContact {
+    /// Signed distance of the fingertip sphere from the surface (m): 0 touching, negative
+    /// inside.
+    pub gap: Real,
+    /// The surface point nearest the fingertip centre (body frame).
+    pub point: Vec3,
+    /// The outward unit normal there (body frame).
+    pub normal: Vec3,
+}
+
+impl Turning<'_> {
+    /// The object's rotation at `theta` (body to hand frame, about the centre).
+    pub fn rotation(&self, theta: Real) -> Rotation3<Real> {
+        Rotation3::from_axis_angle(&self.axis, theta)
+    }
+
+    /// Hand-frame position of body point `b` with the object at `theta`.
+    pub fn to_world(&self, theta: Real, b: &Vec3) -> Vec3 {
+        self.rotation(theta) * (b - self.centre)
+    }
+
+    /// Body point at hand-frame position `w` with the object at `theta`.
+    pub fn to_body(&self, theta: Real, w: &Vec3) -> Vec3 {
+        self.rotation(theta).inverse() * w + self.centre
+    }
+
+    /// Where finger `f`'s fingertip at joints `q` is against the object at `theta`.
+    pub fn contact_of(&self, f: &Finger, q: &[Real], theta: Real) -> TipContact {
+        let b = self.to_body(theta, &f.tip_centre(q));
+        let c = self.surface.closest(&b);
+        TipContact {
+            gap: c.distance - f.tip_radius,
+            point: c.point,
+            normal: c.normal,
+        }
+    }
+
+    /// How close finger `f`'s links (as lines, [`Finger::link_segments`]) come to the
+    /// surface at `q` with the object at `theta` (m; negative inside), and which link.
+    pub fn link_gap(&self, f: &Finger, q: &[Real], theta: Real) -> (Real, usize) {
+        let mut closest = (Real::INFINITY, 0);
+        f.link_segments(q, |link, a, b| {
+            let (a, b) = (self.to_body(theta, &a), self.to_body(theta, &b));
+            let d = super::segment_surface_distance(self.surface, &a, &b);
+            if d < closest.0 {
+                closest = (d, link);
+            }
+        });
+        closest
+    }
+
+    /// Finger `f` touching the object at `theta` moves its joints from `qa` to `qb`: the
+    /// object's rotation its rolling implies, as `(numerator, weight)` of the least squares of
+    /// the module's derivation (the rotation is `numerator / weight`, and over several fingers
+    /// the sums' quotient). The contact is where the fingertip touches at `qa`.
+    pub fn turn(&self, f: &Finger, qa: &[Real], qb: &[Real], theta: Real) -> (Real, Real) {
+        let (ta, tb) = (f.tip_frame(qa), f.tip_frame(qb));
+        let c = self.contact_of(f, qa, theta);
+        let p = self.to_world(theta, &c.point);
+        // The fingertip's material point at the contact, carried by the fingertip's motion.
+        let carried = (tb * ta.inverse() * nalgebra::Point3::from(p)).coords;
+        let d = carried - p;
+        let lever = self.axis.cross(&p);
+        (lever.dot(&d), lever.norm_squared())
+    }
+}
 
 /// The velocity of the fingertip sphere's centre (object frame) when it rolls without slipping
 /// with angular velocity `omega` relative to the object, touching at outward normal `n`:
