@@ -27,8 +27,16 @@
 //!
 //! **Contacts.** A finger touches when its fingertip centre (from the encoders) is within
 //! [`TOUCH`] of the object's surface offset by the fingertip radius, for [`SETTLE`] samples;
-//! it leaves beyond [`RELEASE`]. Its contact point is the section's point nearest to the
-//! fingertip centre (along the normal), snapped to the nearest candidate. The grasp state also
+//! it leaves beyond [`RELEASE`]. Its contact point is the surface's point nearest to the
+//! fingertip centre (along the normal), snapped to the nearest candidate.
+//!
+//! **Planar and spatial hands.** What the fingertips roll on is the plant's
+//! ([`icrflow_plan::rolling::Roller`]): a planar hand's section of the object, turning about
+//! the hand's z axis, or a spatial hand's object turning about its plan's axis (the rotation
+//! of the rolling by least squares of the fingers' rolling without slipping, the pose
+//! measurement's rotation its twist about the axis). The object's centre moving, which the
+//! pose measurements' positions say, is taken into account in the hand's plane for a planar
+//! hand; a spatial hand's object is taken as held at its centre (the kinematic plant's is). The grasp state also
 //! carries the joint angles it was estimated from (the hand's state, for the planner's way
 //! points and a restarted command node).
 
@@ -36,14 +44,14 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use icrflow_grasp::object::Section;
+use icrflow_grasp::object::SurfaceSamples;
 use icrflow_interfaces::{
-    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, topics,
+    FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, topics,
 };
-use icrflow_plan::hand::{Hand, wrap};
+use icrflow_plan::hand::{Finger, Hand, wrap};
 
 use crate::Context;
-use icrflow_plan::rolling::{Surface, Tip, tip};
+use icrflow_plan::rolling::{Roller, Tip, tip};
 use icrflow_runtime::checkpoint::Checkpoint;
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence};
@@ -86,12 +94,20 @@ pub enum Refusal {
 /// A finger's contact changed: `(finger, in contact now, fingertip gap to the surface (m))`.
 pub type Transition = (u32, bool, f64);
 
+/// A fingertip as a sample has it: a planar hand's in its plane about the object's moved
+/// centre, a spatial hand's by its joints.
+#[derive(Debug, Clone, Copy)]
+enum Fingertip {
+    Planar(Tip),
+    Space([f64; MAX_JOINTS]),
+}
+
 /// The estimator's state and step: no I/O, no clock.
 #[derive(Debug)]
 pub struct Estimator<'a> {
     hand: &'a Hand,
-    surface: &'a Surface,
-    section: &'a Section,
+    roller: Roller<'a>,
+    candidates: &'a SurfaceSamples,
     /// The estimated rotation (rad).
     theta: f64,
     /// The corrections applied so far (rad): [`Estimator::history`] holds `theta - correction`.
@@ -104,8 +120,8 @@ pub struct Estimator<'a> {
     history: VecDeque<(u64, f64)>,
     contact: Vec<bool>,
     streak: Vec<u32>,
-    previous: Vec<Option<(Tip, f64)>>,
-    tips: Vec<Option<(Tip, bool)>>,
+    previous: Vec<Option<(Fingertip, f64)>>,
+    tips: Vec<Option<(Fingertip, bool)>>,
     transitions: Vec<Transition>,
     q: Vec<f64>,
     /// How far the object's centre has moved in the hand's plane (m), from the pose
@@ -114,14 +130,20 @@ pub struct Estimator<'a> {
 }
 
 impl<'a> Estimator<'a> {
-    /// An estimator of `hand` holding an object of section `section` (its `surface`), starting
-    /// at rotation `theta` (rad), every finger out of contact.
-    pub fn new(hand: &'a Hand, surface: &'a Surface, section: &'a Section, theta: f64) -> Self {
+    /// An estimator of `hand` holding the object `roller` rolls on, whose contacts are snapped
+    /// to `candidates` (the grasp problem's), starting at rotation `theta` (rad), every finger
+    /// out of contact.
+    pub fn new(
+        hand: &'a Hand,
+        roller: Roller<'a>,
+        candidates: &'a SurfaceSamples,
+        theta: f64,
+    ) -> Self {
         let n = hand.fingers.len();
         Self {
             hand,
-            surface,
-            section,
+            roller,
+            candidates,
             theta,
             correction: 0.0,
             innovation: 0.0,
@@ -145,6 +167,75 @@ impl<'a> Estimator<'a> {
     /// The smoothed pose innovation (rad).
     pub fn innovation(&self) -> f64 {
         self.innovation
+    }
+
+    /// The object's rotation that orientation `q` (`[w, x, y, z]`, a pose measurement's) has
+    /// about the axis the object turns about (rad).
+    pub fn rotation_of(&self, q: [f64; 4]) -> f64 {
+        self.roller.rotation_of(q)
+    }
+
+    /// Finger `f`'s fingertip at joints `q`.
+    fn fingertip(&self, f: &Finger, q: &[f64]) -> Fingertip {
+        match self.roller {
+            Roller::Section(_) => Fingertip::Planar(tip(f, q).from_moved(self.moved)),
+            Roller::Space(_) => {
+                let mut joints = [0.0; MAX_JOINTS];
+                let n = q.len().min(MAX_JOINTS);
+                joints[..n].copy_from_slice(&q[..n]);
+                Fingertip::Space(joints)
+            }
+        }
+    }
+
+    /// Where fingertip `t` of finger `f` touches the object at the estimated rotation: the
+    /// candidate nearest its contact point, and the fingertip's gap (m).
+    fn touch(&self, f: &Finger, t: &Fingertip) -> (usize, f64) {
+        match (self.roller, t) {
+            (Roller::Section(s), Fingertip::Planar(t)) => {
+                let c = s.contact_of(t, f, self.theta);
+                (c.sample, c.gap)
+            }
+            (Roller::Space(s), Fingertip::Space(q)) => {
+                let c = s.contact_of(f, &q[..f.dof()], self.theta);
+                let nearest = self
+                    .candidates
+                    .points
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| {
+                        (a.1 - c.point)
+                            .norm_squared()
+                            .total_cmp(&(b.1 - c.point).norm_squared())
+                    })
+                    .map_or(0, |(i, _)| i);
+                (nearest, c.gap)
+            }
+            _ => unreachable!("a fingertip is of its roller's kind"),
+        }
+    }
+
+    /// Fingertip `t`'s gap to the object at the estimated rotation (m).
+    fn gap(&self, f: &Finger, t: &Fingertip) -> f64 {
+        match (self.roller, t) {
+            (Roller::Section(s), Fingertip::Planar(t)) => s.contact_of(t, f, self.theta).gap,
+            (roller, Fingertip::Space(q)) => roller.gap(f, &q[..f.dof()], self.theta),
+            _ => unreachable!("a fingertip is of its roller's kind"),
+        }
+    }
+
+    /// What finger `f` rolling from `a` to `b` turns the object by, as `(numerator, weight)`
+    /// ([`Roller::turn`]).
+    fn turn(&self, f: &Finger, a: &Fingertip, b: &Fingertip) -> (f64, f64) {
+        match (self.roller, a, b) {
+            (Roller::Section(s), Fingertip::Planar(a), Fingertip::Planar(b)) => {
+                (s.rotation(a, b, f, self.theta), 1.0)
+            }
+            (roller, Fingertip::Space(a), Fingertip::Space(b)) => {
+                roller.turn(f, &a[..f.dof()], &b[..f.dof()], self.theta)
+            }
+            _ => unreachable!("a fingertip is of its roller's kind"),
+        }
     }
 
     /// The contacts that changed in the last [`Estimator::on_joints`].
@@ -194,7 +285,6 @@ impl<'a> Estimator<'a> {
     /// rotation rolled on by the fingers in contact, and the residuals.
     pub fn on_joints(&mut self, m: &JointState, header: Header) -> Result<GraspState, Refusal> {
         let hand = self.hand;
-        let surface = self.surface;
         let mut g = GraspState {
             header,
             finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
@@ -202,8 +292,7 @@ impl<'a> Estimator<'a> {
         };
         self.transitions.clear();
         self.tips.clear();
-        let mut turn = 0.0;
-        let mut rolling = 0;
+        let (mut turn, mut weight) = (0.0, 0.0);
         // Checked first: a refused measurement changes nothing.
         for f in hand.fingers.iter().take(MAX_FINGERS) {
             if let Some(k) = (0..m.finger_count as usize).find(|&k| m.finger_ids[k] == f.id)
@@ -220,9 +309,9 @@ impl<'a> Estimator<'a> {
             self.q.clear();
             self.q.extend_from_slice(&m.positions[k][..f.dof()]);
             g.joints[slot][..self.q.len()].copy_from_slice(&self.q);
-            let t = tip(f, &self.q).from_moved(self.moved);
+            let t = self.fingertip(f, &self.q);
             let was = self.contact[slot];
-            let gap = surface.contact_of(&t, f, self.theta).gap;
+            let gap = self.gap(f, &t);
             self.streak[slot] = if gap.abs() <= TOUCH {
                 self.streak[slot].saturating_add(1)
             } else {
@@ -242,14 +331,15 @@ impl<'a> Estimator<'a> {
                 && on
                 && (gap - before_gap).abs() < RADIAL
             {
-                turn += surface.rotation(&before, &t, f, self.theta);
-                rolling += 1;
+                let (by, w) = self.turn(f, &before, &t);
+                turn += by;
+                weight += w;
             }
             self.tips.push(Some((t, on)));
             self.previous[slot] = Some((t, gap));
         }
-        if rolling > 0 {
-            self.theta += turn / rolling as f64;
+        if weight > 0.0 {
+            self.theta += turn / weight;
         }
         let (mut residual, mut touching) = (0.0, 0);
         for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {
@@ -258,10 +348,9 @@ impl<'a> Estimator<'a> {
             let Some((t, true)) = self.tips[slot] else {
                 continue;
             };
-            let touch = surface.contact_of(&t, f, self.theta);
-            let index = touch.sample;
-            let p = self.section.samples.points[index];
-            let n = self.section.samples.normals[index];
+            let (index, gap) = self.touch(f, &t);
+            let p = self.candidates.points[index];
+            let n = self.candidates.normals[index];
             *c = FingerContact {
                 finger: f.id,
                 in_contact: 1,
@@ -269,17 +358,16 @@ impl<'a> Estimator<'a> {
                 reserved: 0,
                 point: [p.x, p.y, p.z],
                 normal: [n.x, n.y, n.z],
-                residual: touch.gap,
+                residual: gap,
             };
-            residual += touch.gap * touch.gap;
+            residual += gap * gap;
             touching += 1;
         }
         g.rotation = self.theta;
         // The object's centre of mass, at the hand frame's origin at the start, moved as the
         // pose measurements say.
         g.position = [self.moved[0], self.moved[1], 0.0];
-        let half = 0.5 * self.theta;
-        g.orientation = [half.cos(), 0.0, 0.0, half.sin()];
+        g.orientation = self.roller.orientation(self.theta);
         g.residual = if touching > 0 {
             (residual / touching as f64).sqrt()
         } else {
@@ -298,8 +386,8 @@ impl<'a> Estimator<'a> {
 
 /// Runs the estimator node.
 pub fn run(ctx: &Context) -> Result<()> {
-    let object = &ctx.scenario.setup.object;
-    let surface = ctx.scenario.setup.surface()?;
+    let setup = &ctx.scenario.setup;
+    let roller = setup.roller(&ctx.scenario.config)?;
     let joints = ctx.bus.subscriber(topics::JOINT_STATE)?;
     let poses = ctx.bus.subscriber(topics::OBJECT_POSE)?;
     let out = ctx.bus.publisher(topics::GRASP_STATE)?;
@@ -314,7 +402,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .split_whitespace()
         .map(|w| w.parse::<f64>().ok().filter(|x| x.is_finite()));
     let theta: f64 = words.next().flatten().unwrap_or(0.0);
-    let mut estimator = Estimator::new(&ctx.scenario.setup.hand, surface, &object.section, theta);
+    let mut estimator = Estimator::new(&setup.hand, roller, setup.problem.candidates(), theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     // Where the object's centre was measured first: its motion is taken from there.
     let mut first_position: Option<[f64; 2]> =
@@ -335,11 +423,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                 &mut last_pose_seq,
             )
         {
-            let [w, _, _, z] = m.orientation;
             let start = *first_position.get_or_insert([m.position[0], m.position[1]]);
             let moved = [m.position[0] - start[0], m.position[1] - start[1]];
             match estimator
-                .on_pose(2.0 * z.atan2(w), m.captured_time_ns)
+                .on_pose(estimator.rotation_of(m.orientation), m.captured_time_ns)
                 .and_then(|_| estimator.on_position(moved))
             {
                 Ok(()) => health.processed += 1,
@@ -477,8 +564,8 @@ mod tests {
             // 10 degrees off at the start; the object still at 0.
             let mut e = Estimator::new(
                 &setup.hand,
-                surface,
-                &setup.object.section,
+                Roller::Section(surface),
+                setup.problem.candidates(),
                 10f64.to_radians(),
             );
             let Tracked { worst, last: g, .. } =
@@ -507,7 +594,12 @@ mod tests {
         let (config, setup) = paper();
         let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(&setup.hand, surface, &setup.object.section, 0.0);
+        let mut e = Estimator::new(
+            &setup.hand,
+            Roller::Section(surface),
+            setup.problem.candidates(),
+            0.0,
+        );
         let slip = 12f64.to_radians();
         // The object turns by 12 degrees at 2 s (a slip), seen 200 ms later.
         let truth = |t: u64| if t >= 2_000_000_000 { slip } else { 0.0 };
@@ -540,7 +632,12 @@ mod tests {
         let (config, setup) = paper();
         let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(&setup.hand, surface, &setup.object.section, 0.5);
+        let mut e = Estimator::new(
+            &setup.hand,
+            Roller::Section(surface),
+            setup.problem.candidates(),
+            0.5,
+        );
         assert_eq!(e.on_pose(f64::NAN, 1), Err(Refusal::PoseNotFinite));
         let mut m = measurement(&setup, &q, 1_000_000, &mut Noise::new(1));
         m.positions[1][2] = f64::INFINITY;
@@ -551,5 +648,85 @@ mod tests {
         );
         assert_eq!(e.rotation(), 0.5);
         assert_eq!(e.innovation(), 0.0);
+    }
+
+    /// A spatial hand: the Allegro rolls the sphere through its plan's first 10 degrees on
+    /// the kinematic plant (encoder noise and pose measurements as configured); the estimate
+    /// follows the plant's rotation about the plan's axis, by the rolling alone as well as
+    /// with the poses, and its contacts are the fingers the plant has touching, each at the
+    /// candidate nearest its true contact.
+    #[test]
+    fn a_spatial_hand_s_rolling_is_estimated_about_the_plan_s_axis() {
+        let (config, setup) = crate::testing::allegro_sphere();
+        let roller = setup.roller(&config).unwrap();
+        let (steps, slots) = crate::testing::spatial_rolling(&config, &setup, 10);
+        let grip = setup.initial_grip(&config).unwrap();
+        for with_poses in [false, true] {
+            let t0 = 1_000_000_000_000;
+            let mut plant = crate::plant::Plant::new(
+                &setup.hand,
+                roller,
+                (grip.0.clone(), &grip.1),
+                &config.pipeline,
+                t0,
+            );
+            let mut e = Estimator::new(&setup.hand, roller, setup.problem.candidates(), 0.0);
+            let dt = (1e9 / config.pipeline.rate_hz) as u64;
+            let mut now = t0;
+            let mut last = GraspState::default();
+            // The first steps' joints again and again (the hand settles on the object), then
+            // each step's, 300 ticks each.
+            let schedule = std::iter::repeat_n(&steps[0], 2).chain(steps.iter().skip(1));
+            let mut error = 0.0;
+            for (k, joints) in schedule.enumerate() {
+                let mut c = crate::testing::command(&setup, &slots, joints, true, now);
+                for tick in 0..300 {
+                    now += dt;
+                    c.header.source_time_ns = now;
+                    let out = plant.tick(now, Some(&c));
+                    if with_poses && let Some(p) = out.pose {
+                        e.on_pose(e.rotation_of(p.orientation), p.captured_time_ns)
+                            .unwrap();
+                    }
+                    let mut m = out.joints;
+                    m.header = Header::new(Kind::JointState, now / 1000, 0, 0);
+                    m.header.source_time_ns = now;
+                    last = e
+                        .on_joints(&m, Header::new(Kind::GraspState, now / 1000, 0, 0))
+                        .unwrap();
+                    if k == steps.len() && tick >= 100 {
+                        // The last step, the hand still: the estimate's error, averaged
+                        // over the encoders' noise.
+                        error += (last.rotation - plant.rotation()) / 200.0;
+                    }
+                }
+            }
+            let truth = plant.rotation();
+            assert!(truth > 9.9f64.to_radians(), "{}", truth.to_degrees());
+            assert!(
+                error.abs() < 0.1f64.to_radians(),
+                "poses {with_poses}: estimated {} deg off the true {} deg",
+                error.to_degrees(),
+                truth.to_degrees()
+            );
+            let cands = setup.problem.candidates();
+            for (slot, f) in setup.hand.fingers.iter().enumerate() {
+                let c = &last.fingers[slot];
+                assert_eq!(c.finger, f.id);
+                assert_eq!(c.in_contact == 1, slots.contains(&slot), "finger {}", f.id);
+                if c.in_contact == 1 {
+                    let Roller::Space(turning) = roller else {
+                        unreachable!("a spatial hand")
+                    };
+                    let p = turning.contact_of(f, &plant.joints()[slot], truth).point;
+                    let d = (cands.points[c.candidate as usize] - p).norm();
+                    assert!(
+                        d < 3e-3,
+                        "finger {}: candidate {d} m from the contact",
+                        f.id
+                    );
+                }
+            }
+        }
     }
 }

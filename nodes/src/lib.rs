@@ -42,6 +42,71 @@ mod testing {
         (config, setup)
     }
 
+    /// A tracking command made at `at` of `joints` for the fingers `fingers` (slots), pressing
+    /// on the object where `pressing`.
+    pub fn command(
+        setup: &Setup,
+        fingers: &[usize],
+        joints: &[Vec<f64>],
+        pressing: bool,
+        at: u64,
+    ) -> icrflow_interfaces::HandCommand {
+        let mut c = icrflow_interfaces::HandCommand {
+            header: icrflow_interfaces::Header::new(icrflow_interfaces::Kind::HandCommand, 1, 0, 0),
+            mode: icrflow_interfaces::CommandMode::Track as u32,
+            finger_count: fingers.len() as u32,
+            ..Default::default()
+        };
+        c.header.source_time_ns = at;
+        for (k, &slot) in fingers.iter().enumerate() {
+            c.finger_ids[k] = setup.hand.fingers[slot].id;
+            c.joint_targets[k][..joints[slot].len()].copy_from_slice(&joints[slot]);
+            if pressing {
+                c.forces[k] = [0.0, 1.0, 0.0];
+            }
+        }
+        c
+    }
+
+    /// The hand's joints (every finger, in the hand's order) at the start of `setup`'s
+    /// spatial plan and after each of its first `steps` rolling steps of 1 degree, and the
+    /// slots of the fingers in contact.
+    pub fn spatial_rolling(
+        config: &Config,
+        setup: &Setup,
+        steps: usize,
+    ) -> (Vec<Vec<Vec<f64>>>, Vec<usize>) {
+        let scenario = setup.spatial_scenario(config).unwrap();
+        let (mut hand, _) = setup.initial_grip(config).unwrap();
+        let (mut touches, _) = scenario.start().unwrap();
+        let slots: Vec<usize> = touches
+            .iter()
+            .map(|t| {
+                setup
+                    .hand
+                    .fingers
+                    .iter()
+                    .position(|f| f.id == t.finger)
+                    .unwrap()
+            })
+            .collect();
+        let mut out = vec![hand.clone()];
+        for k in 0..steps {
+            let step = 1f64.to_radians();
+            let icrflow_plan::spatial::Roll::Moved(next, _) =
+                scenario.roll(&touches, k as f64 * step, step).unwrap()
+            else {
+                panic!("the plan's first steps roll");
+            };
+            touches = next;
+            for (t, &slot) in touches.iter().zip(&slots) {
+                hand[slot] = t.q.clone();
+            }
+            out.push(hand.clone());
+        }
+        (out, slots)
+    }
+
     /// The Allegro hand's sphere (`config/allegro_sphere.toml`): a spatial hand.
     pub fn allegro_sphere() -> (Config, Setup) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");

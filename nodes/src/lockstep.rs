@@ -22,6 +22,7 @@ use icrflow_interfaces::{
     PlantTruth,
 };
 use icrflow_plan::follow::{Estimate, Event, Follower, Tolerances};
+use icrflow_plan::rolling::Roller;
 use icrflow_scenario::{Config, PlantKind, Setup};
 
 use crate::command::Commander;
@@ -98,7 +99,12 @@ pub fn run(
         .context("the initial grasp")?;
     let mut plant = Physical::new(config, setup, &contacts, t0)?;
     let surface = setup.surface()?;
-    let mut estimator = Estimator::new(&setup.hand, surface, &setup.object.section, 0.0);
+    let mut estimator = Estimator::new(
+        &setup.hand,
+        Roller::Section(surface),
+        setup.problem.candidates(),
+        0.0,
+    );
     let mut wrench = WrenchSpace::new(&setup.problem, config.grasp.alpha);
     let mut follower = Follower::new_with(
         setup.scenario(config),
@@ -135,11 +141,13 @@ pub fn run(
         let mut joints: JointState = out.joints;
         joints.header = stamped(Header::new(Kind::JointState, joint_seq, 0, 0), t);
         if let Some(pose) = &out.pose {
-            let [w, _, _, z] = pose.orientation;
             let start = *first_position.get_or_insert([pose.position[0], pose.position[1]]);
             let moved = [pose.position[0] - start[0], pose.position[1] - start[1]];
             let _ = estimator
-                .on_pose(2.0 * z.atan2(w), pose.captured_time_ns)
+                .on_pose(
+                    estimator.rotation_of(pose.orientation),
+                    pose.captured_time_ns,
+                )
                 .and_then(|_| estimator.on_position(moved));
         }
         grasp_seq += 1;

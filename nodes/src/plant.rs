@@ -619,6 +619,7 @@ pub fn run(ctx: &Context) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::command;
     use crate::testing::paper;
     use icrflow_plan::rolling::tip;
     use icrflow_scenario::{Config, Setup};
@@ -628,32 +629,6 @@ mod tests {
 
     /// A start time (ns).
     const T0: u64 = 1_000_000_000_000;
-
-    /// A tracking command made at `at` of `joints` for the fingers `fingers` (slots), pressing
-    /// on the object where `pressing`.
-    fn command(
-        setup: &Setup,
-        fingers: &[usize],
-        joints: &[Vec<f64>],
-        pressing: bool,
-        at: u64,
-    ) -> HandCommand {
-        let mut c = HandCommand {
-            header: Header::new(Kind::HandCommand, 1, 0, 0),
-            mode: CommandMode::Track as u32,
-            finger_count: fingers.len() as u32,
-            ..Default::default()
-        };
-        c.header.source_time_ns = at;
-        for (k, &slot) in fingers.iter().enumerate() {
-            c.finger_ids[k] = setup.hand.fingers[slot].id;
-            c.joint_targets[k][..joints[slot].len()].copy_from_slice(&joints[slot]);
-            if pressing {
-                c.forces[k] = [0.0, 1.0, 0.0];
-            }
-        }
-        c
-    }
 
     /// The paper's plant without noise, its initial grasp, and the slots of the fingers in
     /// contact and of those free.
@@ -880,7 +855,6 @@ mod tests {
     fn a_spatial_hand_rolling_as_planned_turns_the_object_as_planned() {
         let (mut config, setup) = crate::testing::allegro_sphere();
         let (grip, _, _) = still(&mut config, &setup);
-        let scenario = setup.spatial_scenario(&config).unwrap();
         let roller = setup.roller(&config).unwrap();
         let mut plant = Plant::new(
             &setup.hand,
@@ -889,35 +863,12 @@ mod tests {
             &config.pipeline,
             T0,
         );
-        let (mut touches, _) = scenario.start().unwrap();
+        let (steps, slots) = crate::testing::spatial_rolling(&config, &setup, 10);
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
-        let slots: Vec<usize> = touches
-            .iter()
-            .map(|t| {
-                setup
-                    .hand
-                    .fingers
-                    .iter()
-                    .position(|f| f.id == t.finger)
-                    .unwrap()
-            })
-            .collect();
-        let (mut theta, mut now) = (0.0, T0);
+        let mut now = T0;
         let mut worst = 0.0_f64;
-        for _ in 0..10 {
-            let step = 1f64.to_radians();
-            let icrflow_plan::spatial::Roll::Moved(next, _) =
-                scenario.roll(&touches, theta, step).unwrap()
-            else {
-                panic!("the plan's first steps roll");
-            };
-            touches = next;
-            theta += step;
-            let mut joints = plant.joints().to_vec();
-            for (t, &slot) in touches.iter().zip(&slots) {
-                joints[slot] = t.q.clone();
-            }
-            let c = command(&setup, &slots, &joints, true, now);
+        for (k, joints) in steps.iter().enumerate().skip(1) {
+            let c = command(&setup, &slots, joints, true, now);
             for _ in 0..200 {
                 now += dt;
                 plant.tick(now, Some(&c));
@@ -926,7 +877,7 @@ mod tests {
                 }
             }
             assert!(slots.iter().all(|&s| plant.joints()[s] == joints[s]));
-            worst = worst.max((plant.rotation() - theta).abs());
+            worst = worst.max((plant.rotation() - (k as f64).to_radians()).abs());
             for &s in &slots {
                 let f = &setup.hand.fingers[s];
                 let gap = roller.gap(f, &plant.joints()[s], plant.rotation());
