@@ -198,7 +198,7 @@ fn validate_spatial(
     )?;
     writeln!(
         o,
-        "pipeline   `run` does not take a spatial hand yet (its plants and estimator roll fingertips in the hand's plane); `plan` plans it"
+        "pipeline   `run` takes it on the kinematic plant (not MuJoCo's yet; its plan is not made again from the estimate)"
     )?;
     let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
     match &started {

@@ -235,7 +235,7 @@ fn check_from_scratch(name: &str, axis: Vec3) {
 }
 
 #[test]
-fn plan_json_gains_the_axis_and_run_refuses_a_spatial_hand_by_name() {
+fn plan_json_gains_the_axis_and_run_refuses_what_it_does_not_take_of_a_spatial_hand_by_its_key() {
     let dir = scratch("plan-spatial");
     let out = dir.join("out");
     let o = icrflow(&[
@@ -293,10 +293,30 @@ fn plan_json_gains_the_axis_and_run_refuses_a_spatial_hand_by_name() {
         "{text}"
     );
 
-    let o = icrflow(&["run", "config/allegro_sphere.toml"]);
-    assert_eq!(o.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("does not take a spatial hand yet"), "{err}");
+    assert!(
+        text.contains("`run` takes it on the kinematic plant"),
+        "{text}"
+    );
+
+    // What `run` does not take of a spatial hand yet is refused by its key, nothing started.
+    for (extra, key) in [
+        (
+            "[plant]\nkind = \"mujoco\"\n",
+            "plant.kind: MuJoCo's scene is built for a planar hand",
+        ),
+        (
+            "[pipeline]\nslip_deg = 5.0\n",
+            "pipeline.slip_deg: a spatial hand's plan is not made again",
+        ),
+    ] {
+        let path = dir.join("refused.toml");
+        std::fs::write(&path, format!("{}\n{extra}", allegro())).unwrap();
+        let o = icrflow(&["run", path.to_str().unwrap(), "--no-visualizer"]);
+        assert_eq!(o.status.code(), Some(1));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(key), "{err}");
+        assert!(!err.contains("run: starting"), "{err}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -58,6 +58,10 @@ pub const WATCHDOG_PERIODS: f64 = 3.0;
 pub const CENTRING_RATE: f64 = 2.0;
 /// The farthest the centring moves the fingers in contact (m).
 pub const CENTRING_LIMIT: f64 = 3e-3;
+/// How far the object may turn about a spatial plan's axis that is not vertical before the
+/// balancing forces, whose load (the weight) turns with it in the object's frame, are solved
+/// again (rad).
+pub const RESOLVE_TURN: f64 = 0.5 * std::f64::consts::PI / 180.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
@@ -276,8 +280,9 @@ struct Tracker<'a> {
     setup: &'a Setup,
     contacts: Vec<ForceContact>,
     solver: ForceSolver,
-    /// The contact set `forces` balance (candidates in slot order, padded with MAX).
-    solved_for: Option<[u32; MAX_FINGERS]>,
+    /// The contact set `forces` balance (candidates in slot order, padded with MAX), and
+    /// the object's rotation they were solved at (rad).
+    solved_for: Option<([u32; MAX_FINGERS], f64)>,
     /// The fingers that pressed in the last tracking command (padded with MAX).
     pressing: [u32; MAX_FINGERS],
     /// The body-frame forces of that contact set, one per contact.
@@ -316,7 +321,8 @@ impl Tracker<'_> {
         let hand = &setup.hand;
         let cands = setup.problem.candidates();
         let theta = gate.grasp().map_or(0.0, |g| g.rotation);
-        let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), theta);
+        let axis = nalgebra::Unit::new_normalize(config.turn.axis);
+        let rot = nalgebra::Rotation3::from_axis_angle(&axis, theta);
         let n = (plan.finger_count as usize).min(MAX_FINGERS);
         let mut slots = [0usize; MAX_FINGERS];
         let mut set = [u32::MAX; MAX_FINGERS];
@@ -351,11 +357,18 @@ impl Tracker<'_> {
         }
         self.pressing = pressing;
         // The forces in the object's frame, solved once per contact set: the load is the
-        // object's weight (`plant.gravity`, along the hand's z axis, so unchanged by the
-        // object's turning about it), and the problem is invariant under that rotation
-        // (cones, equilibrium, and the least squared force alike), so the hand-frame forces
-        // are these rotated. The cones are narrowed by `plant.friction_margin`.
-        if self.solved_for != Some(set) {
+        // object's weight (`plant.gravity`), in the object's frame; turning about the hand's
+        // z axis (a planar hand's, or a spatial plan's vertical axis) leaves it unchanged,
+        // and the problem is invariant under that rotation (cones, equilibrium, and the
+        // least squared force alike), so the hand-frame forces are these rotated. About
+        // another axis, a weight turns in the object's frame as the object turns: solved again
+        // every RESOLVE_TURN of it. The cones are narrowed by `plant.friction_margin`.
+        let weight = Vec3::from(config.plant.weight(setup.object.volume));
+        let turns_load = weight != Vec3::zeros() && axis.cross(&Vec3::z()).norm() > 1e-9;
+        let current = self
+            .solved_for
+            .is_some_and(|(s, at)| s == set && (!turns_load || (at - theta).abs() <= RESOLVE_TURN));
+        if !current {
             self.solved_for = None;
             self.contacts.clear();
             for &c in set.iter().take(count) {
@@ -364,9 +377,8 @@ impl Tracker<'_> {
                     normal: cands.normals[c as usize],
                 });
             }
-            let weight = config.plant.weight(setup.object.volume);
             let load = Load {
-                force: Vec3::from(weight),
+                force: rot.inverse() * weight,
                 ..Load::none()
             };
             let found = self.solver.solve(
@@ -379,7 +391,7 @@ impl Tracker<'_> {
             if let Balance::Infeasible { .. } = found {
                 return Err(Untracked::Infeasible(found));
             }
-            self.solved_for = Some(set);
+            self.solved_for = Some((set, theta));
         }
         let forces = &self.forces;
         let mut c = HandCommand {

@@ -21,7 +21,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, JointState, Kind, PlanPhase, PlanStepHeader,
     PlantTruth,
 };
-use icrflow_plan::follow::{Estimate, Event, Follower, Tolerances};
+use icrflow_plan::follow::{Estimate, Event, Follower, Planning, Tolerances};
 use icrflow_plan::rolling::Roller;
 use icrflow_scenario::{Config, PlantKind, Setup};
 
@@ -107,8 +107,7 @@ pub fn run(
     );
     let mut wrench = WrenchSpace::new(&setup.problem, config.grasp.alpha);
     let mut follower = Follower::new_with(
-        setup.scenario(config),
-        surface,
+        Planning::Planar(setup.scenario(config), surface),
         CLEARANCE,
         Tolerances::new(p.joint_noise),
         &mut |_| {},

@@ -241,8 +241,7 @@ pub fn run(ctx: &Context) -> Result<()> {
     };
     planning(&mut health, 0.0, true)?;
     let mut follower = Follower::new_with(
-        setup.scenario(config),
-        setup.surface()?,
+        setup.planning(config)?,
         CLEARANCE,
         tolerances,
         &mut |note| eprintln!("icrflow-planner: {note}"),

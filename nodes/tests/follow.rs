@@ -361,8 +361,8 @@ const TICK: u64 = 10_000_000;
 /// A follower of `config/NAME`'s plan, and the config.
 fn follower<'a>(config: &Config, setup: &'a Setup) -> Follower<'a> {
     let tol = Tolerances::new(config.pipeline.joint_noise);
-    let surface = setup.surface().unwrap();
-    Follower::new(setup.scenario(config), surface, CLEARANCE, tol, &mut |_| {}).unwrap()
+    let planning = setup.planning(config).unwrap();
+    Follower::new(planning, CLEARANCE, tol, &mut |_| {}).unwrap()
 }
 
 /// Leads `f` through its targets up to `to` with estimates exactly at each, from `now` (ns)

@@ -181,7 +181,8 @@ pub struct Target {
 }
 
 impl Target {
-    fn new(step: Step) -> Self {
+    /// `step` as a target of its own (not a way point, not passed on the way).
+    pub fn at(step: Step) -> Self {
         Self {
             step,
             way_point: false,
@@ -316,7 +317,7 @@ pub fn targets(
             );
         }
         if k == 0 || step.phase != Phase::Rolling {
-            out.push(Target::new(step.clone()));
+            out.push(Target::at(step.clone()));
             continue;
         }
         rolling(&steps[k - 1], step, hand, &mut out);
@@ -490,6 +491,10 @@ pub enum ReplanError {
         /// The finger.
         finger: u32,
     },
+    /// A spatial hand's plan is not made again from an estimate (not done yet): the
+    /// follower holds the target.
+    #[error("planning again from the estimate is not done for a spatial hand")]
+    Spatial,
     /// The planner refused the scenario made from the estimate.
     #[error(
         "from {:.2} deg (estimate {:.2} deg), contacts: {contacts}: {error}",
@@ -830,12 +835,44 @@ impl fmt::Display for Event {
     }
 }
 
+/// What a [`Follower`] plans with: a planar hand's scenario and the section its fingertips
+/// roll on, or a spatial hand's scenario.
+#[derive(Clone)]
+pub enum Planning<'a> {
+    /// The planar planner ([`Scenario`]) on the object's section.
+    Planar(Scenario<'a>, &'a Surface),
+    /// The spatial planner ([`crate::spatial`]).
+    Spatial(crate::spatial::SpatialScenario<'a>),
+}
+
+impl Planning<'_> {
+    /// The plan and its targets ([`targets`], [`crate::spatial::follow::targets`]).
+    fn plan(
+        &self,
+        clearance: Real,
+        note: &mut dyn FnMut(String),
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<(Plan, Vec<Target>), PlanError> {
+        Ok(match self {
+            Self::Planar(scenario, surface) => {
+                let plan = scenario.plan(progress)?;
+                let targets = targets(&plan.steps, scenario.hand, surface, clearance, note);
+                (plan, targets)
+            }
+            Self::Spatial(scenario) => {
+                let plan = scenario.plan(progress)?;
+                let targets = crate::spatial::follow::targets(&plan.steps, scenario);
+                (plan, targets)
+            }
+        })
+    }
+}
+
 /// Leads a hand through a plan from the estimated grasp: a pure step ([`Follower::on_estimate`]:
 /// an estimate and the time in, the target to command out), with no I/O or clock inside.
 pub struct Follower<'a> {
     /// The scenario planned, which re-plans start from.
-    scenario: Scenario<'a>,
-    surface: &'a Surface,
+    planning: Planning<'a>,
     clearance: Real,
     tolerances: Tolerances,
     targets: Vec<Target>,
@@ -860,33 +897,29 @@ impl<'a> Follower<'a> {
         direction != 0.0 && (e.rotation - goal) * direction > 0.0
     }
 
-    /// Plans `scenario` and follows the plan's [`targets`] on `surface` (`clearance` and
-    /// `note` as there).
+    /// Plans `planning`'s scenario and follows the plan's targets ([`targets`], `clearance`
+    /// and `note` as there; a spatial plan's, [`crate::spatial::follow::targets`]).
     pub fn new(
-        scenario: Scenario<'a>,
-        surface: &'a Surface,
+        planning: Planning<'a>,
         clearance: Real,
         tolerances: Tolerances,
         note: &mut dyn FnMut(String),
     ) -> Result<Self, PlanError> {
-        Self::new_with(scenario, surface, clearance, tolerances, note, &mut |_| {})
+        Self::new_with(planning, clearance, tolerances, note, &mut |_| {})
     }
 
     /// [`Follower::new`], reporting the planning's progress to `progress` (the rotation
     /// planned so far, rad, as [`Scenario::plan`] does).
     pub fn new_with(
-        scenario: Scenario<'a>,
-        surface: &'a Surface,
+        planning: Planning<'a>,
         clearance: Real,
         tolerances: Tolerances,
         note: &mut dyn FnMut(String),
         progress: &mut dyn FnMut(Real),
     ) -> Result<Self, PlanError> {
-        let plan = scenario.plan(progress)?;
-        let targets = targets(&plan.steps, scenario.hand, surface, clearance, note);
+        let (plan, targets) = planning.plan(clearance, note, progress)?;
         Ok(Self {
-            scenario,
-            surface,
+            planning,
             clearance,
             tolerances,
             targets,
@@ -985,7 +1018,13 @@ impl<'a> Follower<'a> {
             // Stuck short of the target: plan again from the estimate.
             let target = self.targets[k].step.rotation;
             let first = self.targets[k].step.step + 1;
-            match replan(&self.scenario, e, self.surface, first, self.clearance, beat) {
+            let again = match &self.planning {
+                Planning::Planar(scenario, surface) => {
+                    replan(scenario, e, surface, first, self.clearance, beat)
+                }
+                Planning::Spatial(_) => Err(ReplanError::Spatial),
+            };
+            match again {
                 Ok(again) => {
                     self.replans += 1;
                     self.targets = again.targets;

@@ -6,6 +6,7 @@ use icrflow_grasp::object::Object;
 use icrflow_grasp::progress::Progress;
 use icrflow_grasp::quality::{GraspError, GraspProblem};
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
+use icrflow_plan::follow::Planning;
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Scenario, Start};
 use icrflow_plan::rolling::{Roller, Surface, SurfaceError};
@@ -252,6 +253,16 @@ impl Setup {
                 axis: nalgebra::Unit::new_normalize(config.turn.axis),
             }),
             None => Roller::Section(self.surface()?),
+        })
+    }
+
+    /// What the planner node's follower plans with: the spatial planner's scenario for a
+    /// spatial hand, else the planar planner's and the section its fingertips roll on
+    /// ([`Setup::surface`], or why there is none).
+    pub fn planning(&self, config: &Config) -> Result<Planning<'_>> {
+        Ok(match self.spatial_scenario(config) {
+            Some(s) => Planning::Spatial(s),
+            None => Planning::Planar(self.scenario(config), self.surface()?),
         })
     }
 

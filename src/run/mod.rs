@@ -113,6 +113,23 @@ pub fn slip(config: &Config, surface: &Surface) -> Result<()> {
     Ok(())
 }
 
+/// What of the pipeline a spatial hand's run does not have yet, refused by its key: MuJoCo's
+/// scene is built for a planar hand, and a spatial plan is not made again from the estimate,
+/// which a slip needs.
+pub fn spatial_run(config: &Config) -> Result<()> {
+    if config.plant.kind == icrflow_scenario::PlantKind::Mujoco {
+        anyhow::bail!(
+            "plant.kind: MuJoCo's scene is built for a planar hand only; a spatial hand runs on the kinematic plant (kind = \"kinematic\")"
+        );
+    }
+    if config.pipeline.slip != 0.0 {
+        anyhow::bail!(
+            "pipeline.slip_deg: a spatial hand's plan is not made again from the estimate, which the simulated slip needs: the run would hold where the object slipped"
+        );
+    }
+    Ok(())
+}
+
 /// Runs the verb; returns the exit code.
 pub fn run(
     path: &Path,
@@ -127,13 +144,17 @@ pub fn run(
     let config = Config::load(path)?;
     let recording = viewer.recording(&config)?;
     let setup = Setup::new(&config)?;
-    if setup.spatial.is_some() {
-        anyhow::bail!(
-            "hand: its fingers are planned in space (`icrflow plan` takes it), but the pipeline's plants and estimator roll fingertips in the hand's plane only: `run` does not take a spatial hand yet"
-        );
-    }
-    slip(&config, setup.surface()?)?;
-    match setup.scenario(&config).start() {
+    let start = match setup.spatial_scenario(&config) {
+        Some(spatial) => {
+            spatial_run(&config)?;
+            spatial.start().map(|_| ())
+        }
+        None => {
+            slip(&config, setup.surface()?)?;
+            setup.scenario(&config).start().map(|_| ())
+        }
+    };
+    match start {
         Ok(_) => {}
         // An answer about the grasp, as validate and plan give it (exit status 2).
         Err(e) if crate::exit::is_grasp_answer(&e) => {

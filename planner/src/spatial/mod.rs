@@ -47,6 +47,7 @@
 //! off it) and of the other fingers; they are recorded in the switch ([`Switch::approach`],
 //! [`Switch::retreat`]).
 
+pub mod follow;
 pub mod rolling;
 pub mod surface;
 
@@ -213,6 +214,15 @@ const ROOM_LIMIT: usize = 36;
 impl SpatialScenario<'_> {
     fn finger(&self, id: u32) -> &Finger {
         self.hand.finger(id).expect("fingers are checked up front")
+    }
+
+    /// The object as it turns about the axis: where fingertips touch it.
+    pub fn turning(&self) -> rolling::Turning<'_> {
+        rolling::Turning {
+            surface: self.surface,
+            centre: self.centre,
+            axis: Unit::new_normalize(self.spatial.axis),
+        }
     }
 
     fn rotation(&self, theta: Real) -> Rotation3<Real> {

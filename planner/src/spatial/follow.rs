@@ -1,0 +1,162 @@
+//! Following a spatial plan: the targets a spatial hand is led through ([`targets`]), the
+//! spatial counterpart of [`crate::follow::targets`], which the same [`crate::follow::Follower`]
+//! commands.
+//!
+//! - **Rolling steps** are cut into sub-targets of at most [`SUBSTEP`] of the object's
+//!   rotation. Each finger rolling in both steps has its joints interpolated along the straight
+//!   line in joint space between the steps' (the line the hand's servos follow between two set
+//!   points), then its fingertip put back on the surface at the sub-target's rotation by
+//!   Newton steps of its centre along the normal (least joint motion, the joint limits kept):
+//!   the straight line between a plan's 5 degree steps leaves the fingertip up to 0.6 mm off
+//!   the surface, the sub-targets a few micrometres. Between two sub-targets the line's
+//!   departure is about 1/100 of that.
+//! - **Attach and detach steps** are preceded by way points: an attaching finger's free pose
+//!   (it sets off only once there), then its approach ([`crate::planner::Switch::approach`]:
+//!   the lifted poses the planner checked clear of the object and of the other fingers); a
+//!   released finger's retreat through the same poses in reverse
+//!   ([`crate::planner::Switch::retreat`]) before its free pose. The planner's lifts are at
+//!   least 3 mm, beyond the estimator's release distance, so no way point is taken for a
+//!   contact.
+
+use icrflow_grasp::math::{Real, Vec3};
+use nalgebra::{DMatrix, DVector};
+
+use super::SpatialScenario;
+use super::rolling::Turning;
+use crate::follow::{SUBSTEP, Target};
+use crate::hand::Finger;
+use crate::planner::{Phase, Step};
+
+/// Newton steps that put an interpolated fingertip back on the surface.
+const PROJECTIONS: usize = 4;
+
+/// How near the surface a projected fingertip is left (m).
+const ON_SURFACE: Real = 1e-7;
+
+/// The plan's `steps` of `scenario` cut into the targets a follower commands (the module's
+/// rules).
+pub fn targets(steps: &[Step], scenario: &SpatialScenario<'_>) -> Vec<Target> {
+    let turning = scenario.turning();
+    let mut out = Vec::with_capacity(steps.len() * 12);
+    for (k, step) in steps.iter().enumerate() {
+        if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
+            way_points(&steps[k - 1], step, &mut out);
+        }
+        if k == 0 || step.phase != Phase::Rolling {
+            out.push(Target::at(step.clone()));
+            continue;
+        }
+        rolling(&steps[k - 1], step, scenario, &turning, &mut out);
+    }
+    out
+}
+
+/// The way points before `step`, an attach or a detach step after `prev`, onto `out`.
+fn way_points(prev: &Step, step: &Step, out: &mut Vec<Target>) {
+    // The switch: on the attach step; a detach step follows its attach step.
+    let Some(switch) = (match step.phase {
+        Phase::Attach => step.switch.as_ref(),
+        _ => prev.switch.as_ref(),
+    }) else {
+        return;
+    };
+    for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
+        let (base, vias): (&Step, Vec<&Vec<Real>>) = match (a.contact, b.contact, step.phase) {
+            (None, Some(_), Phase::Attach) if b.finger == switch.attached => {
+                // Its free pose first: it sets off from there only once there.
+                let mut free = prev.clone();
+                free.switch = step.switch.clone();
+                out.push(way_point(free, step));
+                let vias = switch.approach.iter().flatten().collect();
+                (prev, vias)
+            }
+            (Some(_), None, Phase::Detach) if a.finger == switch.released => {
+                (step, switch.retreat.iter().flatten().rev().collect())
+            }
+            _ => continue,
+        };
+        for q in vias {
+            let mut via = base.clone();
+            via.fingers[slot].contact = None;
+            via.fingers[slot].point = None;
+            via.fingers[slot].normal = None;
+            via.fingers[slot].cap_angle = None;
+            via.fingers[slot].joints = q.clone();
+            out.push(way_point(via, step));
+        }
+    }
+}
+
+/// `via` as a way point of `step`: numbered and phased as it, with its switch.
+fn way_point(mut via: Step, step: &Step) -> Target {
+    via.step = step.step;
+    via.phase = step.phase;
+    via.switch = step.switch.clone();
+    Target {
+        step: via,
+        way_point: true,
+        passing: false,
+    }
+}
+
+/// The sub-targets of `step`, a rolling step after `prev`, onto `out`.
+fn rolling(
+    prev: &Step,
+    step: &Step,
+    scenario: &SpatialScenario<'_>,
+    turning: &Turning<'_>,
+    out: &mut Vec<Target>,
+) {
+    let turn = step.rotation - prev.rotation;
+    // A whole number of sub-steps is that many, not one more for the rounding of the turn.
+    let n = (turn.abs() / SUBSTEP - 1e-9).ceil().max(1.0) as usize;
+    for i in 1..=n {
+        let s = i as Real / n as Real;
+        let mut t = step.clone();
+        t.rotation = prev.rotation + s * turn;
+        if i < n {
+            for (slot, (a, b)) in prev.fingers.iter().zip(&step.fingers).enumerate() {
+                let (Some(_), Some(_), Some(f)) =
+                    (a.contact, b.contact, scenario.hand.finger(a.finger))
+                else {
+                    continue;
+                };
+                let q: Vec<Real> = a
+                    .joints
+                    .iter()
+                    .zip(&b.joints)
+                    .map(|(x, y)| x + s * (y - x))
+                    .collect();
+                t.fingers[slot].joints = onto_surface(f, q, turning, t.rotation);
+            }
+        }
+        out.push(Target {
+            step: t,
+            way_point: false,
+            passing: i < n,
+        });
+    }
+}
+
+/// Joints `q` of finger `f` moved, least, so that its fingertip touches the surface of the
+/// object at `theta`: Newton steps of the fingertip centre along the normal (the joint
+/// limits kept). Where the fingertip cannot be moved (a singular pose), `q` as it is.
+pub fn onto_surface(f: &Finger, mut q: Vec<Real>, turning: &Turning<'_>, theta: Real) -> Vec<Real> {
+    for _ in 0..PROJECTIONS {
+        let c = turning.contact_of(f, &q, theta);
+        if c.gap.abs() <= ON_SURFACE {
+            break;
+        }
+        let normal: Vec3 = turning.rotation(theta) * c.normal;
+        let jac = f.jacobian6(&q).rows(0, 3).into_owned();
+        let Ok(pinv) = jac.clone().pseudo_inverse(1e-9) else {
+            break;
+        };
+        let want = DVector::from_column_slice((normal * -c.gap).as_slice());
+        let dq: DMatrix<Real> = pinv * DMatrix::from_column_slice(3, 1, want.as_slice());
+        for (j, a) in q.iter_mut().enumerate() {
+            *a = (*a + dq[(j, 0)]).clamp(f.joints[j].lower, f.joints[j].upper);
+        }
+    }
+    q
+}
