@@ -7,6 +7,10 @@
 //! pose, its route around the object, its stand-off pose [`STANDOFF`] off the contact), a
 //! detach step by those of the released finger, so that a finger never crosses the object.
 //!
+//! A spatial hand's plan is cut into its targets by [`crate::spatial::follow::targets`]; the
+//! same [`Follower`] leads it ([`Planning::Spatial`]), without re-planning (not done for a
+//! spatial hand: [`ReplanError::Spatial`]).
+//!
 //! The [`Follower`] is a pure step: an [`Estimate`] of the grasp and the time in, the target to
 //! command out. A target is commanded until the estimate has reached it (the same fingers in
 //! contact and, for a rolling step, the object's rotation within [`ROTATION_TOLERANCE`] of
