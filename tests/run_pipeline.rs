@@ -332,9 +332,10 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_the_pipeline_like_the_offline_pl
             "{e} missing: {entities}"
         );
     }
-    // The plant's true rotation, recorded, reaches the whole turn.
+    // The plant's true rotation, recorded, reaches the whole turn (within a frame of the
+    // visualizer's 30 Hz: the object turns at up to about 180 deg/s).
     let truth = r["true_rotation_max"].as_f64().unwrap();
-    assert!((truth - 360.0).abs() < 2.0, "{truth}");
+    assert!(truth > 350.0 && truth < 362.0, "{truth}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -302,7 +302,7 @@ fn plan_json_gains_the_axis_and_run_refuses_what_it_does_not_take_of_a_spatial_h
     for (extra, key) in [
         (
             "[plant]\nkind = \"mujoco\"\n",
-            "plant.kind: MuJoCo's scene is built for a planar hand",
+            "plant.kind: a spatial hand does not run in MuJoCo yet",
         ),
         (
             "[pipeline]\nslip_deg = 5.0\n",

@@ -30,7 +30,8 @@ fn ticks(c: &mut Criterion) {
         let (config, setup) = load(name);
         let contacts = setup.scenario(&config).start().unwrap().0;
         let period = (1e9 / config.pipeline.rate_hz) as u64;
-        let mut plant = Physical::new(&config, &setup, &contacts, T0).unwrap();
+        let joints = setup.initial_grip(&config).unwrap().0;
+        let mut plant = Physical::new(&config, &setup, &joints, T0).unwrap();
         let mut t = T0;
         // Settle the grasp first: the timed ticks are those of a hand holding the object.
         for _ in 0..200 {

@@ -93,11 +93,8 @@ pub fn run(
     let dt = (1e9 / p.rate_hz).round() as u64;
     // Any start time: the steps only compare times.
     let t0: u64 = 1_000_000_000_000;
-    let (contacts, _) = setup
-        .scenario(config)
-        .start()
-        .context("the initial grasp")?;
-    let mut plant = Physical::new(config, setup, &contacts, t0)?;
+    let (joints, _) = setup.initial_grip(config)?;
+    let mut plant = Physical::new(config, setup, &joints, t0)?;
     let surface = setup.surface()?;
     let mut estimator = Estimator::new(
         &setup.hand,

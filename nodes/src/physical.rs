@@ -43,15 +43,18 @@ const TRUTH_EVERY: u64 = 10;
 /// Poses kept to measure the past from (one per tick).
 const HISTORY: usize = 4000;
 
-/// The twist of `q` about z (rad, in (-pi, pi]).
-fn yaw(q: &UnitQuaternion) -> Real {
+/// The twist of `q` about the unit `axis` (rad, in (-pi, pi]).
+fn twist(q: &UnitQuaternion, axis: &Vec3) -> Real {
     let q = q.quaternion();
-    wrap(2.0 * q.k.atan2(q.w))
+    wrap(2.0 * q.imag().dot(axis).atan2(q.w))
 }
 
 /// The plant in MuJoCo: the simulation and the measurements; no I/O, no clock.
 pub struct Physical<'a> {
     hand: &'a Hand,
+    /// The axis the plan turns the object about (hand frame, unit): the rotation measured is
+    /// the object's twist about it.
+    axis: nalgebra::Unit<Vec3>,
     sim: Sim,
     joint_noise: Real,
     pose_noise: Real,
@@ -63,7 +66,8 @@ pub struct Physical<'a> {
     started: bool,
     ticks: u64,
     last_tick: u64,
-    /// The object's rotation about z since the start (rad, unwrapped) and its last twist.
+    /// The object's rotation about the axis since the start (rad, unwrapped) and its last
+    /// twist.
     rotation: Real,
     last_yaw: Real,
     /// Per tick: its time, the object's centre and orientation then.
@@ -80,28 +84,26 @@ pub struct Physical<'a> {
 }
 
 impl<'a> Physical<'a> {
-    /// The plant of `setup`'s hand and object under `config`, the hand in the initial grasp
-    /// `contacts`, started at `now_ns`.
+    /// The plant of `setup`'s hand and object under `config`, the hand at `joints` (every
+    /// finger's, in the hand's order: the initial grasp, [`Setup::initial_grip`]), started at
+    /// `now_ns`.
     pub fn new(
         config: &Config,
         setup: &'a Setup,
-        contacts: &[Contact],
+        joints: &[Vec<Real>],
         now_ns: u64,
     ) -> Result<Self> {
         let p: &PipelineSpec = &config.pipeline;
         let hand = &setup.hand;
         let xml = model(config, setup)?;
-        let sim = Sim::new(
-            &xml,
-            hand,
-            &initial_joints(hand, contacts),
-            controls(config),
-        )
-        .map_err(|e| anyhow!("plant.kind = \"mujoco\": {e}"))?;
+        let sim = Sim::new(&xml, hand, joints, controls(config))
+            .map_err(|e| anyhow!("plant.kind = \"mujoco\": {e}"))?;
         let (_, q) = sim.object_pose();
         let n = hand.fingers.len();
+        let axis = nalgebra::Unit::new_normalize(config.turn.axis);
         Ok(Self {
             hand,
+            axis,
             joint_noise: p.joint_noise,
             pose_noise: p.pose_noise,
             dt: 1.0 / p.rate_hz,
@@ -112,7 +114,7 @@ impl<'a> Physical<'a> {
             ticks: 0,
             last_tick: now_ns,
             rotation: 0.0,
-            last_yaw: yaw(&q),
+            last_yaw: twist(&q, &axis),
             history: VecDeque::with_capacity(HISTORY + 1),
             touching: (0..n).map(|s| sim.contact(s).is_some()).collect(),
             sim,
@@ -225,7 +227,7 @@ impl<'a> Physical<'a> {
             }
         }
         let (_, q) = self.sim.object_pose();
-        let y = yaw(&q);
+        let y = twist(&q, &self.axis);
         self.rotation += wrap(y - self.last_yaw);
         self.last_yaw = y;
         for slot in 0..self.touching.len() {
@@ -313,7 +315,7 @@ impl<'a> Physical<'a> {
                 .map(|(_, c, q)| (*c, *q))
                 .unwrap_or_else(|| (self.sim.object_centre(), self.sim.object_pose().1));
             let noise =
-                UnitQuaternion::from_axis_angle(&Vec3::z_axis(), self.noise.gauss(self.pose_noise));
+                UnitQuaternion::from_axis_angle(&self.axis, self.noise.gauss(self.pose_noise));
             let m = (noise * q).into_inner();
             ObjectPose {
                 captured_time_ns: captured,
@@ -393,7 +395,8 @@ mod tests {
     /// the largest friction use seen.
     fn hold(config: &Config, setup: &Setup, seconds: Real) -> (Real, Real, usize) {
         let contacts = setup.scenario(config).start().unwrap().0;
-        let mut plant = Physical::new(config, setup, &contacts, T0).unwrap();
+        let joints = setup.initial_grip(config).unwrap().0;
+        let mut plant = Physical::new(config, setup, &joints, T0).unwrap();
         let start = plant.sim().object_centre();
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let mut use_max: Real = 0.0;

@@ -36,7 +36,7 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
 use icrflow_interfaces::{
     CommandMode, HandCommand, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, ObjectPose,
     PlantTruth, topics,
@@ -547,11 +547,8 @@ pub fn run(ctx: &Context) -> Result<()> {
             Any::Kinematic(Box::new(plant))
         }
         PlantKind::Mujoco => {
-            let (contacts, _) = setup
-                .scenario(config)
-                .start()
-                .context("the initial grasp")?;
-            let physical = crate::physical::Physical::new(config, setup, &contacts, now())?;
+            let (joints, _) = setup.initial_grip(config)?;
+            let physical = crate::physical::Physical::new(config, setup, &joints, now())?;
             eprintln!(
                 "icrflow-plant: MuJoCo {}, the object {:.3} kg",
                 physical.version(),

@@ -329,7 +329,8 @@ fn a_mujoco_plant_tick_allocates_nothing() {
     let setup = Setup::new(&config).unwrap();
     let (contacts, _) = setup.scenario(&config).start().unwrap();
     let t0: u64 = 1_000_000_000_000;
-    let mut plant = Physical::new(&config, &setup, &contacts, t0).unwrap();
+    let joints = setup.initial_grip(&config).unwrap().0;
+    let mut plant = Physical::new(&config, &setup, &joints, t0).unwrap();
     let dt = 1_000_000;
     let mut t = t0;
     let mut command = holding_command(&config, &setup, &contacts, t).unwrap();

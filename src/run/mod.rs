@@ -113,13 +113,14 @@ pub fn slip(config: &Config, surface: &Surface) -> Result<()> {
     Ok(())
 }
 
-/// What of the pipeline a spatial hand's run does not have yet, refused by its key: MuJoCo's
-/// scene is built for a planar hand, and a spatial plan is not made again from the estimate,
-/// which a slip needs.
+/// What of the pipeline a spatial hand's run does not have yet, refused by its key: MuJoCo as
+/// the plant (its scene and the plant take a spatial hand, but its controls are tuned for the
+/// planar one: the Allegro's sphere lost its thumb's contact at 186 degrees and was dropped
+/// from force closure), and a spatial plan made again from the estimate, which a slip needs.
 pub fn spatial_run(config: &Config) -> Result<()> {
     if config.plant.kind == icrflow_scenario::PlantKind::Mujoco {
         anyhow::bail!(
-            "plant.kind: MuJoCo's scene is built for a planar hand only; a spatial hand runs on the kinematic plant (kind = \"kinematic\")"
+            "plant.kind: a spatial hand does not run in MuJoCo yet (its controls are tuned for the planar hand: the Allegro lost the sphere halfway round); it runs on the kinematic plant (kind = \"kinematic\")"
         );
     }
     if config.pipeline.slip != 0.0 {
