@@ -234,11 +234,14 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
 
 /// A non-spherical object: the 55 x 45 x 40 mm ellipsoid mesh of `config/ellipsoid_spatial.toml`
 /// (6D analysis), whose section the plant and the estimator roll the fingertips on.
-#[test]
-fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
-    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = scratch("ellipsoid");
-    let config = "config/ellipsoid_spatial.toml";
+/// `config` planned offline (`plan --json` into `dir`) and run with `args` added and a
+/// summary in `dir`, which must succeed: the offline summary, the run's summary, its stderr and
+/// its stdout.
+fn planned_and_run(
+    dir: &std::path::Path,
+    config: &str,
+    args: &[&str],
+) -> (serde_json::Value, serde_json::Value, String, String) {
     let offline = icrflow(&[
         "plan",
         config,
@@ -249,20 +252,29 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
     assert!(offline.status.success());
     let offline = json(&offline.stdout);
     let summary = dir.join("summary.json");
-    let o = icrflow(&[
-        "run",
-        config,
-        "--verbose",
-        "--summary-json",
-        summary.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let mut all = vec!["run", config, "--summary-json", summary.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let o = icrflow(&all);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(o.status.success(), "run failed: {err}");
     let s = json(&std::fs::read(&summary).unwrap());
+    (
+        offline,
+        s,
+        err,
+        String::from_utf8_lossy(&o.stdout).to_string(),
+    )
+}
+
+#[test]
+fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("ellipsoid");
+    let (offline, s, err, out) =
+        planned_and_run(&dir, "config/ellipsoid_spatial.toml", &["--verbose"]);
     completed_cleanly(&s, &err);
     // Its plan takes seconds in the planner node: the run says how far it has got, and does
     // not take the wait for a hold.
-    let out = String::from_utf8_lossy(&o.stdout);
     said_what_it_did(&err, &out, &s);
     for verbose in ["memory     ", "allocs     ", "commands   "] {
         assert!(out.contains(verbose), "--verbose: {verbose:?} not in {out}");
@@ -281,32 +293,14 @@ fn an_ellipsoid_runs_to_its_goal_like_the_offline_plan() {
 fn the_allegro_turns_the_sphere_a_whole_turn_in_the_pipeline_like_the_offline_plan() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("allegro-run");
-    let config = "config/allegro_sphere.toml";
-    let offline = icrflow(&[
-        "plan",
-        config,
-        "--json",
-        "--out",
-        dir.join("plan").to_str().unwrap(),
-    ]);
-    assert!(offline.status.success());
-    let offline = json(&offline.stdout);
-    assert!(offline["switches"].as_u64().unwrap() >= 3, "{offline}");
-    let summary = dir.join("summary.json");
     let rrd = dir.join("run.rrd");
-    let o = icrflow(&[
-        "run",
-        config,
-        "--summary-json",
-        summary.to_str().unwrap(),
-        "--rrd",
-        rrd.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "run failed: {err}");
-    let s = json(&std::fs::read(&summary).unwrap());
+    let (offline, s, err, out) = planned_and_run(
+        &dir,
+        "config/allegro_sphere.toml",
+        &["--rrd", rrd.to_str().unwrap()],
+    );
+    assert!(offline["switches"].as_u64().unwrap() >= 3, "{offline}");
     completed_cleanly(&s, &err);
-    let out = String::from_utf8_lossy(&o.stdout);
     said_what_it_did(&err, &out, &s);
     like_offline(&s, &offline);
     assert_eq!(s["holds"], 0, "{s}");
@@ -349,27 +343,8 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_the_pipeline_like_the_offline_pl
 fn the_allegro_turns_the_ellipsoid_mesh_270_degrees_in_the_pipeline_like_the_offline_plan() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("allegro-mesh-run");
-    let config = "config/allegro_ellipsoid.toml";
-    let offline = icrflow(&[
-        "plan",
-        config,
-        "--json",
-        "--out",
-        dir.join("plan").to_str().unwrap(),
-    ]);
-    assert!(offline.status.success());
-    let offline = json(&offline.stdout);
-    let summary = dir.join("summary.json");
-    let o = icrflow(&[
-        "run",
-        config,
-        "--no-visualizer",
-        "--summary-json",
-        summary.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "run failed: {err}");
-    let s = json(&std::fs::read(&summary).unwrap());
+    let (offline, s, err, _) =
+        planned_and_run(&dir, "config/allegro_ellipsoid.toml", &["--no-visualizer"]);
     completed_cleanly(&s, &err);
     let rotation = s["rotation_deg"].as_f64().unwrap();
     assert!((rotation - 270.0).abs() < 1.0, "rotation {rotation}: {s}");

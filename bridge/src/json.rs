@@ -283,23 +283,11 @@ pub fn wrench_space(rig: &str, w: &WrenchSpaceHeader, facets: usize) -> WrenchSp
     }
 }
 
-/// The name of a plan phase.
-pub fn phase_name(phase: u32) -> &'static str {
-    match phase {
-        p if p == PlanPhase::Start as u32 => "start",
-        p if p == PlanPhase::Rolling as u32 => "rolling",
-        p if p == PlanPhase::Attach as u32 => "attach",
-        p if p == PlanPhase::Detach as u32 => "detach",
-        p if p == PlanPhase::Done as u32 => "done",
-        _ => "unknown",
-    }
-}
-
 /// `plan_step` as JSON.
 pub fn plan_step(rig: &str, p: &PlanStepHeader) -> PlanStepJson {
     PlanStepJson {
         envelope: Envelope::of("plan_step", rig, &p.header),
-        phase: phase_name(p.phase).into(),
+        phase: PlanPhase::name_of(p.phase).into(),
         step: p.step,
         rotation: p.rotation,
         rotation_deg: p.rotation.to_degrees(),

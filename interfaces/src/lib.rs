@@ -572,6 +572,21 @@ pub enum PlanPhase {
     Done = 4,
 }
 
+impl PlanPhase {
+    /// The name of phase `phase` as [`PlanStepHeader::phase`] carries it (`"start"`,
+    /// `"rolling"`, `"attach"`, `"detach"`, `"done"`; `"unknown"` for any other number).
+    pub const fn name_of(phase: u32) -> &'static str {
+        match phase {
+            0 => "start",
+            1 => "rolling",
+            2 => "attach",
+            3 => "detach",
+            4 => "done",
+            _ => "unknown",
+        }
+    }
+}
+
 /// One finger's target in a [`PlanStepHeader`].
 #[derive(
     Debug,

@@ -30,17 +30,6 @@ struct PhaseStats {
     lost: u64,
 }
 
-fn phase_name(p: u32) -> &'static str {
-    match p {
-        x if x == PlanPhase::Start as u32 => "start",
-        x if x == PlanPhase::Rolling as u32 => "rolling",
-        x if x == PlanPhase::Attach as u32 => "attach",
-        x if x == PlanPhase::Detach as u32 => "detach",
-        x if x == PlanPhase::Done as u32 => "done",
-        _ => "?",
-    }
-}
-
 /// Finger `slot`'s true normal force (N) and friction use `|f_t| / (mu f_n)`.
 fn pressing(truth: &PlantTruth, slot: usize, mu: f64) -> (f64, f64) {
     let f = truth.contact_forces[slot];
@@ -115,7 +104,7 @@ fn main() -> Result<()> {
             return;
         };
         let plan = tick.plan;
-        let phase = plan.map_or("none", |p| phase_name(p.phase));
+        let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));
         let s = stats.entry(phase).or_default();
         s.ticks += 1;
         if let Some(plan) = plan {

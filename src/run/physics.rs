@@ -148,7 +148,7 @@ impl PhysicsTrack {
     pub fn plan_step(&mut self, p: &PlanStepHeader) {
         let n = (p.finger_count as usize).min(MAX_FINGERS);
         self.planned = [(0, false); MAX_FINGERS];
-        self.phase = phase_name(p.phase);
+        self.phase = PlanPhase::name_of(p.phase);
         for (slot, t) in p.targets.iter().enumerate().take(n) {
             self.planned[slot] = (t.finger, t.in_contact == 1);
         }
@@ -297,18 +297,6 @@ impl PhysicsTrack {
             steps_not_closed: not_closed,
             dropped: self.dropped,
         }
-    }
-}
-
-/// A plan phase's name, as the summary writes it.
-fn phase_name(phase: u32) -> &'static str {
-    match phase {
-        x if x == PlanPhase::Start as u32 => "start",
-        x if x == PlanPhase::Rolling as u32 => "rolling",
-        x if x == PlanPhase::Attach as u32 => "attach",
-        x if x == PlanPhase::Detach as u32 => "detach",
-        x if x == PlanPhase::Done as u32 => "done",
-        _ => "unknown",
     }
 }
 

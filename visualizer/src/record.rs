@@ -551,7 +551,10 @@ pub fn log_frames(
                     phase = p;
                     rec.log(
                         paths::EVENTS,
-                        &rerun::TextLog::new(format!("step {number}: phase {}", phase_name(p))),
+                        &rerun::TextLog::new(format!(
+                            "step {number}: phase {}",
+                            icrflow_interfaces::PlanPhase::name_of(p)
+                        )),
                     )?;
                 }
                 for (finger, in_contact, points) in &icrs {
@@ -602,16 +605,4 @@ pub fn log_frames(
         logged += 1;
     }
     Ok(logged)
-}
-
-/// The phase's name.
-pub fn phase_name(p: u32) -> &'static str {
-    match p {
-        0 => "start",
-        1 => "rolling",
-        2 => "attach",
-        3 => "detach",
-        4 => "done",
-        _ => "unknown",
-    }
 }
