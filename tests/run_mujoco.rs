@@ -117,25 +117,15 @@ fn the_paper_sphere_turns_a_whole_turn_in_mujoco_as_the_estimate_says() {
     );
     // Read back by the Rerun SDK: the true contacts and forces beside the estimated ones, and
     // the true rotation, which reaches what the summary says MuJoCo turned the object.
-    let r = std::process::Command::new(common::python())
-        .arg(root().join("tests/read_rrd.py"))
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let r: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-    let entities = r["entities"].to_string();
-    for e in [
-        "/scene/contacts",
-        "/scene/truth/contacts",
-        "/scene/truth/forces",
-        "/timeseries/angles/object_true",
-    ] {
-        assert!(
-            entities.contains(&format!("\"{e}\"")),
-            "{e} missing: {entities}"
-        );
-    }
+    let r = common::recorded(
+        &rrd,
+        &[
+            "/scene/contacts",
+            "/scene/truth/contacts",
+            "/scene/truth/forces",
+            "/timeseries/angles/object_true",
+        ],
+    );
     let recorded = r["true_rotation_max"].as_f64().unwrap();
     assert!((recorded - truth).abs() < 3.0, "{recorded} vs {truth}");
     assert!(!out.contains("DROPPED"), "{out}");

@@ -305,27 +305,17 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_the_pipeline_like_the_offline_pl
     like_offline(&s, &offline);
     assert_eq!(s["holds"], 0, "{s}");
     assert_eq!(s["estimate"]["tracked_off_truth"], 0, "{s}");
-    let r = std::process::Command::new(common::python())
-        .arg(root().join("tests/read_rrd.py"))
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let r: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-    let entities = r["entities"].to_string();
-    for e in [
-        "/scene/object",
-        "/scene/rotation_axis",
-        "/scene/contacts",
-        "/scene/fingers/finger_1/links",
-        "/scene/fingers/finger_4/tip",
-        "/scene/object/icr/finger_1",
-    ] {
-        assert!(
-            entities.contains(&format!("\"{e}\"")),
-            "{e} missing: {entities}"
-        );
-    }
+    let r = common::recorded(
+        &rrd,
+        &[
+            "/scene/object",
+            "/scene/rotation_axis",
+            "/scene/contacts",
+            "/scene/fingers/finger_1/links",
+            "/scene/fingers/finger_4/tip",
+            "/scene/object/icr/finger_1",
+        ],
+    );
     // The plant's true rotation, recorded, reaches the whole turn (within a frame of the
     // visualizer's 30 Hz: the object turns at up to about 180 deg/s).
     let truth = r["true_rotation_max"].as_f64().unwrap();

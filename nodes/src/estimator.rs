@@ -198,17 +198,7 @@ impl<'a> Estimator<'a> {
             }
             (Roller::Space(s), Fingertip::Space(q)) => {
                 let c = s.contact_of(f, &q[..f.dof()], self.theta);
-                let nearest = self
-                    .candidates
-                    .points
-                    .iter()
-                    .enumerate()
-                    .min_by(|a, b| {
-                        (a.1 - c.point)
-                            .norm_squared()
-                            .total_cmp(&(b.1 - c.point).norm_squared())
-                    })
-                    .map_or(0, |(i, _)| i);
+                let nearest = self.candidates.nearest(&c.point).map_or(0, |(i, _)| i);
                 (nearest, c.gap)
             }
             _ => unreachable!("a fingertip is of its roller's kind"),

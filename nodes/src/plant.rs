@@ -629,6 +629,18 @@ mod tests {
 
     /// The paper's plant without noise, its initial grasp, and the slots of the fingers in
     /// contact and of those free.
+    /// The paper's plant in the initial grasp `grip`, under `p`, started at [`T0`].
+    fn paper_plant<'a>(setup: &'a Setup, grip: &Grip, p: &PipelineSpec) -> Plant<'a> {
+        let surface = setup.surface().unwrap();
+        Plant::new(
+            &setup.hand,
+            Roller::Section(surface),
+            (grip.0.clone(), &grip.1),
+            p,
+            T0,
+        )
+    }
+
     fn still(config: &mut Config, setup: &Setup) -> (Grip, Vec<usize>, Vec<usize>) {
         config.pipeline.joint_noise = 0.0;
         config.pipeline.pose_noise = 0.0;
@@ -643,13 +655,7 @@ mod tests {
         let (mut config, setup) = paper();
         let (grip, touching, _) = still(&mut config, &setup);
         let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(
-            &setup.hand,
-            Roller::Section(surface),
-            (grip.0.clone(), &grip.1),
-            &config.pipeline,
-            T0,
-        );
+        let mut plant = paper_plant(&setup, &grip, &config.pipeline);
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let slot = touching[0];
         let f = &setup.hand.fingers[slot];
@@ -698,14 +704,7 @@ mod tests {
         let (mut config, setup) = paper();
         let (grip, touching, free) = still(&mut config, &setup);
         assert!(!free.is_empty(), "the paper's hand has a free finger");
-        let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(
-            &setup.hand,
-            Roller::Section(surface),
-            (grip.0.clone(), &grip.1),
-            &config.pipeline,
-            T0,
-        );
+        let mut plant = paper_plant(&setup, &grip, &config.pipeline);
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let mut to = plant.joints().to_vec();
         for slot in [free[0], touching[0]] {
@@ -748,19 +747,12 @@ mod tests {
         p.pose_latency = 0.1;
         p.slip = 10f64.to_radians();
         p.slip_at = 0.5;
-        let surface = setup.surface().unwrap();
         let dt = (1e9 / p.rate_hz) as u64;
         let every = (p.rate_hz / p.pose_rate_hz).round() as u64;
         let latency = (p.pose_latency * 1e9) as u64;
         let slip_at = T0 + (p.slip_at * 1e9) as u64;
         // Without noise: the rotation of `latency` ago, every `every` ticks.
-        let mut plant = Plant::new(
-            &setup.hand,
-            Roller::Section(surface),
-            (grip.0.clone(), &grip.1),
-            p,
-            T0,
-        );
+        let mut plant = paper_plant(&setup, &grip, p);
         let mut poses = 0;
         for k in 1..=1000 {
             let t = T0 + k * dt;
@@ -791,13 +783,7 @@ mod tests {
         let sigma = 0.5_f64.to_radians();
         p.pose_noise = sigma;
         p.slip = 0.0;
-        let mut plant = Plant::new(
-            &setup.hand,
-            Roller::Section(surface),
-            (grip.0.clone(), &grip.1),
-            p,
-            T0,
-        );
+        let mut plant = paper_plant(&setup, &grip, p);
         let errors: Vec<f64> = (1..=30_000)
             .filter_map(|k| plant.tick(T0 + k * dt, None).pose)
             .map(|pose| 2.0 * pose.orientation[3].atan2(pose.orientation[0]))
@@ -815,13 +801,7 @@ mod tests {
         let (mut config, setup) = paper();
         let (grip, touching, _) = still(&mut config, &setup);
         let surface = setup.surface().unwrap();
-        let mut plant = Plant::new(
-            &setup.hand,
-            Roller::Section(surface),
-            (grip.0.clone(), &grip.1),
-            &config.pipeline,
-            T0,
-        );
+        let mut plant = paper_plant(&setup, &grip, &config.pipeline);
         let mut to = plant.joints().to_vec();
         to[touching[0]][0] += 0.05_f64.to_radians();
         let c = command(&setup, &[touching[0]], &to, true, T0);

@@ -53,3 +53,23 @@ pub fn python() -> String {
         .trim()
         .to_string()
 }
+
+/// What the Python Rerun SDK reads in the recording `rrd` (tests/read_rrd.py), its
+/// `entities` checked to hold every one of `expected`.
+pub fn recorded(rrd: &std::path::Path, expected: &[&str]) -> serde_json::Value {
+    let r = Command::new(python())
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(rrd)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let entities = r["entities"].to_string();
+    for e in expected {
+        assert!(
+            entities.contains(&format!("\"{e}\"")),
+            "{e} missing: {entities}"
+        );
+    }
+    r
+}

@@ -259,14 +259,7 @@ impl SpatialScenario<'_> {
 
     /// The candidate nearest `p` (all of them compared).
     fn nearest(&self, p: &Vec3) -> usize {
-        let pts = &self.problem.candidates().points;
-        (0..pts.len())
-            .min_by(|&a, &b| {
-                (pts[a] - p)
-                    .norm_squared()
-                    .total_cmp(&(pts[b] - p).norm_squared())
-            })
-            .unwrap_or(0)
+        self.problem.candidates().nearest(p).map_or(0, |(i, _)| i)
     }
 
     /// Where finger `f` at `q` touches the surface with the object at `theta`: the body
