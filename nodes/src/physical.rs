@@ -43,10 +43,10 @@ const TRUTH_EVERY: u64 = 10;
 /// Poses kept to measure the past from (one per tick).
 const HISTORY: usize = 4000;
 
-/// The twist of `q` about the unit `axis` (rad, in (-pi, pi]).
+/// The twist of `q` about the unit `axis` (rad, in (-pi, pi]): [`icrflow_plan::rolling::twist`].
 fn twist(q: &UnitQuaternion, axis: &Vec3) -> Real {
     let q = q.quaternion();
-    wrap(2.0 * q.imag().dot(axis).atan2(q.w))
+    icrflow_plan::rolling::twist([q.w, q.i, q.j, q.k], [axis.x, axis.y, axis.z])
 }
 
 /// The plant in MuJoCo: the simulation and the measurements; no I/O, no clock.
@@ -69,7 +69,7 @@ pub struct Physical<'a> {
     /// The object's rotation about the axis since the start (rad, unwrapped) and its last
     /// twist.
     rotation: Real,
-    last_yaw: Real,
+    last_twist: Real,
     /// Per tick: its time, the object's centre and orientation then.
     history: VecDeque<(u64, Vec3, UnitQuaternion)>,
     /// Which fingers touch the object (for the contact events).
@@ -114,7 +114,7 @@ impl<'a> Physical<'a> {
             ticks: 0,
             last_tick: now_ns,
             rotation: 0.0,
-            last_yaw: twist(&q, &axis),
+            last_twist: twist(&q, &axis),
             history: VecDeque::with_capacity(HISTORY + 1),
             touching: (0..n).map(|s| sim.contact(s).is_some()).collect(),
             sim,
@@ -158,7 +158,7 @@ impl<'a> Physical<'a> {
             text,
             "mujoco {:e} {:e} {}",
             self.rotation,
-            self.last_yaw,
+            self.last_twist,
             u8::from(self.started)
         );
         for x in self.sim.state() {
@@ -180,7 +180,7 @@ impl<'a> Physical<'a> {
             return false;
         }
         self.rotation = v[0];
-        self.last_yaw = v[1];
+        self.last_twist = v[1];
         self.started = v[2] != 0.0;
         // A push due before the state was saved was made then (or cut short by the crash):
         // it is not made again.
@@ -228,8 +228,8 @@ impl<'a> Physical<'a> {
         }
         let (_, q) = self.sim.object_pose();
         let y = twist(&q, &self.axis);
-        self.rotation += wrap(y - self.last_yaw);
-        self.last_yaw = y;
+        self.rotation += wrap(y - self.last_twist);
+        self.last_twist = y;
         for slot in 0..self.touching.len() {
             let on = self.sim.contact(slot).is_some();
             if on != self.touching[slot] {

@@ -190,10 +190,15 @@ impl Roller<'_> {
     /// angle of its twist about the axis (rad, in `(-pi, pi]`); `q`'s swing off the axis,
     /// which the object's model does not have, is left out.
     pub fn rotation_of(&self, q: [f64; 4]) -> f64 {
-        let [x, y, z] = self.axis();
-        let along = q[1] * x + q[2] * y + q[3] * z;
-        wrap(2.0 * along.atan2(q[0]))
+        twist(q, self.axis())
     }
+}
+
+/// The angle (rad, in `(-pi, pi]`) of orientation `q` (`[w, x, y, z]`) twisted about the unit
+/// `axis`: its swing off the axis left out.
+pub fn twist(q: [f64; 4], axis: [f64; 3]) -> f64 {
+    let along = q[1] * axis[0] + q[2] * axis[1] + q[3] * axis[2];
+    wrap(2.0 * along.atan2(q[0]))
 }
 
 /// The samples of a [`Surface::Curve`], in order of increasing polar angle.
