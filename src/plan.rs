@@ -198,7 +198,7 @@ fn validate_spatial(
     )?;
     writeln!(
         o,
-        "pipeline   `run` takes it on the kinematic plant (not MuJoCo's yet; its plan is not made again from the estimate)"
+        "pipeline   `run` takes it on the kinematic plant or in MuJoCo (plant.kind), its plan made again from the estimate where the object stops off it"
     )?;
     let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
     match &started {

@@ -25,12 +25,14 @@ fn run(
 ) -> (String, serde_json::Value, String) {
     let text = std::fs::read_to_string(root().join("config").join(name)).unwrap();
     let mesh = root().join("config/meshes");
+    let hands = root().join("config/hands");
     let text = text
         .replace(
             "rotation_deg = 360.0",
             &format!("rotation_deg = {rotation}"),
         )
         .replace("path = \"meshes", &format!("path = \"{}", mesh.display()))
+        .replace("urdf = \"hands", &format!("urdf = \"{}", hands.display()))
         .replace("[plant]\n", &format!("[plant]\n{plant}\n"));
     let text = if text.contains("\n[pipeline]\n") {
         text.replace(
@@ -141,6 +143,27 @@ fn the_ellipsoid_turns_a_whole_turn_under_gravity_in_mujoco() {
     let dir = scratch("mujoco-ellipsoid");
     let (_, s, _) = run(&dir, "ellipsoid_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 13, 0.15);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A spatial hand in MuJoCo: the Allegro's fingertips roll the 7 cm sphere, free in space, a
+/// whole turn about the hand's y axis through at least three finger switches (and a plan made
+/// again from the estimate where the object, rolled a little less than the plan by the soft
+/// contacts, stops off it), the centre held within millimetres by the command node's centring,
+/// the margin kept at MuJoCo's true contacts; the estimate about the axis follows the truth.
+#[test]
+fn the_allegro_turns_the_sphere_a_whole_turn_in_mujoco() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("mujoco-allegro");
+    let (out, s, _) = run(&dir, "allegro_sphere_mujoco.toml", 360.0, "", "", None);
+    assert_whole_turn(&s, 3, 0.1);
+    let truth = s["physics"]["rotation_deg"].as_f64().unwrap();
+    let estimated = s["rotation_deg"].as_f64().unwrap();
+    assert!(
+        (truth - estimated).abs() < 1.5,
+        "{truth} vs {estimated}: {s}"
+    );
+    assert!(!out.contains("DROPPED"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

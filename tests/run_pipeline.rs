@@ -380,6 +380,50 @@ fn a_slipped_object_is_planned_again_and_turned_to_the_goal() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A spatial hand's object slips in the hand (the Allegro's sphere turns back 6 degrees about
+/// the plan's axis under the fingertips, 1 s into the turn): the planner node plans again from
+/// the estimate, each finger in contact set off from its estimated joints where it touches the
+/// object (`spatial::follow::replan`), and the run turns the sphere to the goal, never below
+/// the margin.
+#[test]
+fn a_spatial_hand_s_slipped_object_is_planned_again_and_turned_to_the_goal() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("allegro-slip");
+    let text = std::fs::read_to_string(root().join("config/allegro_sphere.toml")).unwrap();
+    let text = text.replace(
+        "urdf = \"hands/allegro_right.urdf\"",
+        &format!(
+            "urdf = \"{}\"",
+            root().join("config/hands/allegro_right.urdf").display()
+        ),
+    );
+    let config = dir.join("slip.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "{text}\n[pipeline]\nslip_deg = -6.0\nslip_at_s = 1.0\n\n[zenoh]\nenabled = false\n"
+        ),
+    )
+    .unwrap();
+    let summary = dir.join("summary.json");
+    let o = icrflow(&[
+        "run",
+        config.to_str().unwrap(),
+        "--no-visualizer",
+        "--summary-json",
+        summary.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "run failed: {err}");
+    assert!(err.contains("slips by -6.0 deg"), "{err}");
+    assert!(err.contains("planned again from the estimate"), "{err}");
+    let s = json(&std::fs::read(&summary).unwrap());
+    assert!(s["replans"].as_u64().unwrap() >= 1, "{s}");
+    completed_cleanly(&s, &err);
+    turned_to_the_goal_above_the_margin(&s);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The paper's run, without Zenoh or visualizer, its sphere slipping 12 deg (`pipeline`
 /// settings `extra` say when): the output and summary of a run that planned again.
 fn slipped_run(dir: &std::path::Path, extra: &str) -> (std::process::Output, serde_json::Value) {

@@ -235,7 +235,7 @@ fn check_from_scratch(name: &str, axis: Vec3) {
 }
 
 #[test]
-fn plan_json_gains_the_axis_and_run_refuses_what_it_does_not_take_of_a_spatial_hand_by_its_key() {
+fn plan_json_gains_the_axis_and_run_refuses_a_slip_off_a_sphere_by_its_key() {
     let dir = scratch("plan-spatial");
     let out = dir.join("out");
     let o = icrflow(&[
@@ -294,29 +294,35 @@ fn plan_json_gains_the_axis_and_run_refuses_what_it_does_not_take_of_a_spatial_h
     );
 
     assert!(
-        text.contains("`run` takes it on the kinematic plant"),
+        text.contains("`run` takes it on the kinematic plant or in MuJoCo"),
         "{text}"
     );
 
-    // What `run` does not take of a spatial hand yet is refused by its key, nothing started.
-    for (extra, key) in [
-        (
-            "[plant]\nkind = \"mujoco\"\n",
-            "plant.kind: a spatial hand does not run in MuJoCo yet",
-        ),
-        (
-            "[pipeline]\nslip_deg = 5.0\n",
-            "pipeline.slip_deg: a spatial hand's plan is not made again",
-        ),
-    ] {
-        let path = dir.join("refused.toml");
-        std::fs::write(&path, format!("{}\n{extra}", allegro())).unwrap();
-        let o = icrflow(&["run", path.to_str().unwrap(), "--no-visualizer"]);
-        assert_eq!(o.status.code(), Some(1));
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(err.contains(key), "{err}");
-        assert!(!err.contains("run: starting"), "{err}");
-    }
+    // The simulated slip keeps the fingertips on a sphere only: the mesh is refused by the
+    // key, nothing started.
+    let text = std::fs::read_to_string(root().join("config/allegro_ellipsoid.toml")).unwrap();
+    let text = text
+        .replace(
+            "urdf = \"hands/allegro_right.urdf\"",
+            &format!(
+                "urdf = \"{}\"",
+                root().join("config/hands/allegro_right.urdf").display()
+            ),
+        )
+        .replace(
+            "path = \"meshes",
+            &format!("path = \"{}", root().join("config/meshes").display()),
+        );
+    let path = dir.join("refused.toml");
+    std::fs::write(&path, format!("{text}\n[pipeline]\nslip_deg = 5.0\n")).unwrap();
+    let o = icrflow(&["run", path.to_str().unwrap(), "--no-visualizer"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("pipeline.slip_deg") && err.contains("only for a sphere"),
+        "{err}"
+    );
+    assert!(!err.contains("run: starting"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -201,7 +201,7 @@ fn main() -> Result<()> {
                     let n = f.dof();
                     let target = f.tip_centre(&c.joint_targets[slot][..n]);
                     let d = f.tip_centre(&g.joints[slot][..n]) - target;
-                    let radial = target.normalize();
+                    let radial = (target - setup.object.centre_of_mass).normalize();
                     let along = d.dot(&radial);
                     errors += &format!(
                         " {:.2}/{:+.2}",
@@ -227,8 +227,26 @@ fn main() -> Result<()> {
                     cands += &format!(" {est}/{pl}");
                 }
             }
+            // Each finger's largest joint error from the plan step's target (deg).
+            let mut joint_errors = String::new();
+            if let (Some(g), Some(plan)) = (tick.grasp, plan) {
+                for slot in 0..g.finger_count as usize {
+                    let finger = g.fingers[slot].finger;
+                    let Some(t) = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
+                        .iter()
+                        .find(|t| t.finger == finger)
+                    else {
+                        continue;
+                    };
+                    let n = t.joint_count as usize;
+                    let e = (0..n).fold(0.0_f64, |m, j| {
+                        m.max((t.joints[j] - g.joints[slot][j]).abs())
+                    });
+                    joint_errors += &format!(" {:.1}", e.to_degrees());
+                }
+            }
             forces += &format!(
-                " | cand est/plan{cands} | tip across/along{errors} mm | links {}",
+                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links {}",
                 tick.plant.sim().link_contacts()
             );
             eprintln!(

@@ -18,7 +18,8 @@
 //! A tracking command's joint targets are the plan step's, moved with the object where the
 //! estimate has its centre moved from where the plan has it (a finger out of contact moved with
 //! the object, so that it meets the surface where it is; the fingers in contact together against
-//! the drift, by its integral: [`CENTRING_RATE`]), clamped into the joint limits, and
+//! the drift, by its integral: [`CENTRING_RATE`]; a planar hand's in its plane, a spatial
+//! hand's in space), clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
 //! steps, and the fingertips follow the planned rolling), and its forces, on the contacts of
@@ -109,7 +110,7 @@ impl<'a> Commander<'a> {
                 pressing: [u32::MAX; MAX_FINGERS],
                 forces: Vec::with_capacity(MAX_FINGERS),
                 last: None,
-                centring: [0.0, 0.0],
+                centring: [0.0; 3],
             },
             watchdog_ns: (WATCHDOG_PERIODS * (1.0 / p.rate_hz) * 1e9) as u64,
             last_sent: now,
@@ -290,8 +291,8 @@ struct Tracker<'a> {
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
     /// How far the fingers in contact are moved together to hold the object's centre where
-    /// the plan has it (m, in the hand's plane).
-    centring: [f64; 2],
+    /// the plan has it (m; a planar hand's in the hand's plane).
+    centring: [f64; 3],
 }
 
 /// Why a plan step was not tracked: no forces balance its contacts (an outcome: the
@@ -416,9 +417,7 @@ impl Tracker<'_> {
             _ => dt,
         };
         let max_step = p.joint_speed * elapsed;
-        let moved = gate
-            .grasp()
-            .map_or([0.0, 0.0], |g| [g.position[0], g.position[1]]);
+        let moved = gate.grasp().map_or([0.0; 3], |g| g.position);
         // The object held where the plan has it: the fingers in contact move together against
         // the estimated drift of its centre, by an integral of it (a slow loop: it corrects
         // the offsets of the hand's squeeze and the contacts' give, not the rolling).
@@ -436,17 +435,36 @@ impl Tracker<'_> {
             goal[..joints].copy_from_slice(&target.joints[..joints]);
             // The plan is about the object's starting centre. A finger that does not touch
             // the object (free, or on its way to attach) aims where the estimate has the
-            // object moved (a planar finger's fingertip moved with it), so that it meets the
-            // surface where it is; fingers in contact stay on the plan (following the object
-            // with them would push it on for ever).
-            let shift = if touching(target.finger) {
-                centring
-            } else {
-                moved
-            };
-            if shift != [0.0, 0.0] {
+            // object moved, so that it meets the surface where it is; the fingers in contact
+            // are moved together by the centring (following the object with them would push
+            // it on for ever). A planar finger's fingertip is moved with its cap axis kept
+            // (`Finger::shift_planar`); a spatial finger's material point at its contact
+            // (touching: so that it carries the object rather than rolls on it) or its
+            // fingertip centre (`Finger::shift_point`), where it moves without its joints
+            // swinging.
+            let touches = touching(target.finger);
+            let shift = if touches { centring } else { moved };
+            if shift != [0.0; 3] {
                 let plan = goal;
-                f.shift_planar(&plan[..joints], shift, &mut goal[..joints]);
+                if f.planar.is_some() {
+                    f.shift_planar(&plan[..joints], [shift[0], shift[1]], &mut goal[..joints]);
+                } else {
+                    let centre = f.tip_centre(&plan[..joints]);
+                    let point = match cands.normals.get(target.candidate as usize) {
+                        Some(n) if touches && target.in_contact == 1 => {
+                            centre - rot * n * f.tip_radius
+                        }
+                        _ => centre,
+                    };
+                    if !f.shift_point(
+                        &plan[..joints],
+                        &point,
+                        &Vec3::from(shift),
+                        &mut goal[..joints],
+                    ) {
+                        goal = plan;
+                    }
+                }
             }
             for (j, g) in goal.iter_mut().enumerate().take(joints) {
                 *g = g.clamp(f.joints[j].lower, f.joints[j].upper);

@@ -44,6 +44,7 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 use anyhow::Result;
+use icrflow_grasp::math::Vec3;
 use icrflow_grasp::object::SurfaceSamples;
 use icrflow_interfaces::{
     FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, topics,
@@ -124,9 +125,9 @@ pub struct Estimator<'a> {
     tips: Vec<Option<(Fingertip, bool)>>,
     transitions: Vec<Transition>,
     q: Vec<f64>,
-    /// How far the object's centre has moved in the hand's plane (m), from the pose
-    /// measurements' positions: the fingertips are taken about the moved centre.
-    moved: [f64; 2],
+    /// How far the object's centre has moved (m; a planar hand's in the hand's plane), from
+    /// the pose measurements' positions: the fingertips are taken about the moved centre.
+    moved: [f64; 3],
 }
 
 impl<'a> Estimator<'a> {
@@ -155,7 +156,7 @@ impl<'a> Estimator<'a> {
             tips: Vec::with_capacity(n),
             transitions: Vec::with_capacity(n),
             q: Vec::with_capacity(8),
-            moved: [0.0; 2],
+            moved: [0.0; 3],
         }
     }
 
@@ -178,7 +179,9 @@ impl<'a> Estimator<'a> {
     /// Finger `f`'s fingertip at joints `q`.
     fn fingertip(&self, f: &Finger, q: &[f64]) -> Fingertip {
         match self.roller {
-            Roller::Section(_) => Fingertip::Planar(tip(f, q).from_moved(self.moved)),
+            Roller::Section(_) => {
+                Fingertip::Planar(tip(f, q).from_moved([self.moved[0], self.moved[1]]))
+            }
             Roller::Space(_) => {
                 let mut joints = [0.0; MAX_JOINTS];
                 let n = q.len().min(MAX_JOINTS);
@@ -257,16 +260,24 @@ impl<'a> Estimator<'a> {
         Ok(nu)
     }
 
-    /// Fuses a pose measurement's position: the object's centre moved by `moved` in the
-    /// hand's plane (m) from where it was first measured (a kinematic plant's object never moves; a
-    /// MuJoCo plant's is pushed about by the fingers by a millimetre or so). Smoothed with
-    /// [`GAIN`] like the rotation, without the delay's compensation (the centre moves slowly).
-    pub fn on_position(&mut self, moved: [f64; 2]) -> Result<(), Refusal> {
+    /// Fuses a pose measurement's position: the object's centre moved by `moved` (m, hand
+    /// frame) from where it was first measured (a kinematic plant's object never moves; a
+    /// MuJoCo plant's is pushed about by the fingers by a millimetre or so). A planar hand
+    /// takes its part in the hand's plane; a spatial hand all of it (its object is taken to
+    /// turn about the moved centre). Smoothed with [`GAIN`] like the rotation, without the
+    /// delay's compensation (the centre moves slowly).
+    pub fn on_position(&mut self, moved: [f64; 3]) -> Result<(), Refusal> {
         if !moved.iter().all(|x| x.is_finite()) {
             return Err(Refusal::PoseNotFinite);
         }
-        for (m, x) in self.moved.iter_mut().zip(moved) {
-            *m += GAIN * (x - *m);
+        let spatial = matches!(self.roller, Roller::Space(_));
+        for (k, (m, x)) in self.moved.iter_mut().zip(moved).enumerate() {
+            if k < 2 || spatial {
+                *m += GAIN * (x - *m);
+            }
+        }
+        if let Roller::Space(t) = &mut self.roller {
+            t.held = Vec3::from(self.moved);
         }
         Ok(())
     }
@@ -356,7 +367,7 @@ impl<'a> Estimator<'a> {
         g.rotation = self.theta;
         // The object's centre of mass, at the hand frame's origin at the start, moved as the
         // pose measurements say.
-        g.position = [self.moved[0], self.moved[1], 0.0];
+        g.position = self.moved;
         g.orientation = self.roller.orientation(self.theta);
         g.residual = if touching > 0 {
             (residual / touching as f64).sqrt()
@@ -395,11 +406,14 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut estimator = Estimator::new(&setup.hand, roller, setup.problem.candidates(), theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     // Where the object's centre was measured first: its motion is taken from there.
-    let mut first_position: Option<[f64; 2]> =
-        match (words.next().flatten(), words.next().flatten()) {
-            (Some(x), Some(y)) => Some([x, y]),
-            _ => None,
-        };
+    let mut first_position: Option<[f64; 3]> = match (
+        words.next().flatten(),
+        words.next().flatten(),
+        words.next().flatten(),
+    ) {
+        (Some(x), Some(y), z) => Some([x, y, z.unwrap_or(0.0)]),
+        _ => None,
+    };
     let log_contacts = ctx.launch.log.contacts;
     let saved = Checkpoint::new(checkpoint)?;
 
@@ -413,8 +427,8 @@ pub fn run(ctx: &Context) -> Result<()> {
                 &mut last_pose_seq,
             )
         {
-            let start = *first_position.get_or_insert([m.position[0], m.position[1]]);
-            let moved = [m.position[0] - start[0], m.position[1] - start[1]];
+            let start = *first_position.get_or_insert(m.position);
+            let moved = [0, 1, 2].map(|k| m.position[k] - start[k]);
             match estimator
                 .on_pose(estimator.rotation_of(m.orientation), m.captured_time_ns)
                 .and_then(|_| estimator.on_position(moved))
@@ -459,8 +473,8 @@ pub fn run(ctx: &Context) -> Result<()> {
             let theta = estimator.rotation();
             saved.store(|text| {
                 let _ = write!(text, "{theta:e}");
-                if let Some([x, y]) = first_position {
-                    let _ = write!(text, " {x:e} {y:e}");
+                if let Some([x, y, z]) = first_position {
+                    let _ = write!(text, " {x:e} {y:e} {z:e}");
                 }
             });
         }
@@ -717,6 +731,82 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// A spatial hand's object moved (as a MuJoCo plant's is pushed about by the fingers): the
+    /// fingertips that follow it still touch it, at their contacts of the grip, once the pose
+    /// measurements say where it went; the grasp state carries the move in space.
+    #[test]
+    fn a_spatial_hand_s_object_is_taken_about_its_moved_centre() {
+        let (config, setup) = crate::testing::allegro_sphere();
+        let roller = setup.roller(&config).unwrap();
+        let (joints, touching) = setup.initial_grip(&config).unwrap();
+        let d = Vec3::new(1.5e-3, -1.0e-3, 2.0e-3);
+        let mut m = JointState {
+            finger_count: setup.hand.fingers.len() as u32,
+            ..Default::default()
+        };
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            m.finger_ids[slot] = f.id;
+            m.joint_counts[slot] = f.dof() as u32;
+            let mut q = joints[slot].clone();
+            if touching.contains(&f.id) {
+                let centre = f.tip_centre(&joints[slot]);
+                assert!(
+                    f.shift_point(&joints[slot], &centre, &d, &mut q),
+                    "finger {}",
+                    f.id
+                );
+            }
+            m.positions[slot][..f.dof()].copy_from_slice(&q);
+        }
+        let mut e = Estimator::new(&setup.hand, roller, setup.problem.candidates(), 0.0);
+        let mut at_grip = GraspState::default();
+        for (k, moved) in [[0.0; 3], [d.x, d.y, d.z]].into_iter().enumerate() {
+            let mut g = GraspState::default();
+            for tick in 0..100 {
+                e.on_position(moved).unwrap();
+                let h = Header::new(Kind::GraspState, (100 * k + tick) as u64, 0, 0);
+                g = e.on_joints(&m, h).unwrap();
+            }
+            if k == 0 {
+                // Not moved: the fingertips a few millimetres off where the object is.
+                let made = g.fingers.iter().filter(|c| c.in_contact == 1).count();
+                assert!(
+                    made < touching.len() || g.residual > 1e-3,
+                    "{made} {}",
+                    g.residual
+                );
+            } else {
+                at_grip = g;
+            }
+        }
+        let g = at_grip;
+        assert!(
+            (Vec3::from(g.position) - d).norm() < 1e-9,
+            "{:?}",
+            g.position
+        );
+        assert!(g.residual < 1e-6, "residual {} m", g.residual);
+        assert!(g.rotation.abs() < 1e-9, "{}", g.rotation);
+        let start = setup.spatial_scenario(&config).unwrap().start().unwrap().0;
+        for t in &start {
+            let slot = setup
+                .hand
+                .fingers
+                .iter()
+                .position(|f| f.id == t.finger)
+                .unwrap();
+            let c = &g.fingers[slot];
+            assert_eq!(c.in_contact, 1, "finger {}", t.finger);
+            let p = Vec3::from(c.point);
+            assert!(
+                (p - t.point).norm() < 3e-3,
+                "finger {}: {p} off {}",
+                t.finger,
+                t.point
+            );
         }
     }
 }

@@ -21,8 +21,7 @@ use icrflow_interfaces::{
     CommandMode, GraspState, HandCommand, Header, JointState, Kind, PlanPhase, PlanStepHeader,
     PlantTruth,
 };
-use icrflow_plan::follow::{Estimate, Event, Follower, Planning, Tolerances};
-use icrflow_plan::rolling::Roller;
+use icrflow_plan::follow::{Estimate, Event, Follower, Tolerances};
 use icrflow_scenario::{Config, PlantKind, Setup};
 
 use crate::command::Commander;
@@ -95,16 +94,15 @@ pub fn run(
     let t0: u64 = 1_000_000_000_000;
     let (joints, _) = setup.initial_grip(config)?;
     let mut plant = Physical::new(config, setup, &joints, t0)?;
-    let surface = setup.surface()?;
     let mut estimator = Estimator::new(
         &setup.hand,
-        Roller::Section(surface),
+        setup.roller(config)?,
         setup.problem.candidates(),
         0.0,
     );
     let mut wrench = WrenchSpace::new(&setup.problem, config.grasp.alpha);
     let mut follower = Follower::new_with(
-        Planning::Planar(setup.scenario(config), surface),
+        setup.planning(config)?,
         CLEARANCE,
         Tolerances::new(p.joint_noise),
         &mut |_| {},
@@ -115,7 +113,7 @@ pub fn run(
     let republish = (REPUBLISH * 1e9).round() as u64;
     let (mut joint_seq, mut grasp_seq, mut wrench_seq, mut plan_seq, mut command_seq) =
         (0u64, 0u64, 0u64, 0u64, 0u64);
-    let mut first_position: Option<[f64; 2]> = None;
+    let mut first_position: Option<[f64; 3]> = None;
     let mut e = Estimate::default();
     let mut command: Option<HandCommand> = None;
     let mut plan: Option<PlanStepHeader> = None;
@@ -137,8 +135,8 @@ pub fn run(
         let mut joints: JointState = out.joints;
         joints.header = stamped(Header::new(Kind::JointState, joint_seq, 0, 0), t);
         if let Some(pose) = &out.pose {
-            let start = *first_position.get_or_insert([pose.position[0], pose.position[1]]);
-            let moved = [pose.position[0] - start[0], pose.position[1] - start[1]];
+            let start = *first_position.get_or_insert(pose.position);
+            let moved = [0, 1, 2].map(|k| pose.position[k] - start[k]);
             let _ = estimator
                 .on_pose(
                     estimator.rotation_of(pose.orientation),

@@ -18,7 +18,8 @@
 //!   `conaffinity` 1 for the hand, the reverse for the object: the fingers do not collide with
 //!   each other); friction `mu` on both sides (MuJoCo takes the larger), three-dimensional
 //!   (sliding friction, no torsional or rolling resistance: a fingertip rolls freely), elliptic
-//!   cones with `impratio` 10 (stiff friction, little creep), stiff contacts (`solref`
+//!   cones with `impratio` 10 (stiff friction) and the no-slip solver (no creep:
+//!   [`NOSLIP_ITERATIONS`]), stiff contacts (`solref`
 //!   [`CONTACT_TIME_CONSTANT`]).
 //! - **Solver**: `implicitfast` integration (stable with the servos' damping), the timestep
 //!   [`Params::timestep`], gravity [`Params::gravity`].
@@ -34,6 +35,12 @@ use icrflow_plan::planner::Contact;
 /// newtons press a fingertip a fraction of a millimetre into the object. MuJoCo needs it at
 /// least twice the timestep ([`Params::timestep`] is bounded accordingly).
 pub const CONTACT_TIME_CONSTANT: Real = 0.005;
+/// Iterations of MuJoCo's no-slip solver after each step: without it, a contact's friction
+/// that carries a steady tangential load creeps (MuJoCo's soft contacts), and a grasp that
+/// leans on friction drifts out of the hand (the Allegro's index and ring fingers, holding the
+/// sphere against the thumb, let it creep 0.13 mm/s until the thumb lost it); with it, the
+/// grasp stands still.
+pub const NOSLIP_ITERATIONS: u32 = 5;
 /// Joint armature (kg m^2): rotor inertia, which keeps the light links' dynamics stable at
 /// millisecond timesteps.
 pub const ARMATURE: Real = 2e-4;
@@ -156,7 +163,7 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
     x.push_str("  <compiler angle=\"radian\" autolimits=\"true\" boundmass=\"1e-6\" boundinertia=\"1e-12\"/>\n");
     let _ = write!(
         x,
-        "  <option timestep=\"{:e}\" integrator=\"implicitfast\" cone=\"elliptic\" impratio=\"10\" gravity=\"",
+        "  <option timestep=\"{:e}\" integrator=\"implicitfast\" cone=\"elliptic\" impratio=\"10\" noslip_iterations=\"{NOSLIP_ITERATIONS}\" gravity=\"",
         p.timestep
     );
     v3(&mut x, &p.gravity);

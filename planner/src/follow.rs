@@ -8,8 +8,8 @@
 //! detach step by those of the released finger, so that a finger never crosses the object.
 //!
 //! A spatial hand's plan is cut into its targets by [`crate::spatial::follow::targets`]; the
-//! same [`Follower`] leads it ([`Planning::Spatial`]), without re-planning (not done for a
-//! spatial hand: [`ReplanError::Spatial`]).
+//! same [`Follower`] leads it ([`Planning::Spatial`]) and plans it again from the estimate
+//! ([`crate::spatial::follow::replan`]).
 //!
 //! The [`Follower`] is a pure step: an [`Estimate`] of the grasp and the time in, the target to
 //! command out. A target is commanded until the estimate has reached it (the same fingers in
@@ -92,6 +92,10 @@ pub const SETTLED_TOLERANCE: Real = 2.0 * std::f64::consts::PI / 180.0;
 /// `pipeline.joint_noise_deg` are added: [`Tolerances::new`]): the rolling hand moves them on
 /// by more between the sub-targets of a step.
 pub const HAND_AT_TARGET: Real = 0.1 * std::f64::consts::PI / 180.0;
+/// How close to the goal a run must turn the object (rad): the last target, stopped farther
+/// short of it, is planned again from the estimate; `icrflow run` counts a run completed within
+/// it.
+pub const GOAL_TOLERANCE: Real = 0.5 * std::f64::consts::PI / 180.0;
 /// How long the estimated rotation must stay within [`STOPPED`] for the object to count as
 /// settled (ns).
 pub const SETTLED_NS: u64 = 500_000_000;
@@ -220,17 +224,23 @@ impl Target {
     /// Whether the hand is stuck short of the target, a rolling step: the estimate has two
     /// fingers or more in contact (the step's, or others: a finger that lost its contact after
     /// a slip) and the free fingers at their free pose, and the object, stopped (within
-    /// [`STOPPED`]) for `stopped_ns` (>= [`REPLAN_NS`]), stands farther than
-    /// [`SETTLED_TOLERANCE`] from its rotation. A hand at its target does not turn the object
-    /// on, so a follower would wait for ever.
-    pub fn stalled(&self, e: &Estimate, stopped_ns: u64, joint_tolerance: Real) -> bool {
+    /// [`STOPPED`]) for `stopped_ns` (>= [`REPLAN_NS`]), stands farther than `tolerance` from
+    /// its rotation ([`SETTLED_TOLERANCE`]; the goal's [`GOAL_TOLERANCE`]). A hand at its
+    /// target does not turn the object on, so a follower would wait for ever.
+    pub fn stalled(
+        &self,
+        e: &Estimate,
+        stopped_ns: u64,
+        joint_tolerance: Real,
+        tolerance: Real,
+    ) -> bool {
         let step = &self.step;
         step.phase == Phase::Rolling
             && !self.way_point
             && stopped_ns >= REPLAN_NS
             && e.touching().count() >= 2
             && e.joint_error(step, false) <= joint_tolerance
-            && (e.rotation - step.rotation).abs() > SETTLED_TOLERANCE
+            && (e.rotation - step.rotation).abs() > tolerance
     }
 }
 
@@ -495,10 +505,6 @@ pub enum ReplanError {
         /// The finger.
         finger: u32,
     },
-    /// A spatial hand's plan is not made again from an estimate (not done yet): the
-    /// follower holds the target.
-    #[error("planning again from the estimate is not done for a spatial hand")]
-    Spatial,
     /// The planner refused the scenario made from the estimate.
     #[error(
         "from {:.2} deg (estimate {:.2} deg), contacts: {contacts}: {error}",
@@ -1007,8 +1013,10 @@ impl<'a> Follower<'a> {
         let hand_there = k < n && self.targets[k].hand_at(e, tol.hand);
         // The last target, when it is the goal, is reached within ROTATION_TOLERANCE, or,
         // settled, anywhere past it (the hand cannot turn the object back; after a re-plan the
-        // object can end a degree beyond the plan's rotation). A plan that ends short of it
-        // ends as it settles.
+        // object can end a degree beyond the plan's rotation); stopped farther than
+        // GOAL_TOLERANCE short of it, the object is turned on by a plan made again (a physical
+        // hand's rolling turns the object a little less than the plan's, and the hand at the
+        // goal turns it no farther). A plan that ends short of the goal ends as it settles.
         let settling = stopped_ns >= SETTLED_NS || hand_there;
         let goal = k + 1 == n && self.ends_at_goal;
         let settled = settling && !goal;
@@ -1018,7 +1026,12 @@ impl<'a> Follower<'a> {
                     && settling
                     && self.past_goal(e)
                     && e.same_contacts(&self.targets[k].step)));
-        if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint) {
+        let short = if goal {
+            GOAL_TOLERANCE
+        } else {
+            SETTLED_TOLERANCE
+        };
+        if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint, short) {
             // Stuck short of the target: plan again from the estimate.
             let target = self.targets[k].step.rotation;
             let first = self.targets[k].step.step + 1;
@@ -1026,7 +1039,9 @@ impl<'a> Follower<'a> {
                 Planning::Planar(scenario, surface) => {
                     replan(scenario, e, surface, first, self.clearance, beat)
                 }
-                Planning::Spatial(_) => Err(ReplanError::Spatial),
+                Planning::Spatial(scenario) => {
+                    crate::spatial::follow::replan(scenario, e, first, beat)
+                }
             };
             match again {
                 Ok(again) => {

@@ -28,6 +28,16 @@ const PLANAR_TOLERANCE: Real = 1e-9;
 /// Steps along which [`Finger::reach_along`] and [`Finger::reach_along_planar`] follow a path
 /// to measure a reserve.
 pub const REACH_STEPS: usize = 8;
+/// The most joints [`Finger::shift_point`] moves (a finger of more is not shifted).
+pub const SHIFT_JOINTS: usize = 8;
+/// The shortest lever [`Finger::shift_point`] moves a fingertip with (m): a joint may turn by
+/// at most the move over it.
+pub const SHIFT_LEVER: Real = 0.01;
+/// [`Finger::shift_point`]'s Gauss-Newton steps at most.
+pub const SHIFT_STEPS: usize = 4;
+/// The damping of [`Finger::shift_point`]'s steps (m^2): none to speak of away from a singular
+/// pose.
+const SHIFT_DAMPING: Real = 1e-9;
 /// Most null-space steps [`Finger::ik_position_centred`] takes toward the middle of the joint
 /// ranges.
 pub const CENTRING_STEPS: usize = 30;
@@ -785,6 +795,69 @@ impl Finger {
                 .collect()),
             None => Err(first_violation.expect("a violation was recorded")),
         }
+    }
+
+    /// The joints of the finger at `q` with the fingertip's material point at `point` (hand
+    /// frame, at `q`) moved by `d` (m, hand frame), into `out`: Gauss-Newton steps of that
+    /// point's Jacobian from `q`, each the least joint motion that makes it (the fingertip may
+    /// turn about the point). Allocation-free, for the command loop: what follows an object
+    /// whose centre has moved by millimetres with a pose planned about its old centre, for any
+    /// finger ([`Finger::shift_planar`] is the planar three-joint finger's exact one). For a
+    /// finger in contact the point is the fingertip's at the contact: the fingertip then
+    /// carries the object with it, where moving its centre alone could let it roll on the
+    /// object instead; for a free finger, its centre ([`Finger::tip_centre`]). `false` (`out`
+    /// still the last step's joints) when the point is not within a micrometre of its goal
+    /// after [`SHIFT_STEPS`] steps (a goal out of reach), when a joint would move more than
+    /// `|d|` over [`SHIFT_LEVER`] (a pose near a singular one, a stretched finger: its joints
+    /// would swing for a fraction of a millimetre), or the finger has more than
+    /// [`SHIFT_JOINTS`] joints; the result is not clamped to the joint limits.
+    pub fn shift_point(&self, q: &[Real], point: &Vec3, d: &Vec3, out: &mut [Real]) -> bool {
+        let n = self.dof();
+        if n > SHIFT_JOINTS || q.len() < n || out.len() < n {
+            return false;
+        }
+        out[..n].copy_from_slice(&q[..n]);
+        // The point in the last joint's frame: it moves with the fingertip.
+        let local = self.tip_frame(q).inverse() * nalgebra::Point3::from(*point);
+        let goal = point + d;
+        let mut columns = [Vec3::zeros(); SHIFT_JOINTS];
+        let mut reached = false;
+        for _ in 0..SHIFT_STEPS {
+            let mut axes = [(Vec3::zeros(), Vec3::zeros()); SHIFT_JOINTS];
+            let mut t = self.base;
+            for (k, (j, &qi)) in self.joints.iter().zip(&out[..n]).enumerate() {
+                t *= j.origin;
+                axes[k] = (t.translation.vector, t.rotation * j.axis.into_inner());
+                t *= Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_axis_angle(&j.axis, qi),
+                );
+            }
+            let at = (t * local).coords;
+            let e = goal - at;
+            if e.norm() <= 1e-6 {
+                reached = true;
+                break;
+            }
+            let mut jjt = nalgebra::Matrix3::identity() * SHIFT_DAMPING;
+            for (c, (o, a)) in columns.iter_mut().zip(&axes).take(n) {
+                *c = a.cross(&(at - o));
+                jjt += *c * c.transpose();
+            }
+            let Some(inverse) = jjt.try_inverse() else {
+                return false;
+            };
+            let y = inverse * e;
+            for (x, c) in out.iter_mut().zip(&columns).take(n) {
+                *x += c.dot(&y);
+            }
+        }
+        reached = reached || (goal - (self.tip_frame(&out[..n]) * local).coords).norm() <= 1e-6;
+        let swing = q
+            .iter()
+            .zip(&out[..n])
+            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+        reached && swing * SHIFT_LEVER <= d.norm()
     }
 
     /// The joints of a planar three-joint finger at `q` with its fingertip centre moved by

@@ -93,6 +93,51 @@ proptest! {
         prop_assert!(f.limit_violation(&centred, 0.0).is_none());
         prop_assert!(f.limit_cost(&centred) <= f.limit_cost(&sol));
     }
+
+    /// The command loop's shift of a fingertip after the object's centre (`shift_point`): on
+    /// the Allegro's fingers, the fingertip's material point at its centre or at a contact on
+    /// its sphere (outward normal `n` of the object there: the point `centre - r_f n`), in a
+    /// pose whose Jacobian of that point has its smallest singular value at least twice
+    /// `SHIFT_LEVER` (the joints turn by less than the move over it), moved by up to 3 mm in
+    /// any direction lands within a micrometre of there; a move out of the finger's reach is
+    /// refused, and so is a move of the stretched finger (all joints at 0) along itself, for
+    /// which its joints would swing.
+    #[test]
+    fn shift_point_moves_the_allegros_fingertips_by_millimetres(
+        finger in 0usize..4,
+        u in prop::array::uniform4(0.0..1.0f64),
+        d in prop::array::uniform3(-3e-3..3e-3f64),
+        normal in prop::array::uniform3(-1.0..1.0f64),
+        at_contact in any::<bool>(),
+    ) {
+        let fingers = allegro();
+        let f = &fingers[finger];
+        let q = within(f, &u);
+        let d = Vec3::from(d);
+        let n = Vec3::from(normal);
+        prop_assume!(n.norm() > 0.1);
+        let n = n.normalize();
+        let (point, jac) = if at_contact {
+            (f.tip_centre(&q) - n * f.tip_radius, f.contact_jacobian(&q, &n))
+        } else {
+            (f.tip_centre(&q), f.jacobian6(&q).rows(0, 3).into_owned())
+        };
+        prop_assume!(jac.singular_values().min() >= 2.0 * icrflow_plan::hand::SHIFT_LEVER);
+        let local = f.tip_frame(&q).inverse() * nalgebra::Point3::from(point);
+        let mut out = [0.0; 4];
+        prop_assert!(f.shift_point(&q, &point, &d, &mut out));
+        prop_assert!(((f.tip_frame(&out) * local).coords - point - d).norm() < 1e-6);
+        let motion = q.iter().zip(&out).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+        prop_assert!(motion * icrflow_plan::hand::SHIFT_LEVER <= d.norm(), "{motion}");
+        prop_assert!(!f.shift_point(&q, &point, &Vec3::new(1.0, 0.0, 0.0), &mut out));
+        let straight = [0.0; 4];
+        if f.limit_violation(&straight, 0.0).is_none() {
+            // Along the finger, toward the palm: the joints bend by ~sqrt(2 |d| / length).
+            let pose = f.fk(&straight);
+            let inward = (pose.joints[1] - pose.tip_centre).normalize() * 1e-4;
+            prop_assert!(!f.shift_point(&straight, &pose.tip_centre, &inward, &mut out));
+        }
+    }
 }
 
 #[test]

@@ -232,6 +232,7 @@ impl Setup {
             centre: self.object.centre_of_mass,
             initial: s.initial.clone(),
             start_rotation: 0.0,
+            start_joints: Vec::new(),
             settings: config.plan.clone(),
             spatial: Spatial {
                 axis: config.turn.axis,
@@ -251,6 +252,7 @@ impl Setup {
                 surface: &s.surface,
                 centre: self.object.centre_of_mass,
                 axis: nalgebra::Unit::new_normalize(config.turn.axis),
+                held: Vec3::zeros(),
             }),
             None => Roller::Section(self.surface()?),
         })

@@ -26,6 +26,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use iceoryx2::prelude::*;
 use icrflow_plan::rolling::Surface;
+use icrflow_plan::spatial::surface::Convex;
 use icrflow_runtime::bus::Bus;
 use icrflow_runtime::supervise::Supervisor;
 use icrflow_scenario::{Config, Recording, Setup};
@@ -113,19 +114,15 @@ pub fn slip(config: &Config, surface: &Surface) -> Result<()> {
     Ok(())
 }
 
-/// What of the pipeline a spatial hand's run does not have yet, refused by its key: MuJoCo as
-/// the plant (its scene and the plant take a spatial hand, but its controls are tuned for the
-/// planar one: the Allegro's sphere lost its thumb's contact at 186 degrees and was dropped
-/// from force closure), and a spatial plan made again from the estimate, which a slip needs.
-pub fn spatial_run(config: &Config) -> Result<()> {
-    if config.plant.kind == icrflow_scenario::PlantKind::Mujoco {
+/// A spatial hand's run: the simulated slip (`pipeline.slip_deg`) turns the object about the
+/// plan's axis under fingertips that stay where they are, which keeps them on it only for a
+/// sphere; another object is refused by the key.
+pub fn spatial_slip(config: &Config, surface: &Convex) -> Result<()> {
+    if config.pipeline.slip != 0.0 && !matches!(surface, Convex::Sphere { .. }) {
         anyhow::bail!(
-            "plant.kind: a spatial hand does not run in MuJoCo yet (its controls are tuned for the planar hand: the Allegro lost the sphere halfway round); it runs on the kinematic plant (kind = \"kinematic\")"
-        );
-    }
-    if config.pipeline.slip != 0.0 {
-        anyhow::bail!(
-            "pipeline.slip_deg: a spatial hand's plan is not made again from the estimate, which the simulated slip needs: the run would hold where the object slipped"
+            "pipeline.slip_deg: the simulated slip turns the object about the plan's axis under \
+             fingertips that stay where they are, which keeps them on it only for a sphere; this \
+             object is not one"
         );
     }
     Ok(())
@@ -147,7 +144,7 @@ pub fn run(
     let setup = Setup::new(&config)?;
     let start = match setup.spatial_scenario(&config) {
         Some(spatial) => {
-            spatial_run(&config)?;
+            spatial_slip(&config, spatial.surface)?;
             spatial.start().map(|_| ())
         }
         None => {

@@ -270,7 +270,8 @@ impl RunSummary {
     /// The summary of what the watch saw.
     pub(super) fn new(seen: Seen, facts: Facts) -> Self {
         Self {
-            completed: seen.done && seen.rotation >= facts.goal - 0.5f64.to_radians(),
+            completed: seen.done
+                && seen.rotation >= facts.goal - icrflow_plan::follow::GOAL_TOLERANCE,
             reason: seen.stop.to_string(),
             rotation_deg: seen.rotation.to_degrees(),
             goal_deg: facts.goal.to_degrees(),

@@ -256,7 +256,8 @@ impl TruthTrack {
 }
 
 /// Plans made again from the estimate, in a row, without the object getting on by
-/// [`REPLAN_PROGRESS`], after which a run gives up.
+/// [`REPLAN_PROGRESS`] (or, nearer the goal than that, by a quarter of what was left to it),
+/// after which a run gives up.
 pub const REPLANS_WITHOUT_PROGRESS: u32 = 3;
 /// What counts as getting on between two plans made again (rad): 2 degrees.
 pub const REPLAN_PROGRESS: f64 = 2.0 * std::f64::consts::PI / 180.0;
@@ -270,11 +271,15 @@ pub struct ReplanProgress {
 }
 
 impl ReplanProgress {
-    /// A plan was made again with the object at `rotation` (rad); why the run gives up, if
-    /// it should.
-    pub fn replanned(&mut self, rotation: f64) -> Option<String> {
+    /// A plan was made again with the object at `rotation` (rad), on the way to `goal` (rad);
+    /// why the run gives up, if it should. Near the goal, where the plans made again turn the
+    /// object by what is left (a physical hand's rolling turns it a little less than the
+    /// plan's), getting a quarter of the way on from the first counts as progress.
+    pub fn replanned(&mut self, rotation: f64, goal: f64) -> Option<String> {
         match &mut self.base {
-            Some((base, count)) if (rotation - *base).abs() < REPLAN_PROGRESS => {
+            Some((base, count))
+                if (rotation - *base).abs() < REPLAN_PROGRESS.min(0.25 * (goal - *base).abs()) =>
+            {
                 *count += 1;
                 (*count >= REPLANS_WITHOUT_PROGRESS).then(|| {
                     format!(
@@ -432,15 +437,25 @@ mod tests {
     #[test]
     fn re_plans_that_get_nowhere_give_up_and_progress_starts_anew() {
         let deg = |d: f64| d.to_radians();
+        let goal = deg(360.0);
         let mut p = ReplanProgress::default();
-        assert_eq!(p.replanned(deg(10.0)), None);
-        assert_eq!(p.replanned(deg(11.0)), None);
+        assert_eq!(p.replanned(deg(10.0), goal), None);
+        assert_eq!(p.replanned(deg(11.0), goal), None);
         // Got on: counted from here.
-        assert_eq!(p.replanned(deg(40.0)), None);
-        assert_eq!(p.replanned(deg(40.5)), None);
-        assert_eq!(p.replanned(deg(39.8)), None);
-        let why = p.replanned(deg(40.1)).unwrap();
+        assert_eq!(p.replanned(deg(40.0), goal), None);
+        assert_eq!(p.replanned(deg(40.5), goal), None);
+        assert_eq!(p.replanned(deg(39.8), goal), None);
+        let why = p.replanned(deg(40.1), goal).unwrap();
         assert!(why.contains("4 times in a row"), "{why}");
         assert!(why.contains("40.1 deg"), "{why}");
+        // Near the goal, a quarter of the way on is progress: 1.4 deg short, then 1.1, 0.9
+        // (0.5 on from 358.6, more than 0.35), 0.7, 0.55; stuck at 359.45 it gives up.
+        let mut p = ReplanProgress::default();
+        for at in [358.6, 358.9, 359.1, 359.3, 359.45] {
+            assert_eq!(p.replanned(deg(at), goal), None, "{at}");
+        }
+        assert_eq!(p.replanned(deg(359.45), goal), None);
+        assert_eq!(p.replanned(deg(359.46), goal), None);
+        assert!(p.replanned(deg(359.45), goal).is_some());
     }
 }

@@ -361,7 +361,7 @@ impl Watch {
             return Ok(Some(stop));
         }
         let l = &self.limits;
-        let at_goal = self.done && self.rotation >= l.goal - 0.5f64.to_radians();
+        let at_goal = self.done && self.rotation >= l.goal - icrflow_plan::follow::GOAL_TOLERANCE;
         if at_goal && !self.goal_said {
             self.goal_said = true;
             self.status.clear();
@@ -452,7 +452,7 @@ impl Watch {
         if p.phase == PlanPhase::Start as u32
             && p.step > 0
             && self.replans.insert(p.step)
-            && let Some(why) = self.replan_progress.replanned(p.rotation)
+            && let Some(why) = self.replan_progress.replanned(p.rotation, self.limits.goal)
         {
             self.gave_up.get_or_insert(why);
         }
@@ -579,7 +579,7 @@ impl Watch {
         if l.live {
             return None;
         }
-        let short = self.rotation < l.goal - 0.5f64.to_radians();
+        let short = self.rotation < l.goal - icrflow_plan::follow::GOAL_TOLERANCE;
         // Before the first plan step the planner node plans: however long that takes, it is
         // no stall (a planner node that fails is the supervisor's, and said).
         let (step, since) = self.progress.map(|(step, t)| (step, t.elapsed()))?;

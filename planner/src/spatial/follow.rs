@@ -23,7 +23,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::SpatialScenario;
 use super::rolling::Turning;
-use crate::follow::{SUBSTEP, Target};
+use crate::follow::{Estimate, Replan, ReplanError, SUBSTEP, Target};
 use crate::hand::Finger;
 use crate::planner::{Phase, Step};
 
@@ -49,6 +49,68 @@ pub fn targets(steps: &[Step], scenario: &SpatialScenario<'_>) -> Vec<Target> {
         rolling(&steps[k - 1], step, scenario, &turning, &mut out);
     }
     out
+}
+
+/// A spatial plan made again from the estimate `e` for `scenario` (its goal, settings and
+/// hand; its initial contacts and start replaced), its steps numbered from `first`, with its
+/// [`targets`]; `beat` is called as planning goes on. Each finger the estimate has in contact
+/// starts where its fingertip touches the object at the estimated rotation (the surface point
+/// nearest its centre, from its estimated joints), placed by inverse kinematics from those
+/// joints (the nearest pose touching there: the hand does not jump); the plan starts at the
+/// estimated rotation, and the free fingers at their free pose, where the follower plans
+/// again only. The contacts are not snapped to candidates (the spatial planner rolls on the
+/// surface, its contacts' candidates the nearest ones), so the offset is 0.
+pub fn replan(
+    scenario: &SpatialScenario<'_>,
+    e: &Estimate,
+    first: usize,
+    beat: &mut dyn FnMut(),
+) -> Result<Replan, ReplanError> {
+    let turning = scenario.turning();
+    let mut again = scenario.clone();
+    again.initial = Vec::with_capacity(e.fingers.len());
+    again.start_joints = Vec::with_capacity(e.fingers.len());
+    let mut described = Vec::with_capacity(e.fingers.len());
+    for c in e.fingers.iter().filter(|c| c.in_contact) {
+        let f = scenario
+            .hand
+            .finger(c.finger)
+            .ok_or(ReplanError::UnknownFinger { finger: c.finger })?;
+        let q: Vec<Real> = c.joints.iter().take(f.dof()).copied().collect();
+        let touch = turning.contact_of(f, &q, e.rotation);
+        described.push(format!(
+            "finger {} at [{:.1}, {:.1}, {:.1}] mm ({:+.2} mm off the surface)",
+            f.id,
+            touch.point.x * 1e3,
+            touch.point.y * 1e3,
+            touch.point.z * 1e3,
+            touch.gap * 1e3
+        ));
+        again.initial.push((f.id, touch.point));
+        again.start_joints.push((f.id, q));
+    }
+    if again.initial.is_empty() {
+        return Err(ReplanError::NoContact);
+    }
+    again.start_rotation = e.rotation;
+    let mut plan = again
+        .plan(&mut |_| beat())
+        .map_err(|error| ReplanError::Planning {
+            from: e.rotation,
+            estimate: e.rotation,
+            contacts: described.join(", "),
+            error,
+        })?;
+    for step in &mut plan.steps {
+        step.step += first;
+    }
+    let targets = targets(&plan.steps, &again);
+    Ok(Replan {
+        targets,
+        plan,
+        delta: 0.0,
+        notes: Vec::new(),
+    })
 }
 
 /// The way points before `step`, an attach or a detach step after `prev`, onto `out`.

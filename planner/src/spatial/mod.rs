@@ -98,6 +98,11 @@ pub struct SpatialScenario<'a> {
     pub initial: Vec<(u32, Vec3)>,
     /// The object's rotation the plan starts at (rad, about the axis).
     pub start_rotation: Real,
+    /// Where the fingers start from: per finger its joints, from which the inverse kinematics
+    /// of its initial contact sets off (a plan made again from the estimate starts from the
+    /// hand's joints: the nearest pose that touches there); a finger not listed sets off from
+    /// its free pose.
+    pub start_joints: Vec<(u32, Vec<Real>)>,
     /// Planner settings (the planar planner's; `attach_resolution` and `min_manipulability`
     /// are not used).
     pub settings: Settings,
@@ -222,6 +227,7 @@ impl SpatialScenario<'_> {
             surface: self.surface,
             centre: self.centre,
             axis: Unit::new_normalize(self.spatial.axis),
+            held: Vec3::zeros(),
         }
     }
 
@@ -478,11 +484,29 @@ impl SpatialScenario<'_> {
         seed: &[Real],
         squeeze: bool,
     ) -> Result<Touch, String> {
+        self.place_from(f, p, theta, seed, squeeze, false)
+    }
+
+    /// [`Self::place`], the pose the nearest to `seed` if `nearest` (a finger already in
+    /// contact there: turning its fingertip about its centre toward the middle of the joint
+    /// ranges would spin it on the object) rather than the one off the joint limits.
+    fn place_from(
+        &self,
+        f: &Finger,
+        p: &Vec3,
+        theta: Real,
+        seed: &[Real],
+        squeeze: bool,
+        nearest: bool,
+    ) -> Result<Touch, String> {
         let c = self.surface.closest(p);
         let target = self.to_world(theta, &(c.point + c.normal * f.tip_radius));
-        let q = f
-            .ik_position_centred(&target, seed)
-            .map_err(|e| e.to_string())?;
+        let q = if nearest {
+            f.ik_position(&target, seed)
+        } else {
+            f.ik_position_centred(&target, seed)
+        }
+        .map_err(|e| e.to_string())?;
         let touch = self.touch_of(f, &q, theta);
         if let Some(why) = self.pose_check(f, &q, theta, &touch, squeeze) {
             return Err(why);
@@ -842,13 +866,15 @@ impl SpatialScenario<'_> {
         let mut touches = Vec::with_capacity(self.initial.len());
         for (id, p) in &self.initial {
             let f = self.finger(*id);
-            let t = self.place(f, p, theta, &f.home, true).map_err(|reason| {
-                PlanError::Unreachable {
+            let from = self.start_joints.iter().find(|(finger, _)| finger == id);
+            let seed = from.map_or(&f.home, |(_, q)| q);
+            let t = self
+                .place_from(f, p, theta, seed, true, from.is_some())
+                .map_err(|reason| PlanError::Unreachable {
                     finger: *id,
                     where_: self.describe(p),
                     reason,
-                }
-            })?;
+                })?;
             touches.push(t);
         }
         let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();

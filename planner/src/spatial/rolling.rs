@@ -46,9 +46,9 @@ use nalgebra::{Matrix2, Rotation3, Unit, Vector2};
 use super::surface::Convex;
 use crate::hand::Finger;
 
-/// An object turning about an axis through its centre of mass, which is held at the hand
-/// frame's origin (the spatial planner's model): where fingertips touch it and how far their
-/// rolling turns it ([`Turning::turn`]).
+/// An object turning about an axis through its centre of mass, which is held at `held` in the
+/// hand frame (the spatial planner's model holds it at the origin): where fingertips touch it
+/// and how far their rolling turns it ([`Turning::turn`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Turning<'a> {
     /// The surface the fingertips roll on (body frame).
@@ -57,6 +57,9 @@ pub struct Turning<'a> {
     pub centre: Vec3,
     /// The unit axis (hand frame) it turns about.
     pub axis: Unit<Vec3>,
+    /// Where the centre of mass is (hand frame): the origin in the plan; elsewhere when the
+    /// object has moved from there (the estimator's, by the pose measurements).
+    pub held: Vec3,
 }
 
 /// Where a fingertip is against a [`Turning`] object.
@@ -79,12 +82,12 @@ impl Turning<'_> {
 
     /// Hand-frame position of body point `b` with the object at `theta`.
     pub fn to_world(&self, theta: Real, b: &Vec3) -> Vec3 {
-        self.rotation(theta) * (b - self.centre)
+        self.rotation(theta) * (b - self.centre) + self.held
     }
 
     /// Body point at hand-frame position `w` with the object at `theta`.
     pub fn to_body(&self, theta: Real, w: &Vec3) -> Vec3 {
-        self.rotation(theta).inverse() * w + self.centre
+        self.rotation(theta).inverse() * (w - self.held) + self.centre
     }
 
     /// Where finger `f`'s fingertip at joints `q` is against the object at `theta`.
@@ -123,7 +126,7 @@ impl Turning<'_> {
         // The fingertip's material point at the contact, carried by the fingertip's motion.
         let carried = (tb * ta.inverse() * nalgebra::Point3::from(p)).coords;
         let d = carried - p;
-        let lever = self.axis.cross(&p);
+        let lever = self.axis.cross(&(p - self.held));
         (lever.dot(&d), lever.norm_squared())
     }
 }
