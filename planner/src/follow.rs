@@ -1040,7 +1040,8 @@ impl<'a> Follower<'a> {
                     replan(scenario, e, surface, first, self.clearance, beat)
                 }
                 Planning::Spatial(scenario) => {
-                    crate::spatial::follow::replan(scenario, e, first, beat)
+                    let held = &self.targets[k].step;
+                    crate::spatial::follow::replan(scenario, e, Some(held), first, beat)
                 }
             };
             match again {

@@ -968,7 +968,9 @@ impl SpatialScenario<'_> {
         Some(angle.rem_euclid(2.0 * PI))
     }
 
-    /// Switches finger `touches[k]` for the best free finger.
+    /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
+    /// the search goes on (per free finger placed, per placement tried: a search that takes
+    /// seconds still reports).
     #[allow(clippy::type_complexity)]
     fn switch(
         &self,
@@ -977,6 +979,7 @@ impl SpatialScenario<'_> {
         theta: Real,
         why: &str,
         maps: &[ReachMap],
+        progress: &mut dyn FnMut(Real),
     ) -> Result<Result<(Vec<Touch>, Vec<Touch>, Switch, Real, Real), String>, PlanError> {
         let released = touches[k].finger;
         let free: Vec<&Finger> = self
@@ -1012,9 +1015,10 @@ impl SpatialScenario<'_> {
             .iter()
             .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
         // Every reachable placement of a tier: (limit margin, touch).
-        let placements = |tier: &[usize]| {
+        let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
             let mut options: Vec<(Real, Touch)> = Vec::new();
             for f in &free {
+                progress(theta);
                 let map = maps.iter().find(|m| m.finger == f.id);
                 for &c in tier {
                     // Far from every sampled pose of the finger: out of its reach (or
@@ -1069,9 +1073,10 @@ impl SpatialScenario<'_> {
         let mut chosen = None;
         let mut tried = 0;
         'tiers: for tier in [&ahead, &behind] {
-            let (ranked, limit) = placements(tier);
+            let (ranked, limit) = placements(tier, progress);
             tried += ranked.len();
             for (room, t) in ranked {
+                progress(theta);
                 let room = room.unwrap_or_else(|| self.room(&t, theta, limit));
                 let ahead = self.ahead(&here, &t.point);
                 match self.try_switch(touches, k, theta, t, floor, &mut rejected)? {
@@ -1286,7 +1291,7 @@ impl SpatialScenario<'_> {
                         ));
                         break;
                     }
-                    match self.switch(&touches, k, theta, &why, &maps)? {
+                    match self.switch(&touches, k, theta, &why, &maps, progress)? {
                         Ok((attach, detach, info, q_attach, q_detach)) => {
                             min_quality = min_quality.min(q_attach).min(q_detach);
                             just_attached = Some(info.attached);
