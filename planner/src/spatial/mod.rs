@@ -969,8 +969,8 @@ impl SpatialScenario<'_> {
     }
 
     /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
-    /// the search goes on (per free finger placed, per placement tried: a search that takes
-    /// seconds still reports).
+    /// the search goes on (per candidate placed, per placement tried: a search that takes a
+    /// second still reports).
     #[allow(clippy::type_complexity)]
     fn switch(
         &self,
@@ -1018,9 +1018,9 @@ impl SpatialScenario<'_> {
         let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
             let mut options: Vec<(Real, Touch)> = Vec::new();
             for f in &free {
-                progress(theta);
                 let map = maps.iter().find(|m| m.finger == f.id);
                 for &c in tier {
+                    progress(theta);
                     // Far from every sampled pose of the finger: out of its reach (or
                     // nearly), not worth an inverse kinematics; else the nearest sample seeds
                     // it.
