@@ -24,6 +24,7 @@ pub fn model(config: &Config, setup: &Setup) -> Result<String> {
         link_radius: p.link_radius,
         kp: p.kp,
         kv: p.kv,
+        noslip_iterations: p.noslip_iterations,
     };
     mjcf(&setup.hand, &setup.object, shape, &params).map_err(|e| anyhow!("plant: {e}"))
 }

@@ -18,8 +18,9 @@
 //!   `conaffinity` 1 for the hand, the reverse for the object: the fingers do not collide with
 //!   each other); friction `mu` on both sides (MuJoCo takes the larger), three-dimensional
 //!   (sliding friction, no torsional or rolling resistance: a fingertip rolls freely), elliptic
-//!   cones with `impratio` 10 (stiff friction) and the no-slip solver (no creep:
-//!   [`NOSLIP_ITERATIONS`]), stiff contacts (`solref`
+//!   cones with `impratio` 10 (stiff friction) and [`Params::noslip_iterations`] of the
+//!   no-slip solver (without it, friction under a steady tangential load creeps), stiff
+//!   contacts (`solref`
 //!   [`CONTACT_TIME_CONSTANT`]).
 //! - **Solver**: `implicitfast` integration (stable with the servos' damping), the timestep
 //!   [`Params::timestep`], gravity [`Params::gravity`].
@@ -35,12 +36,6 @@ use icrflow_plan::planner::Contact;
 /// newtons press a fingertip a fraction of a millimetre into the object. MuJoCo needs it at
 /// least twice the timestep ([`Params::timestep`] is bounded accordingly).
 pub const CONTACT_TIME_CONSTANT: Real = 0.005;
-/// Iterations of MuJoCo's no-slip solver after each step: without it, a contact's friction
-/// that carries a steady tangential load creeps (MuJoCo's soft contacts), and a grasp that
-/// leans on friction drifts out of the hand (the Allegro's index and ring fingers, holding the
-/// sphere against the thumb, let it creep 0.13 mm/s until the thumb lost it); with it, the
-/// grasp stands still.
-pub const NOSLIP_ITERATIONS: u32 = 5;
 /// Joint armature (kg m^2): rotor inertia, which keeps the light links' dynamics stable at
 /// millisecond timesteps.
 pub const ARMATURE: Real = 2e-4;
@@ -81,6 +76,8 @@ pub struct Params {
     pub kp: Real,
     /// Velocity gain of the joint servos (N m s / rad).
     pub kv: Real,
+    /// Iterations of MuJoCo's no-slip solver after each step (0: none).
+    pub noslip_iterations: u32,
 }
 
 /// Why a model cannot be written.
@@ -163,8 +160,8 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
     x.push_str("  <compiler angle=\"radian\" autolimits=\"true\" boundmass=\"1e-6\" boundinertia=\"1e-12\"/>\n");
     let _ = write!(
         x,
-        "  <option timestep=\"{:e}\" integrator=\"implicitfast\" cone=\"elliptic\" impratio=\"10\" noslip_iterations=\"{NOSLIP_ITERATIONS}\" gravity=\"",
-        p.timestep
+        "  <option timestep=\"{:e}\" integrator=\"implicitfast\" cone=\"elliptic\" impratio=\"10\" noslip_iterations=\"{}\" gravity=\"",
+        p.timestep, p.noslip_iterations
     );
     v3(&mut x, &p.gravity);
     x.push_str("\"/>\n");
@@ -322,6 +319,7 @@ mod tests {
             link_radius: 0.004,
             kp: 5.0,
             kv: 0.05,
+            noslip_iterations: 0,
         }
     }
 

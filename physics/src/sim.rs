@@ -529,6 +529,7 @@ mod tests {
             link_radius: 0.004,
             kp: 5.0,
             kv: 0.05,
+            noslip_iterations: 0,
         };
         let xml = mjcf(&hand, &object, Shape::Sphere { radius: 0.0475 }, &p).unwrap();
         (hand, xml)

@@ -503,6 +503,12 @@ pub const KP: Range = Range::above(
 );
 /// `plant.kv`.
 pub const KV: Range = Range::closed(0.0, 100.0, "N m s/rad", "the servos' damping");
+/// `plant.noslip_iterations`.
+pub const NOSLIP: Count = Count::new(
+    0,
+    100,
+    "MuJoCo's no-slip solver after each step; a few do, each costs a solver pass",
+);
 /// `plant.squeeze_mm`.
 pub const SQUEEZE: Range = Range::closed(
     0.0,

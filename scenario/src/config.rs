@@ -573,6 +573,10 @@ pub struct PlantSpec {
     pub kp: Real,
     /// See `kp`.
     pub kv: Real,
+    /// Iterations of MuJoCo's no-slip solver after each step (0: none): without it, friction
+    /// under a steady tangential load creeps (MuJoCo's soft contacts), and a grasp that leans on
+    /// friction drifts out of the hand.
+    pub noslip_iterations: u32,
     /// How far past the commanded fingertip position the servos of the finger commanded with
     /// the largest force aim (m); the others' in proportion to their forces.
     pub squeeze: Real,
@@ -1236,6 +1240,10 @@ fn plant_spec(raw: crate::raw::RawPlant) -> Result<PlantSpec> {
             * 1e-3,
         kp: bounds::KP.or("plant.kp", raw.kp, 5.0)?,
         kv: bounds::KV.or("plant.kv", raw.kv, 0.05)?,
+        noslip_iterations: bounds::NOSLIP.check(
+            "plant.noslip_iterations",
+            raw.noslip_iterations.unwrap_or(0),
+        )? as u32,
         squeeze: bounds::SQUEEZE.or("plant.squeeze_mm", raw.squeeze_mm, 1.0)? * 1e-3,
         feedforward: raw.feedforward.unwrap_or(true),
         friction_margin: bounds::FRICTION_MARGIN.or(

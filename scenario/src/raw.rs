@@ -58,6 +58,7 @@ pub struct RawPlant {
     pub link_radius_mm: Option<f64>,
     pub kp: Option<f64>,
     pub kv: Option<f64>,
+    pub noslip_iterations: Option<usize>,
     pub squeeze_mm: Option<f64>,
     pub feedforward: Option<bool>,
     pub friction_margin: Option<f64>,
