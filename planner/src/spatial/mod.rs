@@ -474,23 +474,12 @@ impl SpatialScenario<'_> {
         None
     }
 
-    /// Finger `f` placed by inverse kinematics (joints centred) touching the surface at the
-    /// body point nearest `p`, with the object at `theta`, from `seed`.
+    /// Finger `f` placed by inverse kinematics touching the surface at the body point nearest
+    /// `p`, with the object at `theta`, from `seed`: the pose with its joints centred, or, if
+    /// `nearest`, the pose nearest `seed` (a finger already in contact there: turning its
+    /// fingertip about its centre toward the middle of the joint ranges would spin it on the
+    /// object).
     fn place(
-        &self,
-        f: &Finger,
-        p: &Vec3,
-        theta: Real,
-        seed: &[Real],
-        squeeze: bool,
-    ) -> Result<Touch, String> {
-        self.place_from(f, p, theta, seed, squeeze, false)
-    }
-
-    /// [`Self::place`], the pose the nearest to `seed` if `nearest` (a finger already in
-    /// contact there: turning its fingertip about its centre toward the middle of the joint
-    /// ranges would spin it on the object) rather than the one off the joint limits.
-    fn place_from(
         &self,
         f: &Finger,
         p: &Vec3,
@@ -869,7 +858,7 @@ impl SpatialScenario<'_> {
             let from = self.start_joints.iter().find(|(finger, _)| finger == id);
             let seed = from.map_or(&f.home, |(_, q)| q);
             let t = self
-                .place_from(f, p, theta, seed, true, from.is_some())
+                .place(f, p, theta, seed, true, from.is_some())
                 .map_err(|reason| PlanError::Unreachable {
                     finger: *id,
                     where_: self.describe(p),
@@ -1031,7 +1020,7 @@ impl SpatialScenario<'_> {
                         Some(Some((_, q))) => q,
                         _ => &f.home,
                     };
-                    let Ok(t) = self.place(f, &cands.points[c], theta, seed, false) else {
+                    let Ok(t) = self.place(f, &cands.points[c], theta, seed, false, false) else {
                         continue;
                     };
                     if t.candidate != c {
