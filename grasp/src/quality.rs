@@ -31,8 +31,8 @@
 use faer::{Accum, MatMut, MatRef, Par};
 
 use crate::hull::{Hull, HullError, HullScratch};
-use crate::math::Real;
-use crate::object::SurfaceSamples;
+use crate::math::{Real, Vec3};
+use crate::object::{NearestPoints, SurfaceSamples};
 use crate::progress::{Progress, Silent, Stage, tick};
 use crate::support::SupportTree;
 use crate::wrench::{ContactModel, Space, WrenchFrame};
@@ -169,6 +169,8 @@ pub struct GraspProblem {
     ows_count: usize,
     tree: SupportTree,
     candidates: SurfaceSamples,
+    /// The candidates' points, indexed for nearest-point queries.
+    nearest: NearestPoints,
     /// Primitive wrenches of every candidate, `candidates x s x dim`.
     candidate_wrenches: Vec<Real>,
 }
@@ -258,6 +260,7 @@ impl GraspProblem {
             ows,
             ows_count: ows_points.len(),
             tree,
+            nearest: NearestPoints::new(&candidates.points),
             candidates,
             candidate_wrenches,
         })
@@ -291,6 +294,12 @@ impl GraspProblem {
     /// The candidate contact points.
     pub fn candidates(&self) -> &SurfaceSamples {
         &self.candidates
+    }
+
+    /// The candidate nearest to `p` and its distance (as [`SurfaceSamples::nearest`], through
+    /// a k-d tree: [`NearestPoints`]); `None` without candidates or if `p` is not finite.
+    pub fn nearest_candidate(&self, p: &Vec3) -> Option<(usize, Real)> {
+        self.nearest.nearest(p)
     }
 
     /// Number of OWS generators.

@@ -45,7 +45,7 @@ use std::fmt::Write as _;
 
 use anyhow::Result;
 use icrflow_grasp::math::Vec3;
-use icrflow_grasp::object::SurfaceSamples;
+use icrflow_grasp::quality::GraspProblem;
 use icrflow_interfaces::{
     FingerContact, GraspState, Header, JointState, Kind, MAX_FINGERS, MAX_JOINTS, topics,
 };
@@ -104,11 +104,10 @@ enum Fingertip {
 }
 
 /// The estimator's state and step: no I/O, no clock.
-#[derive(Debug)]
 pub struct Estimator<'a> {
     hand: &'a Hand,
     roller: Roller<'a>,
-    candidates: &'a SurfaceSamples,
+    problem: &'a GraspProblem,
     /// The estimated rotation (rad).
     theta: f64,
     /// The corrections applied so far (rad): [`Estimator::history`] holds `theta - correction`.
@@ -132,19 +131,14 @@ pub struct Estimator<'a> {
 
 impl<'a> Estimator<'a> {
     /// An estimator of `hand` holding the object `roller` rolls on, whose contacts are snapped
-    /// to `candidates` (the grasp problem's), starting at rotation `theta` (rad), every finger
-    /// out of contact.
-    pub fn new(
-        hand: &'a Hand,
-        roller: Roller<'a>,
-        candidates: &'a SurfaceSamples,
-        theta: f64,
-    ) -> Self {
+    /// to `problem`'s candidates, starting at rotation `theta` (rad), every finger out of
+    /// contact.
+    pub fn new(hand: &'a Hand, roller: Roller<'a>, problem: &'a GraspProblem, theta: f64) -> Self {
         let n = hand.fingers.len();
         Self {
             hand,
             roller,
-            candidates,
+            problem,
             theta,
             correction: 0.0,
             innovation: 0.0,
@@ -201,7 +195,10 @@ impl<'a> Estimator<'a> {
             }
             (Roller::Space(s), Fingertip::Space(q)) => {
                 let c = s.contact_of(f, &q[..f.dof()], self.theta);
-                let nearest = self.candidates.nearest(&c.point).map_or(0, |(i, _)| i);
+                let nearest = self
+                    .problem
+                    .nearest_candidate(&c.point)
+                    .map_or(0, |(i, _)| i);
                 (nearest, c.gap)
             }
             _ => unreachable!("a fingertip is of its roller's kind"),
@@ -350,8 +347,8 @@ impl<'a> Estimator<'a> {
                 continue;
             };
             let (index, gap) = self.touch(f, &t);
-            let p = self.candidates.points[index];
-            let n = self.candidates.normals[index];
+            let candidates = self.problem.candidates();
+            let (p, n) = (candidates.points[index], candidates.normals[index]);
             *c = FingerContact {
                 finger: f.id,
                 in_contact: 1,
@@ -403,7 +400,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         .split_whitespace()
         .map(|w| w.parse::<f64>().ok().filter(|x| x.is_finite()));
     let theta: f64 = words.next().flatten().unwrap_or(0.0);
-    let mut estimator = Estimator::new(&setup.hand, roller, setup.problem.candidates(), theta);
+    let mut estimator = Estimator::new(&setup.hand, roller, &setup.problem, theta);
     let (mut last_joint_seq, mut last_pose_seq) = (0, 0);
     // Where the object's centre was measured first: its motion is taken from there.
     let mut first_position: Option<[f64; 3]> = match (
@@ -569,7 +566,7 @@ mod tests {
             let mut e = Estimator::new(
                 &setup.hand,
                 Roller::Section(surface),
-                setup.problem.candidates(),
+                &setup.problem,
                 10f64.to_radians(),
             );
             let Tracked { worst, last: g, .. } =
@@ -598,12 +595,7 @@ mod tests {
         let (config, setup) = paper();
         let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(
-            &setup.hand,
-            Roller::Section(surface),
-            setup.problem.candidates(),
-            0.0,
-        );
+        let mut e = Estimator::new(&setup.hand, Roller::Section(surface), &setup.problem, 0.0);
         let slip = 12f64.to_radians();
         // The object turns by 12 degrees at 2 s (a slip), seen 200 ms later.
         let truth = |t: u64| if t >= 2_000_000_000 { slip } else { 0.0 };
@@ -636,12 +628,7 @@ mod tests {
         let (config, setup) = paper();
         let surface = setup.surface().unwrap();
         let q = initial_joints(&config, &setup);
-        let mut e = Estimator::new(
-            &setup.hand,
-            Roller::Section(surface),
-            setup.problem.candidates(),
-            0.5,
-        );
+        let mut e = Estimator::new(&setup.hand, Roller::Section(surface), &setup.problem, 0.5);
         assert_eq!(e.on_pose(f64::NAN, 1), Err(Refusal::PoseNotFinite));
         let mut m = measurement(&setup, &q, 1_000_000, &mut Noise::new(1));
         m.positions[1][2] = f64::INFINITY;
@@ -674,7 +661,7 @@ mod tests {
                 &config.pipeline,
                 t0,
             );
-            let mut e = Estimator::new(&setup.hand, roller, setup.problem.candidates(), 0.0);
+            let mut e = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
             let dt = (1e9 / config.pipeline.rate_hz) as u64;
             let mut now = t0;
             let mut last = GraspState::default();
@@ -761,7 +748,7 @@ mod tests {
             }
             m.positions[slot][..f.dof()].copy_from_slice(&q);
         }
-        let mut e = Estimator::new(&setup.hand, roller, setup.problem.candidates(), 0.0);
+        let mut e = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
         let mut at_grip = GraspState::default();
         for (k, moved) in [[0.0; 3], [d.x, d.y, d.z]].into_iter().enumerate() {
             let mut g = GraspState::default();

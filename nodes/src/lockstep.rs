@@ -94,12 +94,7 @@ pub fn run(
     let t0: u64 = 1_000_000_000_000;
     let (joints, _) = setup.initial_grip(config)?;
     let mut plant = Physical::new(config, setup, &joints, t0)?;
-    let mut estimator = Estimator::new(
-        &setup.hand,
-        setup.roller(config)?,
-        setup.problem.candidates(),
-        0.0,
-    );
+    let mut estimator = Estimator::new(&setup.hand, setup.roller(config)?, &setup.problem, 0.0);
     let mut wrench = WrenchSpace::new(&setup.problem, config.grasp.alpha);
     let mut follower = Follower::new_with(
         setup.planning(config)?,

@@ -213,7 +213,7 @@ fn resolve(
             for i in 0..grasp.shape()[0] {
                 let p = convert::point(&grasp, &[i]);
                 // Finite (checked) and the problem has candidates (checked at construction).
-                let (q, d) = problem.candidates().nearest(&p).unwrap_or((0, Real::NAN));
+                let (q, d) = problem.nearest_candidate(&p).unwrap_or((0, Real::NAN));
                 out.push(q);
                 distances.push(d);
             }

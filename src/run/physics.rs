@@ -236,7 +236,6 @@ impl PhysicsTrack {
         let [w, x, y, z] = t.orientation;
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
         let origin = Vec3::from(t.position) - q * self.setup.object.centre_of_mass;
-        let cands = self.setup.problem.candidates();
         self.pending.clear();
         for slot in 0..(t.finger_count as usize).min(MAX_FINGERS) {
             let planned = self.planned_in_contact(t.finger_ids[slot]);
@@ -246,12 +245,7 @@ impl PhysicsTrack {
                 continue;
             };
             let p = q.inverse() * (point - origin);
-            let nearest = (0..cands.points.len()).min_by(|&a, &b| {
-                (cands.points[a] - p)
-                    .norm_squared()
-                    .total_cmp(&(cands.points[b] - p).norm_squared())
-            });
-            if let Some(c) = nearest
+            if let Some((c, _)) = self.setup.problem.nearest_candidate(&p)
                 && !self.pending.contains(&c)
             {
                 self.pending.push(c);

@@ -25,7 +25,7 @@ mod validate;
 
 pub use distance::closest_on_triangle;
 pub use error::{MeshWarning, ObjectError};
-pub use samples::{Adjacency, Polygons, Section, SurfaceSamples};
+pub use samples::{Adjacency, NearestPoints, Polygons, Section, SurfaceSamples};
 
 use crate::math::{Isometry3, Real, Vec3};
 

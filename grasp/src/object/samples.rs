@@ -150,6 +150,109 @@ impl SurfaceSamples {
     }
 }
 
+/// Points indexed for nearest-point queries: a k-d tree, each node the median of its points
+/// along the axis they spread widest on. Exact: the same point as comparing every one
+/// ([`SurfaceSamples::nearest`]), ties to the lowest index; a query opens only the subtrees
+/// nearer than the nearest point found so far, a few dozen of thousands of candidates for a
+/// point near the surface. Built once; a query allocates nothing.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NearestPoints {
+    /// The points in tree order: the node over `lo..hi` is at `(lo + hi) / 2`, its left
+    /// subtree over `lo..mid`, its right over `mid + 1..hi`.
+    points: Vec<Vec3>,
+    /// Each point's index in the points the tree was built from.
+    index: Vec<u32>,
+    /// Each node's splitting axis.
+    axis: Vec<u8>,
+}
+
+impl NearestPoints {
+    /// The tree over `points`.
+    pub fn new(points: &[Vec3]) -> Self {
+        let mut order: Vec<u32> = (0..points.len() as u32).collect();
+        let mut axis = vec![0u8; points.len()];
+        Self::build(points, &mut order, &mut axis);
+        Self {
+            points: order.iter().map(|&i| points[i as usize]).collect(),
+            index: order,
+            axis,
+        }
+    }
+
+    /// Orders `order` (and sets `axis`) as the subtree over it.
+    fn build(points: &[Vec3], order: &mut [u32], axis: &mut [u8]) {
+        if order.is_empty() {
+            return;
+        }
+        let (mut lo, mut hi) = (
+            Vec3::repeat(Real::INFINITY),
+            Vec3::repeat(Real::NEG_INFINITY),
+        );
+        for &i in order.iter() {
+            lo = lo.inf(&points[i as usize]);
+            hi = hi.sup(&points[i as usize]);
+        }
+        let k = (hi - lo).imax();
+        let mid = order.len() / 2;
+        order.select_nth_unstable_by(mid, |a, b| {
+            points[*a as usize][k].total_cmp(&points[*b as usize][k])
+        });
+        axis[mid] = k as u8;
+        let (left, rest) = order.split_at_mut(mid);
+        let (left_axis, rest_axis) = axis.split_at_mut(mid);
+        Self::build(points, left, left_axis);
+        Self::build(points, &mut rest[1..], &mut rest_axis[1..]);
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The point nearest to `p` (its index in the points the tree was built from) and its
+    /// distance; `None` if there are no points or `p` is not finite.
+    pub fn nearest(&self, p: &Vec3) -> Option<(usize, Real)> {
+        if self.points.is_empty() || !p.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        let mut best = (Real::INFINITY, u32::MAX);
+        self.search(p, 0, self.points.len(), &mut best);
+        Some((best.1 as usize, best.0.sqrt()))
+    }
+
+    /// Searches the subtree over `lo..hi` for a point nearer to `p` than `best` (squared
+    /// distance, index).
+    fn search(&self, p: &Vec3, lo: usize, hi: usize, best: &mut (Real, u32)) {
+        if lo >= hi {
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        let d2 = (self.points[mid] - p).norm_squared();
+        let i = self.index[mid];
+        if d2 < best.0 || (d2 == best.0 && i < best.1) {
+            *best = (d2, i);
+        }
+        let k = self.axis[mid] as usize;
+        let across = p[k] - self.points[mid][k];
+        // The points on the far side of the median are at least `across` away along its
+        // axis: opened only when that could still beat (or tie) the best.
+        let (near, far) = if across < 0.0 {
+            ((lo, mid), (mid + 1, hi))
+        } else {
+            ((mid + 1, hi), (lo, mid))
+        };
+        self.search(p, near.0, near.1, best);
+        if across * across <= best.0 {
+            self.search(p, far.0, far.1, best);
+        }
+    }
+}
+
 /// The object's candidates in the hand's plane: the horizontal plane `z = height` through the
 /// centre of mass.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -223,6 +326,59 @@ pub(crate) fn loop_adjacency(loops: &[usize]) -> Adjacency {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// Every point compared, ties to the first: what [`NearestPoints`] must answer.
+    fn scan(points: &[Vec3], p: &Vec3) -> Option<(usize, Real)> {
+        SurfaceSamples {
+            points: points.to_vec(),
+            ..Default::default()
+        }
+        .nearest(p)
+    }
+
+    proptest! {
+        /// The tree answers as comparing every point does, index and distance, for clouds with
+        /// repeated points and points on a grid (ties), queries near them and far.
+        #[test]
+        fn nearest_points_answer_as_comparing_every_point(
+            cloud in prop::collection::vec((-5i32..5, -5i32..5, -5i32..5, any::<bool>()), 0..300),
+            queries in prop::collection::vec((-80.0..80.0f64, -80.0..80.0f64, -80.0..80.0f64), 1..40),
+        ) {
+            // Grid points (exact ties for grid queries) and jittered ones, some repeated.
+            let points: Vec<Vec3> = cloud
+                .iter()
+                .enumerate()
+                .map(|(k, &(x, y, z, grid))| {
+                    let jitter = if grid { 0.0 } else { 0.37 * ((k * 7919) % 13) as Real / 13.0 };
+                    Vec3::new(x as Real + jitter, y as Real - jitter, z as Real * 0.5)
+                })
+                .collect();
+            let tree = NearestPoints::new(&points);
+            prop_assert_eq!(tree.len(), points.len());
+            for (x, y, z) in queries {
+                for p in [Vec3::new(x, y, z) * 0.1, Vec3::new(x.round(), y.round(), z.round()) * 0.1] {
+                    let got = tree.nearest(&p);
+                    let want = scan(&points, &p);
+                    prop_assert_eq!(got.map(|g| g.0), want.map(|w| w.0), "{:?}", p);
+                    if let (Some(g), Some(w)) = (got, want) {
+                        prop_assert!((g.1 - w.1).abs() <= 1e-12, "{} vs {}", g.1, w.1);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn nearest_points_refuse_no_points_and_points_not_finite() {
+        assert_eq!(NearestPoints::new(&[]).nearest(&Vec3::zeros()), None);
+        let tree = NearestPoints::new(&[Vec3::x(), Vec3::y()]);
+        assert_eq!(tree.nearest(&Vec3::new(Real::NAN, 0.0, 0.0)), None);
+        assert_eq!(
+            tree.nearest(&Vec3::new(0.9, 0.0, 0.0)).map(|n| n.0),
+            Some(0)
+        );
+    }
 
     #[test]
     fn adjacency_round_trips_lists_and_tolerates_bad_index() {

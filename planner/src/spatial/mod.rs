@@ -263,9 +263,9 @@ impl SpatialScenario<'_> {
         }
     }
 
-    /// The candidate nearest `p` (all of them compared).
+    /// The candidate nearest `p`.
     fn nearest(&self, p: &Vec3) -> usize {
-        self.problem.candidates().nearest(p).map_or(0, |(i, _)| i)
+        self.problem.nearest_candidate(p).map_or(0, |(i, _)| i)
     }
 
     /// Where finger `f` at `q` touches the surface with the object at `theta`: the body
