@@ -31,51 +31,76 @@ struct Trajectory<'a> {
 
 /// `icrflow validate CONFIG`: everything `plan` and `run` check before starting. Returns the
 /// exit status: [`crate::exit::INCOMPLETE`] when the initial grasp is not force closure or
-/// below the margin (said on stderr), the config being valid otherwise.
+/// below the margin (said on stderr), the config being valid otherwise. A spatial hand's
+/// ([`Setup::spatial`]) initial grasp is the spatial planner's placement.
 pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> {
     let config = Config::load(path)?;
     let mut shown = crate::progress::Shown::new(progress_after);
     let setup = Setup::new_with(&config, &mut shown)?;
     drop(shown);
-    if let Some(spatial) = setup.spatial_scenario(&config) {
-        return validate_spatial(path, &config, &setup, &spatial);
-    }
-    let started = match setup.scenario(&config).start() {
-        Ok(s) => Ok(s),
+    let spatial = setup.spatial_scenario(&config);
+    let started = match &spatial {
+        Some(s) => s.start().map(|(_, quality)| quality),
+        None => setup.scenario(&config).start().map(|(_, quality)| quality),
+    };
+    let started = match started {
+        Ok(q) => Ok(q),
         Err(e) if crate::exit::is_grasp_answer(&e) => Err(e),
         Err(e) => return Err(anyhow::Error::new(e).context("cannot start")),
     };
-    let surface = setup.surface();
-    if let Ok(s) = &surface {
-        crate::run::slip(&config, s)?;
-    }
-    // MuJoCo builds the model (and says why not) before the config is called valid.
+    // What the plant rolls fingertips on: a spatial hand's surface, a planar hand's section
+    // (or why `run` cannot take it); the simulated slip is refused off a sphere (circle).
+    let rolls_on = match &spatial {
+        Some(s) => {
+            crate::run::spatial_slip(&config, s.surface)?;
+            Ok(s.surface.describe())
+        }
+        None => match setup.surface() {
+            Ok(s) => {
+                crate::run::slip(&config, s)?;
+                Ok(s.describe())
+            }
+            Err(e) => Err(e),
+        },
+    };
+    // MuJoCo builds the model (and says why not) before the config is called valid, the hand
+    // at its initial grip (at its home pose where the grasp cannot start).
     let mass = match config.plant.kind {
         PlantKind::Mujoco => {
-            let contacts = started.as_ref().map_or(&[][..], |(c, _)| &c[..]);
+            let joints = setup.initial_grip(&config).map_or_else(
+                |_| setup.hand.fingers.iter().map(|f| f.home.clone()).collect(),
+                |(joints, _)| joints,
+            );
             Some(icrflow_physics::configured::check(
-                &config, &setup, contacts,
+                &config, &setup, &joints,
             )?)
         }
         PlantKind::Kinematic => None,
     };
     let mut o = std::io::stdout().lock();
     writeln!(o, "config     {} is valid", path.display())?;
-    writeln!(
-        o,
-        "object     {} ({} facets, {} candidates in the hand's plane)",
-        config.object.describe(),
-        setup.object.facets.len(),
-        setup.problem.candidates().points.len()
-    )?;
+    match &spatial {
+        Some(_) => writeln!(
+            o,
+            "object     {} ({} facets: the contact candidates)",
+            config.object.describe(),
+            setup.object.facets.len(),
+        )?,
+        None => writeln!(
+            o,
+            "object     {} ({} facets, {} candidates in the hand's plane)",
+            config.object.describe(),
+            setup.object.facets.len(),
+            setup.problem.candidates().points.len()
+        )?,
+    }
     for w in &setup.object.warnings {
         writeln!(o, "warning    {w}")?;
     }
-    match &surface {
+    match &rolls_on {
         Ok(s) => writeln!(
             o,
-            "pipeline   the plant rolls fingertips on {}{}",
-            s.describe(),
+            "pipeline   the plant rolls fingertips on {s}{}{}",
             if config.pipeline.slip != 0.0 {
                 format!(
                     "; the object slips by {:.1} deg at {} s",
@@ -84,6 +109,11 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
                 )
             } else {
                 String::new()
+            },
+            if spatial.is_some() {
+                "; the plan is made again from the estimate where the object stops off it"
+            } else {
+                ""
             }
         )?,
         Err(e) => writeln!(o, "warning    `run` cannot take this object: {e:#}")?,
@@ -111,21 +141,39 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
             "plant      kinematic (our quasi-static model: fingertips roll by the rolling kinematics, nothing slips)"
         )?,
     }
-    writeln!(
-        o,
-        "hand       {} fingers ({})",
-        setup.hand.fingers.len(),
-        match &config.hand {
-            HandSpec::Paper => "the paper's hand".to_string(),
-            HandSpec::Links { .. } => "link lengths".to_string(),
-            HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
+    let hand = match &config.hand {
+        HandSpec::Paper => "the paper's hand".to_string(),
+        HandSpec::Links { .. } => "link lengths".to_string(),
+        HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
+    };
+    match &spatial {
+        Some(_) => {
+            let a = config.turn.axis;
+            writeln!(
+                o,
+                "hand       {} fingers in space ({hand}); the object turns about [{:.3}, {:.3}, {:.3}]",
+                setup.hand.fingers.len(),
+                a.x,
+                a.y,
+                a.z
+            )?
         }
-    )?;
-    let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
-    match &started {
-        Ok((_, quality)) => writeln!(
+        None => writeln!(
             o,
-            "grasp      {} contacts (fingers {fingers:?}), force closure, alpha* = {quality:.6} >= alpha = {}",
+            "hand       {} fingers ({hand})",
+            setup.hand.fingers.len()
+        )?,
+    }
+    let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
+    let placed = if spatial.is_some() {
+        " on the facets nearest the points"
+    } else {
+        ""
+    };
+    match &started {
+        Ok(quality) => writeln!(
+            o,
+            "grasp      {} contacts (fingers {fingers:?}){placed}, force closure, alpha* = {quality:.6} >= alpha = {}",
             fingers.len(),
             config.grasp.alpha
         )?,
@@ -135,8 +183,10 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
             fingers.len()
         )?,
     }
-    for line in section_note(&config) {
-        writeln!(o, "           {line}")?;
+    if spatial.is_none() {
+        for line in section_note(&config) {
+            writeln!(o, "           {line}")?;
+        }
     }
     if config.pipeline.split() {
         let links = icrflow_interfaces::topics::links(&config.pipeline.nodes);
@@ -147,72 +197,6 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
             links.export,
             links.import
         )?;
-    }
-    Ok(match started {
-        Ok(_) => crate::exit::DONE,
-        Err(e) => {
-            drop(o);
-            eprintln!("validate: cannot start: {e}");
-            crate::exit::INCOMPLETE
-        }
-    })
-}
-
-/// [`validate`] for a spatial hand ([`Setup::spatial`]): the config, the object, the hand, the
-/// initial grasp as the spatial planner places it. `run` does not take it yet (said here).
-fn validate_spatial(
-    path: &Path,
-    config: &Config,
-    setup: &Setup,
-    scenario: &icrflow_plan::spatial::SpatialScenario<'_>,
-) -> Result<u8> {
-    let started = match scenario.start() {
-        Ok(s) => Ok(s),
-        Err(e) if crate::exit::is_grasp_answer(&e) => Err(e),
-        Err(e) => return Err(anyhow::Error::new(e).context("cannot start")),
-    };
-    let mut o = std::io::stdout().lock();
-    writeln!(o, "config     {} is valid", path.display())?;
-    writeln!(
-        o,
-        "object     {} ({} facets: the contact candidates); fingertips roll on {}",
-        config.object.describe(),
-        setup.object.facets.len(),
-        scenario.surface.describe()
-    )?;
-    for w in &setup.object.warnings {
-        writeln!(o, "warning    {w}")?;
-    }
-    let a = config.turn.axis;
-    writeln!(
-        o,
-        "hand       {} fingers in space ({}); the object turns about [{:.3}, {:.3}, {:.3}]",
-        setup.hand.fingers.len(),
-        match &config.hand {
-            HandSpec::Urdf { path, .. } => format!("URDF {}", path.display()),
-            _ => "link lengths".to_string(),
-        },
-        a.x,
-        a.y,
-        a.z
-    )?;
-    writeln!(
-        o,
-        "pipeline   `run` takes it on the kinematic plant or in MuJoCo (plant.kind), its plan made again from the estimate where the object stops off it"
-    )?;
-    let fingers: Vec<u32> = config.grasp.contacts.iter().map(|c| c.finger).collect();
-    match &started {
-        Ok((_, quality)) => writeln!(
-            o,
-            "grasp      {} contacts (fingers {fingers:?}) on the facets nearest the points, force closure, alpha* = {quality:.6} >= alpha = {}",
-            fingers.len(),
-            config.grasp.alpha
-        )?,
-        Err(e) => writeln!(
-            o,
-            "grasp      {} contacts (fingers {fingers:?}): {e}",
-            fingers.len()
-        )?,
     }
     Ok(match started {
         Ok(_) => crate::exit::DONE,

@@ -294,7 +294,8 @@ fn plan_json_gains_the_axis_and_run_refuses_a_slip_off_a_sphere_by_its_key() {
     );
 
     assert!(
-        text.contains("`run` takes it on the kinematic plant or in MuJoCo"),
+        text.contains("the plant rolls fingertips on the exact sphere")
+            && text.contains("plant      kinematic"),
         "{text}"
     );
 
@@ -323,6 +324,25 @@ fn plan_json_gains_the_axis_and_run_refuses_a_slip_off_a_sphere_by_its_key() {
         "{err}"
     );
     assert!(!err.contains("run: starting"), "{err}");
+    // validate checks what run checks.
+    let o = icrflow(&["validate", path.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("pipeline.slip_deg"), "{err}");
+    // A spatial hand in MuJoCo: validate builds MuJoCo's model of the hand and the object.
+    let mujoco = dir.join("mujoco.toml");
+    std::fs::write(
+        &mujoco,
+        allegro().replace("[plan]", "[plant]\nkind = \"mujoco\"\n\n[plan]"),
+    )
+    .unwrap();
+    let o = icrflow(&["validate", mujoco.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("plant      MuJoCo 3.17.0: the object 0.090 kg"),
+        "{text}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -2,10 +2,9 @@
 
 use anyhow::{Result, anyhow};
 use icrflow_grasp::math::{Real, Vec3};
-use icrflow_plan::planner::Contact;
 use icrflow_scenario::{Config, ObjectSpec, Setup};
 
-use crate::scene::{Params, Shape, initial_joints, mjcf};
+use crate::scene::{Params, Shape, mjcf};
 use crate::sim::{Controls, Sim};
 
 /// The MJCF of the config's hand and object under its `[plant]` settings.
@@ -29,16 +28,12 @@ pub fn model(config: &Config, setup: &Setup) -> Result<String> {
     mjcf(&setup.hand, &setup.object, shape, &params).map_err(|e| anyhow!("plant: {e}"))
 }
 
-/// Whether MuJoCo can build the config's model (for `validate`): its mass, or why not.
-pub fn check(config: &Config, setup: &Setup, contacts: &[Contact]) -> Result<Real> {
+/// Whether MuJoCo can build the config's model with the hand at `joints` (each finger's, in
+/// the hand's order; for `validate`): its mass, or why not.
+pub fn check(config: &Config, setup: &Setup, joints: &[Vec<Real>]) -> Result<Real> {
     let xml = model(config, setup)?;
-    let sim = Sim::new(
-        &xml,
-        &setup.hand,
-        &initial_joints(&setup.hand, contacts),
-        controls(config),
-    )
-    .map_err(|e| anyhow!("plant.kind = \"mujoco\": {e}"))?;
+    let sim = Sim::new(&xml, &setup.hand, joints, controls(config))
+        .map_err(|e| anyhow!("plant.kind = \"mujoco\": {e}"))?;
     Ok(sim.object_mass())
 }
 
