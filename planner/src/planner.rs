@@ -59,11 +59,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::hand::{Finger, Hand, IkError, wrap};
 
-/// What a rolling step found.
+/// What a rolling step found (of the planar planner's [`Contact`]s, or the spatial
+/// planner's [`crate::spatial::Touch`]es).
 #[derive(Debug, Clone, PartialEq)]
-pub enum Roll {
+pub enum Roll<C = Contact> {
     /// Every finger moved; the new contacts and their quality.
-    Moved(Vec<Contact>, Real),
+    Moved(Vec<C>, Real),
     /// Contact `.0` cannot move, for reason `.1`: a switch may help.
     Blocked(usize, String),
     /// The grasp as a whole cannot go on.
@@ -350,6 +351,232 @@ pub struct Step {
     /// For an attach step: the switch.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub switch: Option<Switch>,
+}
+
+/// What the planning loop ([`drive`]) asks of a scenario: the planar [`Scenario`] and the
+/// spatial [`crate::spatial::SpatialScenario`] plan alike, a rolling step at a time and a
+/// finger switch where a contact is blocked.
+pub(crate) trait Stepper {
+    /// A contact of the grasp.
+    type Contact;
+    /// The finger of contact `c`.
+    fn finger_of(c: &Self::Contact) -> u32;
+    /// The hand's fingers.
+    fn fingers(&self) -> usize;
+    /// The grasp `contacts` rolled on by `step` from `theta` (rad).
+    fn roll(
+        &self,
+        contacts: &[Self::Contact],
+        theta: Real,
+        step: Real,
+    ) -> Result<Roll<Self::Contact>, PlanError>;
+    /// A free finger taking over from contact `k`, blocked for `why`: the grasp with it
+    /// attached, the grasp after the release, the switch and the two grasps' qualities; or
+    /// why there is none.
+    fn switch(
+        &self,
+        contacts: &[Self::Contact],
+        k: usize,
+        theta: Real,
+        why: &str,
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<Result<Switched<Self::Contact>, String>, PlanError>;
+    /// Step `step` of phase `phase` at `theta` with `contacts` of quality `quality`.
+    fn record(
+        &self,
+        step: usize,
+        phase: Phase,
+        theta: Real,
+        quality: Real,
+        contacts: &[Self::Contact],
+    ) -> Step;
+}
+
+/// A switch found ([`Stepper::switch`]): the grasp with the attached finger, the grasp after
+/// the release, the switch, and the two grasps' qualities.
+pub(crate) type Switched<C> = (Vec<C>, Vec<C>, Switch, Real, Real);
+
+impl Stepper for Scenario<'_> {
+    type Contact = Contact;
+
+    fn finger_of(c: &Contact) -> u32 {
+        c.finger
+    }
+
+    fn fingers(&self) -> usize {
+        self.hand.fingers.len()
+    }
+
+    fn roll(&self, contacts: &[Contact], theta: Real, step: Real) -> Result<Roll, PlanError> {
+        Scenario::roll(self, contacts, theta, step)
+    }
+
+    fn switch(
+        &self,
+        contacts: &[Contact],
+        k: usize,
+        theta: Real,
+        why: &str,
+        _progress: &mut dyn FnMut(Real),
+    ) -> Result<Result<Switched<Contact>, String>, PlanError> {
+        Scenario::switch(self, contacts, k, theta, why)
+    }
+
+    fn record(
+        &self,
+        step: usize,
+        phase: Phase,
+        theta: Real,
+        quality: Real,
+        contacts: &[Contact],
+    ) -> Step {
+        Scenario::record(self, step, phase, theta, quality, contacts)
+    }
+}
+
+/// The steps the planning loop made and where it stopped.
+pub(crate) struct Driven {
+    /// The steps, the start's first.
+    pub steps: Vec<Step>,
+    /// The rotation reached (rad).
+    pub rotation: Real,
+    /// The smallest quality of any grasp in force.
+    pub min_quality: Real,
+    /// Finger switches.
+    pub switches: usize,
+    /// Why it stopped short of the goal, if it did.
+    pub stop_reason: Option<String>,
+}
+
+/// The planning loop of `s` under `settings`, from the grasp `started` (its contacts and
+/// quality) at rotation `theta` (rad): rolling steps toward the goal; where a contact is
+/// blocked, a finger switch, unless the blocked finger has just attached or every finger has
+/// switched since the last rolling step (the hand has no way forward). `progress` is called
+/// with the rotation after every step (and during a switch, as `s` does), `moved` with the
+/// contacts of every rolling step.
+pub(crate) fn drive<S: Stepper>(
+    s: &S,
+    settings: &Settings,
+    mut theta: Real,
+    started: (Vec<S::Contact>, Real),
+    progress: &mut dyn FnMut(Real),
+    moved: &mut dyn FnMut(&[S::Contact]),
+) -> Result<Driven, PlanError> {
+    let (mut contacts, quality) = started;
+    let mut steps = vec![s.record(0, Phase::Start, theta, quality, &contacts)];
+    let mut min_quality = quality;
+    let mut switches = 0;
+    let mut stop_reason = None;
+    // Switches since the last rolling step, and the finger the last switch attached.
+    let mut switches_in_a_row = 0;
+    let mut just_attached: Option<u32> = None;
+    while theta < settings.goal - 1e-9 {
+        if steps.len() >= settings.max_steps {
+            stop_reason = Some(format!(
+                "stopped after plan.max_steps = {} steps",
+                settings.max_steps
+            ));
+            break;
+        }
+        let step = settings.step.min(settings.goal - theta);
+        match s.roll(&contacts, theta, step)? {
+            Roll::Stuck(reason) => {
+                stop_reason = Some(reason);
+                break;
+            }
+            Roll::Moved(next, quality) => {
+                switches_in_a_row = 0;
+                just_attached = None;
+                moved(&next);
+                contacts = next;
+                theta += step;
+                min_quality = min_quality.min(quality);
+                steps.push(s.record(steps.len(), Phase::Rolling, theta, quality, &contacts));
+                progress(theta);
+            }
+            Roll::Blocked(k, why) => {
+                let finger = S::finger_of(&contacts[k]);
+                if just_attached == Some(finger) || switches_in_a_row >= s.fingers() {
+                    stop_reason = Some(format!(
+                        "finger {finger} cannot roll on ({why}) right after it attached: the hand has no way forward"
+                    ));
+                    break;
+                }
+                match s.switch(&contacts, k, theta, &why, progress)? {
+                    Ok((attach, detach, info, q_attach, q_detach)) => {
+                        min_quality = min_quality.min(q_attach).min(q_detach);
+                        just_attached = Some(info.attached);
+                        let mut a = s.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
+                        a.switch = Some(info);
+                        steps.push(a);
+                        steps.push(s.record(steps.len(), Phase::Detach, theta, q_detach, &detach));
+                        contacts = detach;
+                        switches += 1;
+                        switches_in_a_row += 1;
+                        progress(theta);
+                    }
+                    Err(reason) => {
+                        stop_reason = Some(reason);
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    Ok(Driven {
+        steps,
+        rotation: theta,
+        min_quality,
+        switches,
+        stop_reason,
+    })
+}
+
+impl Driven {
+    /// The plan of these steps under `settings`, about `axis`, with the planner's own
+    /// figures: its largest rolling residual (m), its links' smallest clearance (m) and its
+    /// smallest squeeze reserve (m).
+    pub(crate) fn into_plan(
+        self,
+        settings: &Settings,
+        axis: [Real; 3],
+        max_rolling_residual: Real,
+        link_clearance: Real,
+        squeeze_reserve: Real,
+    ) -> Plan {
+        let steps = self.steps;
+        let switch_list = || steps.iter().filter_map(|s| s.switch.as_ref());
+        let lp_region_unsafe = switch_list()
+            .map(|s| {
+                s.lp_region
+                    .iter()
+                    .filter(|q| s.brute_force.binary_search(q).is_err())
+                    .count()
+            })
+            .sum();
+        let summary = Summary {
+            completed: self.stop_reason.is_none(),
+            stop_reason: self.stop_reason,
+            rotation: self.rotation,
+            goal: settings.goal,
+            axis,
+            switches: self.switches,
+            steps: steps.len(),
+            rolling_steps: steps.iter().filter(|s| s.phase == Phase::Rolling).count(),
+            min_quality: self.min_quality,
+            alpha: settings.alpha,
+            max_rolling_residual,
+            icr_region_candidates: switch_list().map(|s| s.icr_region.len()).sum(),
+            lp_region_candidates: switch_list().map(|s| s.lp_region.len()).sum(),
+            lp_region_unsafe,
+            brute_force_candidates: switch_list().map(|s| s.brute_force.len()).sum(),
+            chosen_from_candidates: switch_list().map(|s| s.chosen_from).sum(),
+            region_erosion: settings.region_erosion,
+            min_link_clearance_mm: Some(link_clearance * 1e3),
+            min_squeeze_reserve_mm: Some(squeeze_reserve * 1e3),
+        };
+        Plan { summary, steps }
+    }
 }
 
 /// Summary of a plan.
@@ -994,121 +1221,16 @@ impl Scenario<'_> {
     /// Plans the scenario. `progress` is called after every step with the rotation done
     /// (rad).
     pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
-        let s = self.settings.clone();
-        let alpha = s.alpha;
-        let mut theta = self.start.rotation;
-        let (mut contacts, quality) = self.start()?;
-        let mut steps = vec![self.record(0, Phase::Start, theta, quality, &contacts)];
-        let mut min_quality = quality;
-        let mut switches = 0;
-        let mut stop_reason = None;
-        // Switches since the last rolling step, and the finger the last switch attached.
-        let mut switches_in_a_row = 0;
-        let mut just_attached = None;
-        while theta < s.goal - 1e-9 {
-            if steps.len() >= s.max_steps {
-                stop_reason = Some(format!(
-                    "stopped after plan.max_steps = {} steps",
-                    s.max_steps
-                ));
-                break;
-            }
-            let step = s.step.min(s.goal - theta);
-            match self.roll(&contacts, theta, step)? {
-                Roll::Stuck(reason) => {
-                    stop_reason = Some(reason);
-                    break;
-                }
-                Roll::Moved(next, quality) => {
-                    switches_in_a_row = 0;
-                    just_attached = None;
-                    contacts = next;
-                    theta += step;
-                    min_quality = min_quality.min(quality);
-                    steps.push(self.record(steps.len(), Phase::Rolling, theta, quality, &contacts));
-                    progress(theta);
-                }
-                Roll::Blocked(k, why) => {
-                    if just_attached == Some(contacts[k].finger)
-                        || switches_in_a_row >= self.hand.fingers.len()
-                    {
-                        stop_reason = Some(format!(
-                            "finger {} cannot roll on ({why}) right after it attached: the hand has no way forward",
-                            contacts[k].finger
-                        ));
-                        break;
-                    }
-                    match self.switch(&contacts, k, theta, &why)? {
-                        Ok((attach, detach, info, q_attach, q_detach)) => {
-                            min_quality = min_quality.min(q_attach).min(q_detach);
-                            let mut a =
-                                self.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
-                            a.switch = Some(info);
-                            steps.push(a);
-                            steps.push(self.record(
-                                steps.len(),
-                                Phase::Detach,
-                                theta,
-                                q_detach,
-                                &detach,
-                            ));
-                            contacts = detach;
-                            switches += 1;
-                            switches_in_a_row += 1;
-                            just_attached = steps
-                                .iter()
-                                .rev()
-                                .find_map(|s| s.switch.as_ref())
-                                .map(|s| s.attached);
-                            progress(theta);
-                        }
-                        Err(reason) => {
-                            stop_reason = Some(reason);
-                            break;
-                        }
-                    }
-                }
-            }
-        }
-        let completed = stop_reason.is_none();
-        let rolling_steps = steps.iter().filter(|s| s.phase == Phase::Rolling).count();
-        let switch_list = || steps.iter().filter_map(|s| s.switch.as_ref());
-        let icr_region_candidates = switch_list().map(|s| s.icr_region.len()).sum();
-        let lp_region_candidates = switch_list().map(|s| s.lp_region.len()).sum();
-        let brute_force_candidates = switch_list().map(|s| s.brute_force.len()).sum();
-        let chosen_from_candidates = switch_list().map(|s| s.chosen_from).sum();
-        let lp_region_unsafe = switch_list()
-            .map(|s| {
-                s.lp_region
-                    .iter()
-                    .filter(|q| s.brute_force.binary_search(q).is_err())
-                    .count()
-            })
-            .sum();
-        let summary = Summary {
-            completed,
-            stop_reason,
-            rotation: theta,
-            goal: s.goal,
-            axis: vertical(),
-            switches,
-            steps: steps.len(),
-            rolling_steps,
-            min_quality,
-            alpha,
-            max_rolling_residual: rolling_residuals(self, &steps)
-                .into_iter()
-                .fold(0.0, Real::max),
-            icr_region_candidates,
-            lp_region_candidates,
-            lp_region_unsafe,
-            brute_force_candidates,
-            chosen_from_candidates,
-            region_erosion: s.region_erosion,
-            min_link_clearance_mm: None,
-            min_squeeze_reserve_mm: None,
-        };
-        let closest = link_clearance(self, &steps);
+        let started = self.start()?;
+        let driven = drive(
+            self,
+            &self.settings,
+            self.start.rotation,
+            started,
+            progress,
+            &mut |_| {},
+        )?;
+        let closest = link_clearance(self, &driven.steps);
         if closest.clearance < 0.0 {
             return Err(PlanError::LinkInObject {
                 finger: closest.finger,
@@ -1117,12 +1239,17 @@ impl Scenario<'_> {
                 depth_mm: -closest.clearance * 1e3,
             });
         }
-        let summary = Summary {
-            min_link_clearance_mm: Some(closest.clearance * 1e3),
-            min_squeeze_reserve_mm: Some(self.min_squeeze_reserve(&steps) * 1e3),
-            ..summary
-        };
-        Ok(Plan { summary, steps })
+        let residual = rolling_residuals(self, &driven.steps)
+            .into_iter()
+            .fold(0.0, Real::max);
+        let reserve = self.min_squeeze_reserve(&driven.steps);
+        Ok(driven.into_plan(
+            &self.settings,
+            vertical(),
+            residual,
+            closest.clearance,
+            reserve,
+        ))
     }
 
     /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at

@@ -60,8 +60,8 @@ use nalgebra::{DMatrix, DVector, Rotation3, Unit};
 
 use crate::hand::{Finger, Hand};
 use crate::planner::{
-    FingerState, Phase, Plan, PlanError, QUALITY_SLACK, SQUEEZE_PROBE, Settings, Step, Summary,
-    Switch,
+    FingerState, Phase, Plan, PlanError, QUALITY_SLACK, SQUEEZE_PROBE, Settings, Step, Stepper,
+    Switch, Switched, drive,
 };
 use surface::Convex;
 
@@ -154,16 +154,54 @@ enum Attempt {
     Defect(String),
 }
 
-/// What a spatial rolling step found.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Roll {
-    /// Every finger moved; the new contacts and their quality.
-    Moved(Vec<Touch>, Real),
-    /// Contact `.0` cannot move, for reason `.1`: a switch may help.
-    Blocked(usize, String),
-    /// The grasp as a whole cannot go on.
-    Stuck(String),
+/// A spatial scenario with its fingers' reach maps (the seeds of a switch's placements): what
+/// the planning loop ([`drive`]) steps.
+struct Mapped<'s, 'a> {
+    scenario: &'s SpatialScenario<'a>,
+    maps: Vec<ReachMap>,
 }
+
+impl Stepper for Mapped<'_, '_> {
+    type Contact = Touch;
+
+    fn finger_of(t: &Touch) -> u32 {
+        t.finger
+    }
+
+    fn fingers(&self) -> usize {
+        self.scenario.hand.fingers.len()
+    }
+
+    fn roll(&self, touches: &[Touch], theta: Real, step: Real) -> Result<Roll, PlanError> {
+        self.scenario.roll(touches, theta, step)
+    }
+
+    fn switch(
+        &self,
+        touches: &[Touch],
+        k: usize,
+        theta: Real,
+        why: &str,
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<Result<Switched<Touch>, String>, PlanError> {
+        self.scenario
+            .switch(touches, k, theta, why, &self.maps, progress)
+    }
+
+    fn record(
+        &self,
+        step: usize,
+        phase: Phase,
+        theta: Real,
+        quality: Real,
+        touches: &[Touch],
+    ) -> Step {
+        self.scenario.record(step, phase, theta, quality, touches)
+    }
+}
+
+/// What a spatial rolling step found.
+pub type Roll = crate::planner::Roll<Touch>;
 
 /// How a finger with more joints than rolling needs spends the rest over a rolling step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1235,89 +1273,21 @@ impl SpatialScenario<'_> {
     /// Plans the scenario. `progress` is called after every step with the rotation done
     /// (rad).
     pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
-        let s = self.settings.clone();
-        let mut theta = self.start_rotation;
-        let (mut touches, quality) = self.start()?;
-        let maps: Vec<ReachMap> = self.hand.fingers.iter().map(ReachMap::new).collect();
-        let mut steps = vec![self.record(0, Phase::Start, theta, quality, &touches)];
-        let mut min_quality = quality;
-        let mut switches = 0;
-        let mut stop_reason = None;
-        let mut switches_in_a_row = 0;
-        let mut just_attached: Option<u32> = None;
+        let started = self.start()?;
+        let mapped = Mapped {
+            scenario: self,
+            maps: self.hand.fingers.iter().map(ReachMap::new).collect(),
+        };
         let mut slip: Real = 0.0;
-        while theta < s.goal - 1e-9 {
-            if steps.len() >= s.max_steps {
-                stop_reason = Some(format!(
-                    "stopped after plan.max_steps = {} steps",
-                    s.max_steps
-                ));
-                break;
-            }
-            let step = s.step.min(s.goal - theta);
-            match self.roll(&touches, theta, step)? {
-                Roll::Stuck(reason) => {
-                    stop_reason = Some(reason);
-                    break;
-                }
-                Roll::Moved(next, quality) => {
-                    switches_in_a_row = 0;
-                    just_attached = None;
-                    slip = next.iter().map(|t| t.slip).fold(slip, Real::max);
-                    touches = next;
-                    theta += step;
-                    min_quality = min_quality.min(quality);
-                    steps.push(self.record(steps.len(), Phase::Rolling, theta, quality, &touches));
-                    progress(theta);
-                }
-                Roll::Blocked(k, why) => {
-                    if just_attached == Some(touches[k].finger)
-                        || switches_in_a_row >= self.hand.fingers.len()
-                    {
-                        stop_reason = Some(format!(
-                            "finger {} cannot roll on ({why}) right after it attached: the hand has no way forward",
-                            touches[k].finger
-                        ));
-                        break;
-                    }
-                    match self.switch(&touches, k, theta, &why, &maps, progress)? {
-                        Ok((attach, detach, info, q_attach, q_detach)) => {
-                            min_quality = min_quality.min(q_attach).min(q_detach);
-                            just_attached = Some(info.attached);
-                            let mut a =
-                                self.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
-                            a.switch = Some(info);
-                            steps.push(a);
-                            steps.push(self.record(
-                                steps.len(),
-                                Phase::Detach,
-                                theta,
-                                q_detach,
-                                &detach,
-                            ));
-                            touches = detach;
-                            switches += 1;
-                            switches_in_a_row += 1;
-                            progress(theta);
-                        }
-                        Err(reason) => {
-                            stop_reason = Some(reason);
-                            break;
-                        }
-                    }
-                }
-            }
-        }
-        let switch_list = || steps.iter().filter_map(|s| s.switch.as_ref());
-        let lp_region_unsafe = switch_list()
-            .map(|s| {
-                s.lp_region
-                    .iter()
-                    .filter(|q| s.brute_force.binary_search(q).is_err())
-                    .count()
-            })
-            .sum();
-        let clearance = self.plan_link_clearance(&steps);
+        let driven = drive(
+            &mapped,
+            &self.settings,
+            self.start_rotation,
+            started,
+            progress,
+            &mut |next: &[Touch]| slip = next.iter().map(|t| t.slip).fold(slip, Real::max),
+        )?;
+        let clearance = self.plan_link_clearance(&driven.steps);
         if clearance.0 < 0.0 {
             return Err(PlanError::LinkInObject {
                 finger: clearance.1,
@@ -1326,32 +1296,13 @@ impl SpatialScenario<'_> {
                 depth_mm: -clearance.0 * 1e3,
             });
         }
-        let summary = Summary {
-            completed: stop_reason.is_none(),
-            stop_reason,
-            rotation: theta,
-            goal: s.goal,
-            axis: [
-                self.spatial.axis.x,
-                self.spatial.axis.y,
-                self.spatial.axis.z,
-            ],
-            switches,
-            steps: steps.len(),
-            rolling_steps: steps.iter().filter(|s| s.phase == Phase::Rolling).count(),
-            min_quality,
-            alpha: s.alpha,
-            max_rolling_residual: slip,
-            icr_region_candidates: switch_list().map(|s| s.icr_region.len()).sum(),
-            lp_region_candidates: switch_list().map(|s| s.lp_region.len()).sum(),
-            lp_region_unsafe,
-            brute_force_candidates: switch_list().map(|s| s.brute_force.len()).sum(),
-            chosen_from_candidates: switch_list().map(|s| s.chosen_from).sum(),
-            region_erosion: s.region_erosion,
-            min_link_clearance_mm: Some(clearance.0 * 1e3),
-            min_squeeze_reserve_mm: Some(self.min_squeeze_reserve(&steps) * 1e3),
-        };
-        Ok(Plan { summary, steps })
+        let reserve = self.min_squeeze_reserve(&driven.steps);
+        let axis = [
+            self.spatial.axis.x,
+            self.spatial.axis.y,
+            self.spatial.axis.z,
+        ];
+        Ok(driven.into_plan(&self.settings, axis, slip, clearance.0, reserve))
     }
 
     /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at
