@@ -353,6 +353,27 @@ pub struct Step {
     pub switch: Option<Switch>,
 }
 
+impl Step {
+    /// Step `step` of phase `phase` at rotation `rotation` (rad) of quality `quality`, its
+    /// fingers `fingers`, not a switch.
+    pub fn new(
+        step: usize,
+        phase: Phase,
+        rotation: Real,
+        quality: Real,
+        fingers: Vec<FingerState>,
+    ) -> Self {
+        Self {
+            step,
+            phase,
+            rotation,
+            quality,
+            fingers,
+            switch: None,
+        }
+    }
+}
+
 /// What the planning loop ([`drive`]) asks of a scenario: the planar [`Scenario`] and the
 /// spatial [`crate::spatial::SpatialScenario`] plan alike, a rolling step at a time and a
 /// finger switch where a contact is blocked.
@@ -419,7 +440,143 @@ impl Stepper for Scenario<'_> {
         why: &str,
         _progress: &mut dyn FnMut(Real),
     ) -> Result<Result<Switched<Contact>, String>, PlanError> {
-        Scenario::switch(self, contacts, k, theta, why)
+        let released = contacts[k].finger;
+        let free: Vec<&Finger> = self
+            .hand
+            .fingers
+            .iter()
+            .filter(|f| contacts.iter().all(|c| c.finger != f.id))
+            .filter(|f| f.dof() == 3 && f.planar.is_some())
+            .collect();
+        if free.is_empty() {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}) and no free finger can take over"
+            )));
+        }
+        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
+        let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
+        // The exact region shrunk by the erosion: an attaching finger that lands that many
+        // candidates off the rendezvous point still keeps the margin.
+        let shrunk: Vec<usize>;
+        let brute: &[usize] = if self.settings.region_erosion == 0 {
+            &regions.exact
+        } else {
+            let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
+            shrunk = self.erode(&exact).into_iter().map(|c| c as usize).collect();
+            &shrunk
+        };
+        let angle = |c: usize| {
+            let p = self.problem.candidates().points[c] - self.centre;
+            p.y.atan2(p.x)
+        };
+        let here = angle(contacts[k].candidate);
+        // Every reachable option: (room, ahead, finger, candidate, gamma, q).
+        let mut options: Vec<(usize, Real, u32, usize, Real, Vec<Real>)> = Vec::new();
+        for f in &free {
+            for &c in brute {
+                let Some((gamma, q, room)) = self.best_attach(f, c, theta) else {
+                    continue;
+                };
+                let mut trial = contacts.to_vec();
+                trial.push(Contact {
+                    finger: f.id,
+                    candidate: c,
+                    gamma,
+                    q: q.clone(),
+                });
+                if self.overlap(&trial).is_some() {
+                    continue;
+                }
+                let ahead = wrap(angle(c) - here).rem_euclid(2.0 * PI);
+                options.push((room, ahead, f.id, c, gamma, q));
+            }
+        }
+        // Ahead of the released contact along the rolling direction first, then the most
+        // rolling room, then the farthest ahead (then the lowest finger and candidate, so the
+        // order is total and the plan reproducible).
+        options.sort_by(|x, y| {
+            let ahead = |a: Real| a > 0.0 && a < PI;
+            ahead(y.1)
+                .cmp(&ahead(x.1))
+                .then(y.0.cmp(&x.0))
+                .then(y.1.total_cmp(&x.1))
+                .then(x.2.cmp(&y.2))
+                .then(x.3.cmp(&y.3))
+        });
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        let mut rejected = Vec::new();
+        let mut chosen = None;
+        for (room, ahead, id, c, gamma, q) in options {
+            let mut attach = contacts.to_vec();
+            attach.push(Contact {
+                finger: id,
+                candidate: c,
+                gamma,
+                q,
+            });
+            let (q_attach, _) = self.quality(&attach)?;
+            let mut detach = attach.clone();
+            detach.remove(k);
+            let (q_detach, _) = self.quality(&detach)?;
+            if q_attach < floor || q_detach < floor {
+                return Ok(Err(format!(
+                    "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                    self.describe(c),
+                    self.settings.alpha
+                )));
+            }
+            // One step of lookahead: the attached finger must be able to roll on with the
+            // grasp it joins (its rolling room was estimated alone).
+            let step = self.settings.step.min(self.settings.goal - theta);
+            if step > 1e-12 {
+                let new = detach.len() - 1;
+                match self.roll(&detach, theta, step)? {
+                    Roll::Blocked(j, why) if j == new => {
+                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
+                        continue;
+                    }
+                    Roll::Stuck(why) => {
+                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
+                        continue;
+                    }
+                    _ => {}
+                }
+            }
+            chosen = Some((room, ahead, id, c, attach, detach, q_attach, q_detach));
+            break;
+        }
+        let Some((room, ahead, id, c, attach, detach, q_attach, q_detach)) = chosen else {
+            return Ok(Err(format!(
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts{}, none is reachable by a free finger ({:?}) with a rolling step after it{}",
+                brute.len(),
+                match self.settings.region_erosion {
+                    0 => String::new(),
+                    n => format!(" ({n} ring(s) inside the exact region)"),
+                },
+                free.iter().map(|f| f.id).collect::<Vec<_>>(),
+                if rejected.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (tried {})", rejected.join("; "))
+                }
+            )));
+        };
+        let info = Switch {
+            released,
+            attached: id,
+            reason: why.to_string(),
+            icr_region: regions.icr.clone(),
+            lp_region: regions.lp.clone(),
+            brute_force: regions.exact.clone(),
+            chosen_from: brute.len(),
+            rendezvous: c,
+            rendezvous_angle: self.angles.map(|a| a[c]),
+            room_steps: room,
+            ahead,
+            approach: None,
+            retreat: None,
+        };
+        Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
 
     fn record(
@@ -430,7 +587,30 @@ impl Stepper for Scenario<'_> {
         quality: Real,
         contacts: &[Contact],
     ) -> Step {
-        Scenario::record(self, step, phase, theta, quality, contacts)
+        let cands = self.problem.candidates();
+        let fingers = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let contact = contacts.iter().find(|c| c.finger == f.id);
+                let q = contact.map_or(&f.home, |c| &c.q);
+                let pose = f.fk(q);
+                let p = contact.map(|c| cands.points[c.candidate]);
+                FingerState {
+                    finger: f.id,
+                    contact: contact.map(|c| c.candidate),
+                    point: p.map(|p| [p.x, p.y, p.z]),
+                    normal: None,
+                    angle: contact.and_then(|c| self.angles.map(|a| a[c.candidate])),
+                    cap_angle: contact.map(|c| c.gamma),
+                    tip_rotation: pose.cap_axis.y.atan2(pose.cap_axis.x),
+                    tip_centre: [pose.tip_centre.x, pose.tip_centre.y, pose.tip_centre.z],
+                    joints: q.to_vec(),
+                }
+            })
+            .collect();
+        Step::new(step, phase, theta, quality, fingers)
     }
 }
 
@@ -1108,47 +1288,6 @@ impl Scenario<'_> {
         None
     }
 
-    fn record(
-        &self,
-        step: usize,
-        phase: Phase,
-        theta: Real,
-        quality: Real,
-        contacts: &[Contact],
-    ) -> Step {
-        let cands = self.problem.candidates();
-        let fingers = self
-            .hand
-            .fingers
-            .iter()
-            .map(|f| {
-                let contact = contacts.iter().find(|c| c.finger == f.id);
-                let q = contact.map_or(&f.home, |c| &c.q);
-                let pose = f.fk(q);
-                let p = contact.map(|c| cands.points[c.candidate]);
-                FingerState {
-                    finger: f.id,
-                    contact: contact.map(|c| c.candidate),
-                    point: p.map(|p| [p.x, p.y, p.z]),
-                    normal: None,
-                    angle: contact.and_then(|c| self.angles.map(|a| a[c.candidate])),
-                    cap_angle: contact.map(|c| c.gamma),
-                    tip_rotation: pose.cap_axis.y.atan2(pose.cap_axis.x),
-                    tip_centre: [pose.tip_centre.x, pose.tip_centre.y, pose.tip_centre.z],
-                    joints: q.to_vec(),
-                }
-            })
-            .collect();
-        Step {
-            step,
-            phase,
-            rotation: theta,
-            quality,
-            fingers,
-            switch: None,
-        }
-    }
-
     fn quality(&self, contacts: &[Contact]) -> Result<(Real, Real), GraspError> {
         let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
         let e = self.problem.evaluate(&idx)?;
@@ -1403,154 +1542,6 @@ impl Scenario<'_> {
             )));
         }
         Ok(Roll::Moved(next, quality))
-    }
-
-    /// Switches finger `contacts[k]` for the best free finger.
-    #[allow(clippy::type_complexity)]
-    fn switch(
-        &self,
-        contacts: &[Contact],
-        k: usize,
-        theta: Real,
-        why: &str,
-    ) -> Result<Result<(Vec<Contact>, Vec<Contact>, Switch, Real, Real), String>, PlanError> {
-        let released = contacts[k].finger;
-        let free: Vec<&Finger> = self
-            .hand
-            .fingers
-            .iter()
-            .filter(|f| contacts.iter().all(|c| c.finger != f.id))
-            .filter(|f| f.dof() == 3 && f.planar.is_some())
-            .collect();
-        if free.is_empty() {
-            return Ok(Err(format!(
-                "finger {released} cannot roll on ({why}) and no free finger can take over"
-            )));
-        }
-        let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
-        let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
-        // The exact region shrunk by the erosion: an attaching finger that lands that many
-        // candidates off the rendezvous point still keeps the margin.
-        let shrunk: Vec<usize>;
-        let brute: &[usize] = if self.settings.region_erosion == 0 {
-            &regions.exact
-        } else {
-            let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
-            shrunk = self.erode(&exact).into_iter().map(|c| c as usize).collect();
-            &shrunk
-        };
-        let angle = |c: usize| {
-            let p = self.problem.candidates().points[c] - self.centre;
-            p.y.atan2(p.x)
-        };
-        let here = angle(contacts[k].candidate);
-        // Every reachable option: (room, ahead, finger, candidate, gamma, q).
-        let mut options: Vec<(usize, Real, u32, usize, Real, Vec<Real>)> = Vec::new();
-        for f in &free {
-            for &c in brute {
-                let Some((gamma, q, room)) = self.best_attach(f, c, theta) else {
-                    continue;
-                };
-                let mut trial = contacts.to_vec();
-                trial.push(Contact {
-                    finger: f.id,
-                    candidate: c,
-                    gamma,
-                    q: q.clone(),
-                });
-                if self.overlap(&trial).is_some() {
-                    continue;
-                }
-                let ahead = wrap(angle(c) - here).rem_euclid(2.0 * PI);
-                options.push((room, ahead, f.id, c, gamma, q));
-            }
-        }
-        // Ahead of the released contact along the rolling direction first, then the most
-        // rolling room, then the farthest ahead (then the lowest finger and candidate, so the
-        // order is total and the plan reproducible).
-        options.sort_by(|x, y| {
-            let ahead = |a: Real| a > 0.0 && a < PI;
-            ahead(y.1)
-                .cmp(&ahead(x.1))
-                .then(y.0.cmp(&x.0))
-                .then(y.1.total_cmp(&x.1))
-                .then(x.2.cmp(&y.2))
-                .then(x.3.cmp(&y.3))
-        });
-        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
-        let mut rejected = Vec::new();
-        let mut chosen = None;
-        for (room, ahead, id, c, gamma, q) in options {
-            let mut attach = contacts.to_vec();
-            attach.push(Contact {
-                finger: id,
-                candidate: c,
-                gamma,
-                q,
-            });
-            let (q_attach, _) = self.quality(&attach)?;
-            let mut detach = attach.clone();
-            detach.remove(k);
-            let (q_detach, _) = self.quality(&detach)?;
-            if q_attach < floor || q_detach < floor {
-                return Ok(Err(format!(
-                    "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
-                    self.describe(c),
-                    self.settings.alpha
-                )));
-            }
-            // One step of lookahead: the attached finger must be able to roll on with the
-            // grasp it joins (its rolling room was estimated alone).
-            let step = self.settings.step.min(self.settings.goal - theta);
-            if step > 1e-12 {
-                let new = detach.len() - 1;
-                match self.roll(&detach, theta, step)? {
-                    Roll::Blocked(j, why) if j == new => {
-                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
-                        continue;
-                    }
-                    Roll::Stuck(why) => {
-                        rejected.push(format!("{} by finger {id}: {why}", self.describe(c)));
-                        continue;
-                    }
-                    _ => {}
-                }
-            }
-            chosen = Some((room, ahead, id, c, attach, detach, q_attach, q_detach));
-            break;
-        }
-        let Some((room, ahead, id, c, attach, detach, q_attach, q_detach)) = chosen else {
-            return Ok(Err(format!(
-                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts{}, none is reachable by a free finger ({:?}) with a rolling step after it{}",
-                brute.len(),
-                match self.settings.region_erosion {
-                    0 => String::new(),
-                    n => format!(" ({n} ring(s) inside the exact region)"),
-                },
-                free.iter().map(|f| f.id).collect::<Vec<_>>(),
-                if rejected.is_empty() {
-                    String::new()
-                } else {
-                    format!(" (tried {})", rejected.join("; "))
-                }
-            )));
-        };
-        let info = Switch {
-            released,
-            attached: id,
-            reason: why.to_string(),
-            icr_region: regions.icr.clone(),
-            lp_region: regions.lp.clone(),
-            brute_force: regions.exact.clone(),
-            chosen_from: brute.len(),
-            rendezvous: c,
-            rendezvous_angle: self.angles.map(|a| a[c]),
-            room_steps: room,
-            ahead,
-            approach: None,
-            retreat: None,
-        };
-        Ok(Ok((attach, detach, info, q_attach, q_detach)))
     }
 }
 

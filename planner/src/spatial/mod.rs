@@ -196,7 +196,30 @@ impl Stepper for Mapped<'_, '_> {
         quality: Real,
         touches: &[Touch],
     ) -> Step {
-        self.scenario.record(step, phase, theta, quality, touches)
+        let s = self.scenario;
+        let fingers = s
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let touch = touches.iter().find(|t| t.finger == f.id);
+                let q = touch.map_or(&f.home, |t| &t.q);
+                let (centre, axis) = f.fk_tip(q);
+                let n_w = touch.map(|t| s.rotation(theta) * t.normal);
+                FingerState {
+                    finger: f.id,
+                    contact: touch.map(|t| t.candidate),
+                    point: touch.map(|t| [t.point.x, t.point.y, t.point.z]),
+                    normal: touch.map(|t| [t.normal.x, t.normal.y, t.normal.z]),
+                    angle: None,
+                    cap_angle: n_w.map(|n| axis.dot(&-n).clamp(-1.0, 1.0).acos()),
+                    tip_rotation: axis.y.atan2(axis.x),
+                    tip_centre: [centre.x, centre.y, centre.z],
+                    joints: q.to_vec(),
+                }
+            })
+            .collect();
+        Step::new(step, phase, theta, quality, fingers)
     }
 }
 
@@ -1228,46 +1251,6 @@ impl SpatialScenario<'_> {
             approach,
             retreat,
         })))
-    }
-
-    fn record(
-        &self,
-        step: usize,
-        phase: Phase,
-        theta: Real,
-        quality: Real,
-        touches: &[Touch],
-    ) -> Step {
-        let fingers = self
-            .hand
-            .fingers
-            .iter()
-            .map(|f| {
-                let touch = touches.iter().find(|t| t.finger == f.id);
-                let q = touch.map_or(&f.home, |t| &t.q);
-                let (centre, axis) = f.fk_tip(q);
-                let n_w = touch.map(|t| self.rotation(theta) * t.normal);
-                FingerState {
-                    finger: f.id,
-                    contact: touch.map(|t| t.candidate),
-                    point: touch.map(|t| [t.point.x, t.point.y, t.point.z]),
-                    normal: touch.map(|t| [t.normal.x, t.normal.y, t.normal.z]),
-                    angle: None,
-                    cap_angle: n_w.map(|n| axis.dot(&-n).clamp(-1.0, 1.0).acos()),
-                    tip_rotation: axis.y.atan2(axis.x),
-                    tip_centre: [centre.x, centre.y, centre.z],
-                    joints: q.to_vec(),
-                }
-            })
-            .collect();
-        Step {
-            step,
-            phase,
-            rotation: theta,
-            quality,
-            fingers,
-            switch: None,
-        }
     }
 
     /// Plans the scenario. `progress` is called after every step with the rotation done
