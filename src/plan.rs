@@ -175,7 +175,7 @@ pub fn validate(path: &Path, progress_after: std::time::Duration) -> Result<u8> 
             o,
             "grasp      {} contacts (fingers {fingers:?}){placed}, force closure, alpha* = {quality:.6} >= alpha = {}",
             fingers.len(),
-            config.grasp.alpha
+            config.plan.alpha
         )?,
         Err(e) => writeln!(
             o,

@@ -254,7 +254,7 @@ pub fn run(ctx: &Context) -> Result<()> {
         },
     )
     .context("planning")?;
-    let (problem, alpha) = (&setup.problem, config.grasp.alpha);
+    let (problem, alpha) = (&setup.problem, config.plan.alpha);
     // The regions each target's messages carry, computed now rather than per step.
     let mut step_regions = regions(follower.targets(), problem, alpha, &mut || {
         let _ = planning(&mut health, goal.to_radians(), false);

@@ -1335,6 +1335,7 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         attach_resolution_deg: None,
         squeeze_reserve_mm: None,
         region_erosion: None,
+        alpha: None,
         axis: None,
         min_mobility_mm: None,
     });
@@ -1355,8 +1356,19 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
             num(rolling)
         );
     }
+    // The plan's margin: the hand's (`grasp.alpha`, which the command node's gate holds the
+    // estimated grasp to), or more, as headroom for contacts the estimate snaps a candidate
+    // off the plan's.
+    let plan_alpha = bounds::ALPHA.or("plan.alpha", raw.alpha, alpha)?;
+    if plan_alpha < alpha {
+        bail!(
+            "plan.alpha: {} is below grasp.alpha = {}: the plan keeps at least the margin the hand's gate holds to (leave plan.alpha out to plan at grasp.alpha)",
+            num(plan_alpha),
+            num(alpha)
+        );
+    }
     Ok(Settings {
-        alpha,
+        alpha: plan_alpha,
         goal: rotation.to_radians(),
         step: step.to_radians(),
         cap_margin: cap_margin.to_radians(),
