@@ -444,10 +444,18 @@ fn print_text(
     )?;
     writeln!(
         o,
-        "quality    alpha* = {start_quality:.6} at the start, minimum {:.6} {} alpha = {}",
+        "quality    alpha* = {start_quality:.6} at the start, minimum {:.6} {} alpha = {}{}",
         s.min_quality,
         if s.min_quality >= s.alpha { ">=" } else { "<" },
-        s.alpha
+        s.alpha,
+        if s.alpha > config.grasp.alpha {
+            format!(
+                " (plan.alpha: headroom over the hand's gate, grasp.alpha = {})",
+                config.grasp.alpha
+            )
+        } else {
+            String::new()
+        }
     )?;
     if spatial {
         writeln!(
