@@ -44,7 +44,8 @@ pub fn run(config: &Path, trajectory: &Path, launch: &RecordingLaunch) -> Result
     if plan.steps.is_empty() {
         bail!("{}: the plan has no steps", trajectory.display());
     }
-    let alpha = config.grasp.alpha;
+    // The plan's margin (`plan.alpha`, at least the gate's): the recording shows the plan.
+    let alpha = config.plan.alpha;
     let frames = plan
         .steps
         .iter()
@@ -80,7 +81,7 @@ fn frames(step: &Step, config: &Config, setup: &Setup) -> Result<[Frame; 2]> {
         .evaluate(&contacts)
         .with_context(|| format!("step {}: evaluating the grasp", step.step))?;
     let regions = problem
-        .icrs(&contacts, &evaluation, config.grasp.alpha)
+        .icrs(&contacts, &evaluation, config.plan.alpha)
         .map(|r| r.into_iter().map(|r| r.members).collect::<Vec<_>>())
         .unwrap_or_default();
     let mut region = regions.iter();
