@@ -165,7 +165,7 @@ pub enum PlanError {
     },
     /// The initial grasp's quality is below alpha.
     #[error(
-        "the initial grasp's quality alpha* = {quality:.6} is below the margin alpha = {alpha}"
+        "the initial grasp's quality alpha* = {quality:.6} is below the margin alpha = {alpha} (the plan's: plan.alpha, or grasp.alpha where it is not set)"
     )]
     BelowMargin {
         /// Its quality.
