@@ -346,7 +346,7 @@ mod tests {
     #[test]
     fn regions_computed_with_the_plan_are_each_targets_own() {
         let (setup, plan, list) = planned("paper_sphere.toml");
-        let alpha = config("paper_sphere.toml").grasp.alpha;
+        let alpha = config("paper_sphere.toml").plan.alpha;
         let (distinct, of_target) = regions(&list, &setup.problem, alpha, &mut || {});
         assert_eq!(of_target.len(), list.len());
         // Shared: one per grasp and switch, not one per sub-target.

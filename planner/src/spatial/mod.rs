@@ -1021,7 +1021,6 @@ impl SpatialScenario<'_> {
     /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
     /// the search goes on (per candidate placed, per placement tried: a search that takes a
     /// second still reports).
-    #[allow(clippy::type_complexity)]
     fn switch(
         &self,
         touches: &[Touch],
@@ -1030,7 +1029,7 @@ impl SpatialScenario<'_> {
         why: &str,
         maps: &[ReachMap],
         progress: &mut dyn FnMut(Real),
-    ) -> Result<Result<(Vec<Touch>, Vec<Touch>, Switch, Real, Real), String>, PlanError> {
+    ) -> Result<Result<Switched<Touch>, String>, PlanError> {
         let released = touches[k].finger;
         let free: Vec<&Finger> = self
             .hand
