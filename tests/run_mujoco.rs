@@ -11,8 +11,8 @@ use common::{icrflow, root, scratch};
 static PIPELINE: Mutex<()> = Mutex::new(());
 
 /// `config/NAME` turned `rotation` degrees, giving up after 10 s of holds or of no
-/// progress, with `plant` keys added to its `[plant]` and `pipeline` keys to its
-/// `[pipeline]`, written into `dir`; run with
+/// progress (unless `pipeline` sets `max_hold_s`), with `plant` keys added to its `[plant]`
+/// and `pipeline` keys to its `[pipeline]`, written into `dir`; run with
 /// `--summary-json`, recorded to `rrd` (else without the visualizer): the summary's text, the
 /// JSON, stderr.
 fn run(
@@ -34,13 +34,18 @@ fn run(
         .replace("path = \"meshes", &format!("path = \"{}", mesh.display()))
         .replace("urdf = \"hands", &format!("urdf = \"{}", hands.display()))
         .replace("[plant]\n", &format!("[plant]\n{plant}\n"));
+    let hold = if pipeline.contains("max_hold_s") {
+        ""
+    } else {
+        "max_hold_s = 10.0\n"
+    };
     let text = if text.contains("\n[pipeline]\n") {
         text.replace(
             "\n[pipeline]\n",
-            &format!("\n[pipeline]\nmax_hold_s = 10.0\n{pipeline}\n"),
+            &format!("\n[pipeline]\n{hold}{pipeline}\n"),
         )
     } else {
-        format!("{text}\n[pipeline]\nmax_hold_s = 10.0\n{pipeline}\n")
+        format!("{text}\n[pipeline]\n{hold}{pipeline}\n")
     };
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
@@ -62,21 +67,26 @@ fn run(
     (String::from_utf8_lossy(&o.stdout).to_string(), s, err)
 }
 
-/// A whole turn as the physics has it: the run reached its goal through at least `switches`
-/// finger switches, MuJoCo turned the object within 2 % of 360 degrees, its centre stayed
+/// A whole turn as the physics has it ([`assert_turn`] of 360 degrees).
+fn assert_whole_turn(s: &serde_json::Value, switches: u64, alpha: f64) {
+    assert_turn(s, 360.0, switches, alpha);
+}
+
+/// A turn of `goal` degrees as the physics has it: the run reached its goal through at least
+/// `switches` finger switches, MuJoCo turned the object within 2 % of `goal`, its centre stayed
 /// within 5 mm, at most two contacts were lost for a moment (30 ms or more) while planned,
 /// the grasp at MuJoCo's true contacts kept the margin `alpha` at every plan step, and the
 /// object stayed in the hand. (No loss at all held in every run of 2026-12-02; on 2026-12-03
 /// three CI runs of the sphere lost one, one and two contacts for a moment, goal, drift and
 /// margin kept: not yet explained, issue 22's notes.)
-fn assert_whole_turn(s: &serde_json::Value, switches: u64, alpha: f64) {
+fn assert_turn(s: &serde_json::Value, goal: f64, switches: u64, alpha: f64) {
     assert_eq!(s["completed"], true, "{s}");
     assert!(s["switches"].as_u64().unwrap() >= switches, "{s}");
     let p = &s["physics"];
     assert_eq!(p["engine"], "MuJoCo 3.17.0", "{s}");
     let truth = p["rotation_deg"].as_f64().unwrap();
     assert!(
-        (truth - 360.0).abs() <= 0.02 * 360.0,
+        (truth - goal).abs() <= 0.02 * goal,
         "MuJoCo turned the object {truth} deg: {s}"
     );
     assert!(p["drift_m"].as_f64().unwrap() < 5e-3, "{s}");
@@ -157,6 +167,36 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_mujoco() {
     let dir = scratch("mujoco-allegro");
     let (out, s, _) = run(&dir, "allegro_sphere_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 3, 0.1);
+    let truth = s["physics"]["rotation_deg"].as_f64().unwrap();
+    let estimated = s["rotation_deg"].as_f64().unwrap();
+    assert!(
+        (truth - estimated).abs() < 1.5,
+        "{truth} vs {estimated}: {s}"
+    );
+    assert!(!out.contains("DROPPED"), "{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The Allegro turns the ellipsoid mesh (5,040 facets, the object free in space) 270 degrees
+/// about its tilted axis in MuJoCo through at least three finger switches: its plan keeps
+/// headroom over the hand's gate (`plan.alpha`) and the gate's margin with any contact a facet
+/// off the plan's (`plan.neighbour_alpha`), so that the contacts MuJoCo's rolling leaves a few
+/// facets off keep it; the margin is kept at MuJoCo's true contacts, the centre held within
+/// millimetres, the estimate about the axis follows the truth. (A plan made again from the
+/// estimate takes seconds on the mesh, the hand holding meanwhile: 40 s of holds allowed.)
+#[test]
+fn the_allegro_turns_the_ellipsoid_mesh_270_degrees_in_mujoco() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("mujoco-allegro-ellipsoid");
+    let (out, s, _) = run(
+        &dir,
+        "allegro_ellipsoid_mujoco.toml",
+        270.0,
+        "",
+        "max_hold_s = 40.0",
+        None,
+    );
+    assert_turn(&s, 270.0, 3, 0.1);
     let truth = s["physics"]["rotation_deg"].as_f64().unwrap();
     let estimated = s["rotation_deg"].as_f64().unwrap();
     assert!(

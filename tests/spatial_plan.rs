@@ -28,6 +28,16 @@ fn allegro_ellipsoid_mesh_turns_270_degrees_about_a_tilted_axis_checked_from_scr
     );
 }
 
+/// The ellipsoid mesh as MuJoCo turns it: the plan's margin 0.12, and the gate's 0.1 kept with
+/// any one contact moved to a neighbouring facet (`plan.neighbour_alpha`).
+#[test]
+fn allegro_ellipsoid_mesh_for_mujoco_keeps_the_gate_s_margin_a_facet_off_checked_from_scratch() {
+    check_from_scratch(
+        "config/allegro_ellipsoid_mujoco.toml",
+        Vec3::new(0.2, 1.0, 0.2).normalize(),
+    );
+}
+
 /// A smaller ellipsoid, rolled on exactly.
 #[test]
 fn allegro_exact_ellipsoid_turns_a_whole_turn_about_a_tilted_axis_checked_from_scratch() {
@@ -104,6 +114,24 @@ fn check_from_scratch(name: &str, axis: Vec3) {
             e.quality,
             step.quality
         );
+        // With any one contact moved to a facet within plan.neighbour_rings of its own, the
+        // grasp keeps plan.neighbour_alpha.
+        if let Some(floor) = config.plan.neighbour_alpha {
+            let adjacency = &object.facets.adjacency;
+            for i in 0..contacts.len() {
+                for n in adjacency.rings(contacts[i], config.plan.neighbour_rings) {
+                    let mut moved = contacts.clone();
+                    moved[i] = n as usize;
+                    let e = fresh.evaluate(&moved).unwrap();
+                    let q = if e.force_closure() { e.quality } else { 0.0 };
+                    assert!(
+                        q >= floor * (1.0 - 1e-9),
+                        "step {}: contact {i} at facet {n}: {q} < {floor}",
+                        step.step
+                    );
+                }
+            }
+        }
         let expected = match step.phase {
             Phase::Attach => 4,
             _ => 3,

@@ -34,7 +34,7 @@ use std::fmt;
 use icrflow_grasp::math::Real;
 
 use crate::hand::{Finger, Hand, wrap};
-use crate::planner::{Phase, Plan, PlanError, Scenario, Start, Step};
+use crate::planner::{Phase, Plan, PlanError, QUALITY_SLACK, Scenario, Settings, Start, Step};
 use crate::rolling::{Surface, tip};
 use crate::route::{self, Keepout};
 
@@ -532,8 +532,32 @@ pub struct Replan {
     pub plan: Plan,
     /// The rotation offset it was planned with (rad).
     pub delta: Real,
-    /// What [`targets`] noted (fingers without a stand-off or a route).
+    /// What [`targets`] noted (fingers without a stand-off or a route), and a plan made at
+    /// the gate's margin ([`at_the_gate`]).
     pub notes: Vec<String>,
+}
+
+/// `plan(alpha)` at the plan's margin (`settings.alpha`); where the estimated grasp it starts
+/// from keeps less than that but at least the gate's margin (`settings.gate_alpha`), at the
+/// gate's, noted in `notes`: the plan's headroom is spent, the margin the hand is held to is
+/// kept.
+pub(crate) fn at_the_gate(
+    settings: &Settings,
+    notes: &mut Vec<String>,
+    mut plan: impl FnMut(Real) -> Result<Plan, PlanError>,
+) -> Result<Plan, PlanError> {
+    let gate = settings.gate_alpha;
+    match plan(settings.alpha) {
+        Err(PlanError::BelowMargin { quality, alpha })
+            if gate < alpha && quality >= gate * (1.0 - QUALITY_SLACK) =>
+        {
+            notes.push(format!(
+                "the estimated grasp keeps alpha* = {quality:.4}, below the plan's margin {alpha} but not the gate's {gate}: planned at the gate's"
+            ));
+            plan(gate)
+        }
+        other => other,
+    }
 }
 
 /// A plan made again from the estimate `e` for `scenario` (its goal, settings and hand; its
@@ -612,19 +636,22 @@ pub fn replan(
             .collect(),
     };
     again.settings.goal += delta;
-    let mut plan = again
-        .plan(&mut |_| beat())
-        .map_err(|error| ReplanError::Planning {
-            from: theta,
-            estimate: e.rotation,
-            contacts: describe(&contacts, &again.initial, &angles),
-            error,
-        })?;
+    let mut notes = Vec::new();
+    let settings = again.settings.clone();
+    let mut plan = at_the_gate(&settings, &mut notes, |alpha| {
+        again.settings.alpha = alpha;
+        again.plan(&mut |_| beat())
+    })
+    .map_err(|error| ReplanError::Planning {
+        from: theta,
+        estimate: e.rotation,
+        contacts: describe(&contacts, &again.initial, &angles),
+        error,
+    })?;
     for step in &mut plan.steps {
         step.step += first;
         step.rotation -= delta;
     }
-    let mut notes = Vec::new();
     let targets = targets(&plan.steps, hand, surface, clearance, &mut |n| {
         notes.push(n)
     });
@@ -1083,5 +1110,81 @@ impl<'a> Follower<'a> {
             out.event = Some(Event::Advanced(k + 1));
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::Summary;
+
+    fn settings(alpha: Real, gate_alpha: Real) -> Settings {
+        Settings {
+            alpha,
+            gate_alpha,
+            goal: 1.0,
+            step: 0.1,
+            cap_margin: 0.0,
+            min_manipulability: 0.0,
+            squeeze_reserve: 0.0,
+            region_erosion: 0,
+            neighbour_alpha: None,
+            neighbour_rings: 1,
+            max_steps: 10,
+            attach_resolution: 0.01,
+        }
+    }
+
+    /// A planner whose start keeps `quality`: refused below its margin, else an empty plan
+    /// at the margin asked; the margins asked, in order.
+    fn planned(quality: Real, s: &Settings) -> (Result<Plan, PlanError>, Vec<Real>, Vec<String>) {
+        let mut asked = Vec::new();
+        let mut notes = Vec::new();
+        let r = at_the_gate(s, &mut notes, |alpha| {
+            asked.push(alpha);
+            if quality < alpha {
+                return Err(PlanError::BelowMargin { quality, alpha });
+            }
+            let mut plan = Plan {
+                summary: serde_json::from_value::<Summary>(serde_json::json!({
+                    "completed": true, "stop_reason": null, "rotation_deg": 0.0,
+                    "goal_deg": 0.0, "switches": 0, "steps": 0, "rolling_steps": 0,
+                    "min_quality": quality, "alpha": alpha, "max_rolling_residual": 0.0,
+                    "icr_region_candidates": 0, "lp_region_candidates": 0,
+                    "lp_region_unsafe": 0, "brute_force_candidates": 0
+                }))
+                .unwrap(),
+                steps: Vec::new(),
+            };
+            plan.summary.alpha = alpha;
+            Ok(plan)
+        });
+        (r, asked, notes)
+    }
+
+    #[test]
+    fn a_re_plan_between_the_two_margins_is_made_at_the_gate_s_below_it_refused() {
+        let s = settings(0.12, 0.1);
+        // Between the two: planned again at the gate's margin, and said so.
+        let (r, asked, notes) = planned(0.11, &s);
+        assert_eq!(r.unwrap().summary.alpha, 0.1);
+        assert_eq!(asked, vec![0.12, 0.1]);
+        assert_eq!(notes.len(), 1);
+        assert!(
+            notes[0].contains("0.1100") && notes[0].contains("gate"),
+            "{notes:?}"
+        );
+        // Above the plan's: once, at the plan's.
+        let (r, asked, notes) = planned(0.2, &s);
+        assert_eq!(r.unwrap().summary.alpha, 0.12);
+        assert_eq!((asked, notes.len()), (vec![0.12], 0));
+        // Below the gate's: refused at the plan's margin, not tried again.
+        let (r, asked, _) = planned(0.09, &s);
+        assert!(matches!(r, Err(PlanError::BelowMargin { alpha, .. }) if alpha == 0.12));
+        assert_eq!(asked, vec![0.12]);
+        // No headroom (the margins equal): refused as it was.
+        let (r, asked, _) = planned(0.09, &settings(0.1, 0.1));
+        assert!(r.is_err());
+        assert_eq!(asked, vec![0.1]);
     }
 }

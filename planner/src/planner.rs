@@ -79,6 +79,11 @@ pub const QUALITY_SLACK: Real = 1e-9;
 pub struct Settings {
     /// The quality margin alpha.
     pub alpha: Real,
+    /// The margin the command node's gate holds the estimated grasp to (`grasp.alpha`, at
+    /// most [`Settings::alpha`], which may keep headroom over it): a plan made again from an
+    /// estimated grasp that keeps less than `alpha`, but at least this, is made at this
+    /// margin ([`crate::follow::replan`], [`crate::spatial::follow::replan`]).
+    pub gate_alpha: Real,
     /// Total rotation to reach (rad, > 0: counter-clockwise seen from the top).
     pub goal: Real,
     /// Object rotation per rolling step (rad, > 0).
@@ -98,6 +103,15 @@ pub struct Settings {
     /// the contacts' errors within it (the ICRs hold for every contact anywhere in its
     /// region); at a switch, for the attaching finger's error. 0: the regions as they are.
     pub region_erosion: usize,
+    /// The quality every grasp of a spatial plan (each rolling step's end, each switch's
+    /// attach and detach grasps) keeps with any one of its contacts moved to a candidate
+    /// within [`Settings::neighbour_rings`] rings of its own (the candidates' adjacency):
+    /// headroom for a hand whose estimate places a contact a few candidates off the plan's,
+    /// which the command node's gate holds to `grasp.alpha`. `None`: not checked.
+    pub neighbour_alpha: Option<Real>,
+    /// How many rings of neighbouring candidates [`Settings::neighbour_alpha`] is checked
+    /// over (at least 1).
+    pub neighbour_rings: usize,
     /// Upper bound on planner steps (rolling, attach and detach together).
     pub max_steps: usize,
     /// Resolution of the search over the cap angle when a finger attaches (rad).
@@ -628,12 +642,19 @@ pub(crate) struct Driven {
     pub stop_reason: Option<String>,
 }
 
+/// How many rolling steps back the planning loop tries a finger switch again where the
+/// switch of a blocked finger fails: the finger released that much earlier, where the
+/// object's and the other fingers' positions leave a free finger other candidates.
+pub const EARLY_SWITCH_STEPS: usize = 6;
+
 /// The planning loop of `s` under `settings`, from the grasp `started` (its contacts and
 /// quality) at rotation `theta` (rad): rolling steps toward the goal; where a contact is
 /// blocked, a finger switch, unless the blocked finger has just attached or every finger has
-/// switched since the last rolling step (the hand has no way forward). `progress` is called
-/// with the rotation after every step (and during a switch, as `s` does), `moved` with the
-/// contacts of every rolling step.
+/// switched since the last rolling step (the hand has no way forward). Where no free finger
+/// can take over from the blocked one, the switch is tried up to [`EARLY_SWITCH_STEPS`]
+/// rolling steps earlier (the latest that serves is kept, the steps after it dropped).
+/// `progress` is called with the rotation after every step (and during a switch, as `s`
+/// does), `moved` with the contacts of every rolling step kept.
 pub(crate) fn drive<S: Stepper>(
     s: &S,
     settings: &Settings,
@@ -641,15 +662,21 @@ pub(crate) fn drive<S: Stepper>(
     started: (Vec<S::Contact>, Real),
     progress: &mut dyn FnMut(Real),
     moved: &mut dyn FnMut(&[S::Contact]),
-) -> Result<Driven, PlanError> {
+) -> Result<Driven, PlanError>
+where
+    S::Contact: Clone,
+{
     let (mut contacts, quality) = started;
     let mut steps = vec![s.record(0, Phase::Start, theta, quality, &contacts)];
-    let mut min_quality = quality;
     let mut switches = 0;
     let mut stop_reason = None;
     // Switches since the last rolling step, and the finger the last switch attached.
     let mut switches_in_a_row = 0;
     let mut just_attached: Option<u32> = None;
+    // The rolling steps kept (their step's index and contacts), and those since the last
+    // switch (where an earlier switch may be tried: the rotation and contacts).
+    let mut rolled: Vec<(usize, Vec<S::Contact>)> = Vec::new();
+    let mut since_switch: Vec<(usize, Real)> = Vec::new();
     while theta < settings.goal - 1e-9 {
         if steps.len() >= settings.max_steps {
             stop_reason = Some(format!(
@@ -667,10 +694,10 @@ pub(crate) fn drive<S: Stepper>(
             Roll::Moved(next, quality) => {
                 switches_in_a_row = 0;
                 just_attached = None;
-                moved(&next);
                 contacts = next;
                 theta += step;
-                min_quality = min_quality.min(quality);
+                rolled.push((steps.len(), contacts.clone()));
+                since_switch.push((rolled.len() - 1, theta));
                 steps.push(s.record(steps.len(), Phase::Rolling, theta, quality, &contacts));
                 progress(theta);
             }
@@ -682,27 +709,57 @@ pub(crate) fn drive<S: Stepper>(
                     ));
                     break;
                 }
-                match s.switch(&contacts, k, theta, &why, progress)? {
-                    Ok((attach, detach, info, q_attach, q_detach)) => {
-                        min_quality = min_quality.min(q_attach).min(q_detach);
-                        just_attached = Some(info.attached);
-                        let mut a = s.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
-                        a.switch = Some(info);
-                        steps.push(a);
-                        steps.push(s.record(steps.len(), Phase::Detach, theta, q_detach, &detach));
-                        contacts = detach;
-                        switches += 1;
-                        switches_in_a_row += 1;
-                        progress(theta);
+                let mut found = s.switch(&contacts, k, theta, &why, progress)?;
+                if let Some(reason) = found.as_ref().err().cloned() {
+                    // Released earlier, the latest first.
+                    for back in 1..=EARLY_SWITCH_STEPS {
+                        let Some(&(r, at)) = since_switch.iter().rev().nth(back) else {
+                            break;
+                        };
+                        let earlier = &rolled[r].1;
+                        let Some(j) = earlier.iter().position(|c| S::finger_of(c) == finger) else {
+                            break;
+                        };
+                        let early = format!(
+                            "released {back} steps early: {} deg on, no free finger could take over ({why})",
+                            (theta - at).to_degrees().round()
+                        );
+                        if let Ok(sw) = s.switch(earlier, j, at, &early, progress)? {
+                            steps.truncate(rolled[r].0 + 1);
+                            contacts = earlier.clone();
+                            rolled.truncate(r + 1);
+                            theta = at;
+                            found = Ok(sw);
+                            break;
+                        }
                     }
-                    Err(reason) => {
+                    if found.is_err() {
                         stop_reason = Some(reason);
                         break;
                     }
                 }
+                if let Ok((attach, detach, info, q_attach, q_detach)) = found {
+                    just_attached = Some(info.attached);
+                    let mut a = s.record(steps.len(), Phase::Attach, theta, q_attach, &attach);
+                    a.switch = Some(info);
+                    steps.push(a);
+                    steps.push(s.record(steps.len(), Phase::Detach, theta, q_detach, &detach));
+                    contacts = detach;
+                    switches += 1;
+                    switches_in_a_row += 1;
+                    since_switch.clear();
+                    progress(theta);
+                }
             }
         }
     }
+    for (_, c) in &rolled {
+        moved(c);
+    }
+    let min_quality = steps
+        .iter()
+        .map(|s| s.quality)
+        .fold(Real::INFINITY, Real::min);
     Ok(Driven {
         steps,
         rotation: theta,
@@ -1718,4 +1775,155 @@ pub fn rolling_residuals(scenario: &Scenario<'_>, steps: &[Step]) -> Vec<Real> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hand of fingers 1-4 whose contacts are their numbers: finger 1 is blocked once the
+    /// object has turned `limit` steps, and a free finger takes over only while it has turned
+    /// at most `reach` steps (or never).
+    struct Toy {
+        limit: usize,
+        reach: Option<usize>,
+        step: Real,
+    }
+
+    impl Stepper for Toy {
+        type Contact = u32;
+
+        fn finger_of(c: &u32) -> u32 {
+            *c
+        }
+
+        fn fingers(&self) -> usize {
+            4
+        }
+
+        fn roll(&self, contacts: &[u32], theta: Real, step: Real) -> Result<Roll<u32>, PlanError> {
+            let done = ((theta + step) / self.step).round() as usize;
+            Ok(match contacts.iter().position(|&c| c == 1) {
+                Some(k) if done > self.limit => Roll::Blocked(k, "at its limit".into()),
+                // The quality falls while finger 1 holds: the steps dropped take theirs along.
+                Some(_) => Roll::Moved(contacts.to_vec(), 1.0 - done as Real * 0.1),
+                None => Roll::Moved(contacts.to_vec(), 0.95),
+            })
+        }
+
+        fn switch(
+            &self,
+            contacts: &[u32],
+            k: usize,
+            theta: Real,
+            why: &str,
+            _: &mut dyn FnMut(Real),
+        ) -> Result<Result<Switched<u32>, String>, PlanError> {
+            let done = (theta / self.step).round() as usize;
+            if self.reach.is_none_or(|r| done > r) {
+                return Ok(Err(format!("no free finger reaches at {done} steps")));
+            }
+            let mut attach = contacts.to_vec();
+            attach.push(4);
+            let mut detach = attach.clone();
+            let released = detach.remove(k);
+            let switch = Switch {
+                released,
+                attached: 4,
+                reason: why.to_string(),
+                icr_region: Vec::new(),
+                lp_region: Vec::new(),
+                brute_force: Vec::new(),
+                chosen_from: 0,
+                rendezvous: 0,
+                rendezvous_angle: None,
+                room_steps: 0,
+                ahead: 0.0,
+                approach: None,
+                retreat: None,
+            };
+            Ok(Ok((attach, detach, switch, 0.9, 0.9)))
+        }
+
+        fn record(&self, step: usize, phase: Phase, theta: Real, quality: Real, _: &[u32]) -> Step {
+            Step::new(step, phase, theta, quality, Vec::new())
+        }
+    }
+
+    fn settings(step: Real, steps: usize) -> Settings {
+        Settings {
+            alpha: 0.1,
+            gate_alpha: 0.1,
+            goal: step * steps as Real,
+            step,
+            cap_margin: 0.0,
+            min_manipulability: 0.0,
+            squeeze_reserve: 0.0,
+            region_erosion: 0,
+            neighbour_alpha: None,
+            neighbour_rings: 1,
+            max_steps: 1000,
+            attach_resolution: 0.01,
+        }
+    }
+
+    fn plan(limit: usize, reach: Option<usize>) -> (Driven, usize) {
+        let step = 5f64.to_radians();
+        let toy = Toy { limit, reach, step };
+        let mut moved = 0;
+        let driven = drive(
+            &toy,
+            &settings(step, 10),
+            0.0,
+            (vec![1, 2, 3], 1.0),
+            &mut |_| {},
+            &mut |_| moved += 1,
+        )
+        .unwrap();
+        (driven, moved)
+    }
+
+    #[test]
+    fn a_switch_that_fails_at_the_limit_is_made_earlier_the_steps_after_it_dropped() {
+        // Blocked after 6 steps; a free finger reaches up to 4: released 2 steps early.
+        let (d, moved) = plan(6, Some(4));
+        assert_eq!(d.stop_reason, None);
+        assert_eq!(d.switches, 1);
+        let phases: Vec<Phase> = d.steps.iter().map(|s| s.phase).collect();
+        let mut expected = vec![Phase::Start];
+        expected.extend([Phase::Rolling; 4]);
+        expected.extend([Phase::Attach, Phase::Detach]);
+        expected.extend([Phase::Rolling; 6]);
+        assert_eq!(phases, expected);
+        // Numbered in order, the switch at the rotation of the step it follows.
+        assert!(d.steps.iter().enumerate().all(|(i, s)| s.step == i));
+        assert!((d.steps[5].rotation - d.steps[4].rotation).abs() < 1e-12);
+        let w = d.steps[5].switch.as_ref().unwrap();
+        assert_eq!((w.released, w.attached), (1, 4));
+        assert!(
+            w.reason.starts_with("released 2 steps early"),
+            "{}",
+            w.reason
+        );
+        // The dropped steps' contacts and qualities are gone: 10 rolling steps kept, the
+        // lowest quality the 4th's (the dropped 6th's was 0.4).
+        assert_eq!(moved, 10);
+        assert!((d.min_quality - 0.6).abs() < 1e-12, "{}", d.min_quality);
+    }
+
+    #[test]
+    fn a_switch_no_earlier_step_serves_stops_the_plan_with_the_first_reason() {
+        // Too far back: EARLY_SWITCH_STEPS short of the limit is not enough.
+        let (d, moved) = plan(8, Some(8 - EARLY_SWITCH_STEPS - 1));
+        assert!(
+            d.stop_reason.as_deref().unwrap().contains("at 8 steps"),
+            "{:?}",
+            d.stop_reason
+        );
+        assert_eq!(d.switches, 0);
+        assert_eq!(moved, 8);
+        assert_eq!(d.steps.len(), 9);
+        let (d, _) = plan(3, None);
+        assert!(d.stop_reason.as_deref().unwrap().contains("at 3 steps"));
+    }
 }

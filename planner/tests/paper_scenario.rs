@@ -31,12 +31,15 @@ fn sphere_problem(mu: Real) -> (Object, GraspProblem) {
 fn settings(alpha: Real) -> Settings {
     Settings {
         alpha,
+        gate_alpha: alpha,
         goal: 2.0 * PI,
         step: 5f64.to_radians(),
         cap_margin: 5f64.to_radians(),
         min_manipulability: 1e-4,
         squeeze_reserve: 2e-3,
         region_erosion: 0,
+        neighbour_alpha: None,
+        neighbour_rings: 1,
         max_steps: 10_000,
         attach_resolution: 2f64.to_radians(),
     }

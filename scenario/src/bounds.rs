@@ -335,6 +335,12 @@ pub const REGION_EROSION: Count = Count::new(
     3,
     "a ring is a candidate off each end of every region (5 deg on the paper's 72-candidate section): at 2 the paper's plan still turns a whole turn, at 3 it stops after 40 deg",
 );
+/// `plan.neighbour_rings`.
+pub const NEIGHBOUR_RINGS: Count = Count::new(
+    1,
+    6,
+    "every grasp of the plan is evaluated once per candidate within the rings of each contact (about 3 r^2 of a triangle mesh's facets at r rings)",
+);
 /// Upper bound on plan steps.
 pub const MAX_STEPS: Count = Count::new(
     1,

@@ -646,6 +646,20 @@ impl Config {
         };
         let turn = turn_spec(raw.plan.as_ref())?;
         let plan = plan_spec(raw.plan, grasp.alpha)?;
+        if let Some(a) = plan.neighbour_alpha {
+            if grasp.space == Space::Planar {
+                bail!(
+                    "plan.neighbour_alpha: the spatial planner's check (grasp.space = \"spatial\"); the planar planner keeps its contacts off the regions' edges by plan.region_erosion"
+                );
+            }
+            if a > plan.alpha {
+                bail!(
+                    "plan.neighbour_alpha: {} is above the plan's margin {} (plan.alpha, or grasp.alpha): the grasps a contact's neighbours make are held to at most the plan's own",
+                    num(a),
+                    num(plan.alpha)
+                );
+            }
+        }
         let pipeline = pipeline_spec(raw.pipeline.unwrap_or_default())?;
         let plant = plant_spec(raw.plant.unwrap_or_default())?;
         if plant.kind != PlantKind::Mujoco && pipeline.push.is_some() {
@@ -1335,6 +1349,8 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         attach_resolution_deg: None,
         squeeze_reserve_mm: None,
         region_erosion: None,
+        neighbour_alpha: None,
+        neighbour_rings: None,
         alpha: None,
         axis: None,
         min_mobility_mm: None,
@@ -1369,6 +1385,7 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
     }
     Ok(Settings {
         alpha: plan_alpha,
+        gate_alpha: alpha,
         goal: rotation.to_radians(),
         step: step.to_radians(),
         cap_margin: cap_margin.to_radians(),
@@ -1384,6 +1401,12 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         )? * 1e-3,
         region_erosion: bounds::REGION_EROSION
             .check("plan.region_erosion", raw.region_erosion.unwrap_or(0))?,
+        neighbour_alpha: raw
+            .neighbour_alpha
+            .map(|a| bounds::ALPHA.check("plan.neighbour_alpha", a))
+            .transpose()?,
+        neighbour_rings: bounds::NEIGHBOUR_RINGS
+            .check("plan.neighbour_rings", raw.neighbour_rings.unwrap_or(1))?,
     })
 }
 

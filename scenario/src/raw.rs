@@ -186,6 +186,8 @@ pub struct RawPlan {
     pub attach_resolution_deg: Option<f64>,
     pub squeeze_reserve_mm: Option<f64>,
     pub region_erosion: Option<usize>,
+    pub neighbour_alpha: Option<f64>,
+    pub neighbour_rings: Option<usize>,
     pub alpha: Option<f64>,
     pub axis: Option<[f64; 3]>,
     pub min_mobility_mm: Option<f64>,

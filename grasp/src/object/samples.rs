@@ -61,6 +61,27 @@ impl Adjacency {
         self.len() == 0
     }
 
+    /// The nodes within `rings` hops of node `i` but `i` itself, nearest first (in order of
+    /// hops, then of index).
+    pub fn rings(&self, i: usize, rings: usize) -> Vec<u32> {
+        let mut found: Vec<u32> = vec![i as u32];
+        let mut ring_start = 0;
+        for _ in 0..rings {
+            let ring_end = found.len();
+            let mut next: Vec<u32> = found[ring_start..ring_end]
+                .iter()
+                .flat_map(|&m| self.neighbours(m as usize).iter().copied())
+                .filter(|n| !found.contains(n))
+                .collect();
+            next.sort_unstable();
+            next.dedup();
+            found.extend(next);
+            ring_start = ring_end;
+        }
+        found.remove(0);
+        found
+    }
+
     /// The nodes of `members` (sorted node indices) whose neighbours, to `rings` rings, are
     /// all members too: the set shrunk by `rings` hops of the graph (on a loop, `rings` nodes
     /// off each end of every arc). A node without neighbours is never removed.
@@ -391,6 +412,47 @@ mod tests {
         assert_eq!(adj.neighbours(3), &[] as &[u32]);
         assert!(Adjacency::from_lists(&[]).is_empty());
         assert!(Adjacency::default().is_empty());
+    }
+
+    /// The rings about a node: on a loop of 12, two nodes a ring (nearest first); on a
+    /// 3 x 3 grid (4-neighbours), the centre's first ring its four edge-neighbours and its
+    /// second the corners; never the node itself, nor a node twice; 0 rings, none.
+    #[test]
+    fn rings_list_the_nodes_within_hops_nearest_first() {
+        let ring = Adjacency::from_lists(
+            &(0..12u32)
+                .map(|i| vec![(i + 11) % 12, (i + 1) % 12])
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(ring.rings(0, 1), vec![1, 11]);
+        assert_eq!(ring.rings(0, 2), vec![1, 11, 2, 10]);
+        assert_eq!(ring.rings(0, 6).len(), 11);
+        assert_eq!(ring.rings(0, 0), Vec::<u32>::new());
+        let grid = Adjacency::from_lists(
+            &(0..9u32)
+                .map(|i| {
+                    let (r, c) = (i / 3, i % 3);
+                    let mut n = Vec::new();
+                    if r > 0 {
+                        n.push(i - 3);
+                    }
+                    if c > 0 {
+                        n.push(i - 1);
+                    }
+                    if c < 2 {
+                        n.push(i + 1);
+                    }
+                    if r < 2 {
+                        n.push(i + 3);
+                    }
+                    n
+                })
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(grid.rings(4, 1), vec![1, 3, 5, 7]);
+        assert_eq!(grid.rings(4, 2), vec![1, 3, 5, 7, 0, 2, 6, 8]);
+        assert_eq!(grid.rings(0, 1), vec![1, 3]);
+        assert_eq!(grid.rings(0, 2), vec![1, 3, 2, 4, 6]);
     }
 
     /// On a loop of 12 nodes: two arcs shrink by a node off each end per ring, an arc of

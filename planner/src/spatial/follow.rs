@@ -118,14 +118,18 @@ pub fn replan(
         return Err(ReplanError::NoContact);
     }
     again.start_rotation = e.rotation;
-    let mut plan = again
-        .plan(&mut |_| beat())
-        .map_err(|error| ReplanError::Planning {
-            from: e.rotation,
-            estimate: e.rotation,
-            contacts: described.join(", "),
-            error,
-        })?;
+    let mut notes = Vec::new();
+    let settings = again.settings.clone();
+    let mut plan = crate::follow::at_the_gate(&settings, &mut notes, |alpha| {
+        again.settings.alpha = alpha;
+        again.plan(&mut |_| beat())
+    })
+    .map_err(|error| ReplanError::Planning {
+        from: e.rotation,
+        estimate: e.rotation,
+        contacts: described.join(", "),
+        error,
+    })?;
     for step in &mut plan.steps {
         step.step += first;
     }
@@ -134,7 +138,7 @@ pub fn replan(
         targets,
         plan,
         delta: 0.0,
-        notes: Vec::new(),
+        notes,
     })
 }
 

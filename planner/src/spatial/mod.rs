@@ -838,6 +838,46 @@ impl SpatialScenario<'_> {
         Ok(if e.force_closure() { e.quality } else { 0.0 })
     }
 
+    /// Where `touches` would lose [`Settings::neighbour_alpha`] with one contact moved to a
+    /// candidate within [`Settings::neighbour_rings`] rings of its own: (the contact, the
+    /// candidate, the quality there); `None` where every such grasp keeps it, or it is not
+    /// asked for.
+    fn one_off(&self, touches: &[Touch]) -> Result<Option<(usize, usize, Real)>, GraspError> {
+        let Some(alpha) = self.settings.neighbour_alpha else {
+            return Ok(None);
+        };
+        let floor = alpha * (1.0 - QUALITY_SLACK);
+        let adjacency = &self.problem.candidates().adjacency;
+        let mut idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        for (i, t) in touches.iter().enumerate() {
+            for n in adjacency.rings(t.candidate, self.settings.neighbour_rings) {
+                idx[i] = n as usize;
+                let e = self.problem.evaluate(&idx)?;
+                let q = if e.force_closure() { e.quality } else { 0.0 };
+                if q < floor {
+                    return Ok(Some((i, n as usize, q)));
+                }
+            }
+            idx[i] = t.candidate;
+        }
+        Ok(None)
+    }
+
+    /// Why `touches` would lose [`Settings::neighbour_alpha`] one candidate off, if it would.
+    fn one_off_why(&self, touches: &[Touch]) -> Result<Option<(usize, String)>, GraspError> {
+        Ok(self.one_off(touches)?.map(|(i, n, q)| {
+            (
+                i,
+                format!(
+                    "with finger {}'s contact at {n}, within {} rings of candidates of its own, the grasp would keep {q:.6} < plan.neighbour_alpha = {}",
+                    touches[i].finger,
+                    self.settings.neighbour_rings,
+                    self.settings.neighbour_alpha.unwrap_or_default()
+                ),
+            )
+        }))
+    }
+
     fn check(&self) -> Result<(), PlanError> {
         let s = &self.settings;
         let positive = |name: &str, x: Real| {
@@ -998,6 +1038,9 @@ impl SpatialScenario<'_> {
                 "the next grasp would have quality {quality:.6} < alpha = {} (a defect: the ICRs guarantee the margin)",
                 self.settings.alpha
             )));
+        }
+        if let Some((i, why)) = self.one_off_why(&next)? {
+            return Ok(Roll::Blocked(i, why));
         }
         Ok(Roll::Moved(next, quality))
     }
@@ -1231,6 +1274,11 @@ impl SpatialScenario<'_> {
                 self.describe(&t.point),
                 self.settings.alpha
             )));
+        }
+        for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
+            if let Some((_, why)) = self.one_off_why(grasp)? {
+                return reject(format!("{name}: {why}"));
+            }
         }
         let step = self.settings.step.min(self.settings.goal - theta);
         if step > 1e-12 {
