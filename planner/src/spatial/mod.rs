@@ -31,7 +31,12 @@
 //! (the smallest singular value of its fingertip centre's Jacobian at least
 //! [`Spatial::min_mobility`]), keep its links' capsules off the object, and be able to press on
 //! ([`Settings::squeeze_reserve`]); fingers keep their fingertips and link capsules off each
-//! other. A finger that cannot is blocked; a switch may help.
+//! other. A finger that cannot is blocked; a switch may help. Where
+//! [`Settings::neighbour_alpha`] is asked for, the grasp at the step's end keeps it with any
+//! one contact moved to a candidate within [`Settings::neighbour_rings`] of its own, or the
+//! finger whose neighbour loses it is blocked: headroom for a hand that makes its contacts a
+//! few candidates off the plan's (on a mesh of small facets their cones turn enough between
+//! neighbours to lose a quarter of alpha*).
 //!
 //! # Finger switching
 //! As in the planar planner: the exact rendezvous region by brute force over the candidates
@@ -39,7 +44,8 @@
 //! redundancy used to centre its joints; seeded from its [`ReachMap`], which also rules out
 //! candidates far from its reach) at each candidate of the region, ahead of the released
 //! contact about the axis first, then the most rolling room, the attach and detach grasps
-//! verified, and one rolling step of lookahead. The attaching finger's approach from its home
+//! verified (and, with [`Settings::neighbour_alpha`], kept a few candidates off as a rolling
+//! step's), and one rolling step of lookahead. The attaching finger's approach from its home
 //! pose and the released finger's retreat to it are straight joint-space moves through poses
 //! with the fingertip lifted off the contact along its normal ([`LIFTS`]; first, if need be,
 //! through a pose turned at the finger's base but not yet curled, or the other way round),
