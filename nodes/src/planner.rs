@@ -298,7 +298,10 @@ pub fn run(ctx: &Context) -> Result<()> {
                     let _ = health.tick();
                 });
                 log(&followed, follower.targets(), log_steps);
-                if matches!(followed.event, Some(Event::Replanned(_))) {
+                if let Some(Event::Replanned(r)) = &followed.event {
+                    // At the new plan's margin: the plan's, or the gate's where the estimated
+                    // grasp kept less (`follow::at_the_gate`).
+                    let alpha = r.plan.summary.alpha;
                     step_regions = regions(follower.targets(), problem, alpha, &mut || {
                         let _ = health.tick();
                     });

@@ -540,7 +540,7 @@ pub struct Replan {
 /// `plan(alpha)` at the plan's margin (`settings.alpha`); where the estimated grasp it starts
 /// from keeps less than that but at least the gate's margin (`settings.gate_alpha`), at the
 /// gate's, noted in `notes`: the plan's headroom is spent, the margin the hand is held to is
-/// kept.
+/// kept. (`plan` holds `Settings::neighbour_alpha` to at most the `alpha` it is given.)
 pub(crate) fn at_the_gate(
     settings: &Settings,
     notes: &mut Vec<String>,
@@ -640,6 +640,7 @@ pub fn replan(
     let settings = again.settings.clone();
     let mut plan = at_the_gate(&settings, &mut notes, |alpha| {
         again.settings.alpha = alpha;
+        again.settings.neighbour_alpha = settings.neighbour_alpha.map(|n| n.min(alpha));
         again.plan(&mut |_| beat())
     })
     .map_err(|error| ReplanError::Planning {
@@ -1119,20 +1120,7 @@ mod tests {
     use crate::planner::Summary;
 
     fn settings(alpha: Real, gate_alpha: Real) -> Settings {
-        Settings {
-            alpha,
-            gate_alpha,
-            goal: 1.0,
-            step: 0.1,
-            cap_margin: 0.0,
-            min_manipulability: 0.0,
-            squeeze_reserve: 0.0,
-            region_erosion: 0,
-            neighbour_alpha: None,
-            neighbour_rings: 1,
-            max_steps: 10,
-            attach_resolution: 0.01,
-        }
+        crate::planner::tests::settings(alpha, gate_alpha, 0.1, 10)
     }
 
     /// A planner whose start keeps `quality`: refused below its margin, else an empty plan

@@ -415,7 +415,7 @@ pub(crate) trait Stepper {
         theta: Real,
         why: &str,
         progress: &mut dyn FnMut(Real),
-    ) -> Result<Result<Switched<Self::Contact>, String>, PlanError>;
+    ) -> Result<Result<Switched<Self::Contact>, NoSwitch>, PlanError>;
     /// Step `step` of phase `phase` at `theta` with `contacts` of quality `quality`.
     fn record(
         &self,
@@ -430,6 +430,34 @@ pub(crate) trait Stepper {
 /// A switch found ([`Stepper::switch`]): the grasp with the attached finger, the grasp after
 /// the release, the switch, and the two grasps' qualities.
 pub(crate) type Switched<C> = (Vec<C>, Vec<C>, Switch, Real, Real);
+
+/// Why no free finger takes over ([`Stepper::switch`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct NoSwitch {
+    /// Why, in words.
+    pub reason: String,
+    /// Whether it is a defect of the planner (a region that is exact failed verification):
+    /// the plan stops there, no earlier switch tried in its place.
+    pub defect: bool,
+}
+
+impl NoSwitch {
+    /// No free finger can take over, for `reason`.
+    pub(crate) fn none(reason: String) -> Self {
+        Self {
+            reason,
+            defect: false,
+        }
+    }
+
+    /// A defect of the planner, `reason`.
+    pub(crate) fn defect(reason: String) -> Self {
+        Self {
+            reason,
+            defect: true,
+        }
+    }
+}
 
 impl Stepper for Scenario<'_> {
     type Contact = Contact;
@@ -453,7 +481,7 @@ impl Stepper for Scenario<'_> {
         theta: Real,
         why: &str,
         _progress: &mut dyn FnMut(Real),
-    ) -> Result<Result<Switched<Contact>, String>, PlanError> {
+    ) -> Result<Result<Switched<Contact>, NoSwitch>, PlanError> {
         let released = contacts[k].finger;
         let free: Vec<&Finger> = self
             .hand
@@ -463,9 +491,9 @@ impl Stepper for Scenario<'_> {
             .filter(|f| f.dof() == 3 && f.planar.is_some())
             .collect();
         if free.is_empty() {
-            return Ok(Err(format!(
+            return Ok(Err(NoSwitch::none(format!(
                 "finger {released} cannot roll on ({why}) and no free finger can take over"
-            )));
+            ))));
         }
         let idx: Vec<usize> = contacts.iter().map(|c| c.candidate).collect();
         let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
@@ -533,11 +561,11 @@ impl Stepper for Scenario<'_> {
             detach.remove(k);
             let (q_detach, _) = self.quality(&detach)?;
             if q_attach < floor || q_detach < floor {
-                return Ok(Err(format!(
+                return Ok(Err(NoSwitch::defect(format!(
                     "switch of finger {released} to finger {id} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
                     self.describe(c),
                     self.settings.alpha
-                )));
+                ))));
             }
             // One step of lookahead: the attached finger must be able to roll on with the
             // grasp it joins (its rolling room was estimated alone).
@@ -560,7 +588,7 @@ impl Stepper for Scenario<'_> {
             break;
         }
         let Some((room, ahead, id, c, attach, detach, q_attach, q_detach)) = chosen else {
-            return Ok(Err(format!(
+            return Ok(Err(NoSwitch::none(format!(
                 "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts{}, none is reachable by a free finger ({:?}) with a rolling step after it{}",
                 brute.len(),
                 match self.settings.region_erosion {
@@ -573,7 +601,7 @@ impl Stepper for Scenario<'_> {
                 } else {
                     format!(" (tried {})", rejected.join("; "))
                 }
-            )));
+            ))));
         };
         let info = Switch {
             released,
@@ -710,9 +738,10 @@ where
                     break;
                 }
                 let mut found = s.switch(&contacts, k, theta, &why, progress)?;
-                if let Some(reason) = found.as_ref().err().cloned() {
-                    // Released earlier, the latest first.
-                    for back in 1..=EARLY_SWITCH_STEPS {
+                if let Some(NoSwitch { reason, defect }) = found.as_ref().err().cloned() {
+                    // Released earlier, the latest first (not in place of a defect).
+                    let mut tried = 0;
+                    for back in (1..=EARLY_SWITCH_STEPS).filter(|_| !defect) {
                         let Some(&(r, at)) = since_switch.iter().rev().nth(back) else {
                             break;
                         };
@@ -720,6 +749,7 @@ where
                         let Some(j) = earlier.iter().position(|c| S::finger_of(c) == finger) else {
                             break;
                         };
+                        tried = back;
                         let early = format!(
                             "released {back} steps early: {} deg on, no free finger could take over ({why})",
                             (theta - at).to_degrees().round()
@@ -734,7 +764,12 @@ where
                         }
                     }
                     if found.is_err() {
-                        stop_reason = Some(reason);
+                        stop_reason = Some(match tried {
+                            0 => reason,
+                            n => format!(
+                                "{reason} (nor released up to {n} rolling steps earlier, since the last switch or the start)"
+                            ),
+                        });
                         break;
                     }
                 }
@@ -1778,7 +1813,7 @@ pub fn rolling_residuals(scenario: &Scenario<'_>, steps: &[Step]) -> Vec<Real> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A hand of fingers 1-4 whose contacts are their numbers: finger 1 is blocked once the
@@ -1787,6 +1822,8 @@ mod tests {
     struct Toy {
         limit: usize,
         reach: Option<usize>,
+        /// Where a switch fails verification (a defect), if anywhere.
+        defect: Option<usize>,
         step: Real,
     }
 
@@ -1818,10 +1855,15 @@ mod tests {
             theta: Real,
             why: &str,
             _: &mut dyn FnMut(Real),
-        ) -> Result<Result<Switched<u32>, String>, PlanError> {
+        ) -> Result<Result<Switched<u32>, NoSwitch>, PlanError> {
             let done = (theta / self.step).round() as usize;
+            if self.defect == Some(done) {
+                return Ok(Err(NoSwitch::defect(format!("a defect at {done} steps"))));
+            }
             if self.reach.is_none_or(|r| done > r) {
-                return Ok(Err(format!("no free finger reaches at {done} steps")));
+                return Ok(Err(NoSwitch::none(format!(
+                    "no free finger reaches at {done} steps"
+                ))));
             }
             let mut attach = contacts.to_vec();
             attach.push(4);
@@ -1850,10 +1892,12 @@ mod tests {
         }
     }
 
-    fn settings(step: Real, steps: usize) -> Settings {
+    /// Settings for a test of the loop: margins `alpha` and `gate_alpha`, `steps` steps of
+    /// `step` (rad) to the goal; nothing else checked.
+    pub(crate) fn settings(alpha: Real, gate_alpha: Real, step: Real, steps: usize) -> Settings {
         Settings {
-            alpha: 0.1,
-            gate_alpha: 0.1,
+            alpha,
+            gate_alpha,
             goal: step * steps as Real,
             step,
             cap_margin: 0.0,
@@ -1868,12 +1912,21 @@ mod tests {
     }
 
     fn plan(limit: usize, reach: Option<usize>) -> (Driven, usize) {
+        plan_with(limit, reach, None)
+    }
+
+    fn plan_with(limit: usize, reach: Option<usize>, defect: Option<usize>) -> (Driven, usize) {
         let step = 5f64.to_radians();
-        let toy = Toy { limit, reach, step };
+        let toy = Toy {
+            limit,
+            reach,
+            defect,
+            step,
+        };
         let mut moved = 0;
         let driven = drive(
             &toy,
-            &settings(step, 10),
+            &settings(0.1, 0.1, step, 10),
             0.0,
             (vec![1, 2, 3], 1.0),
             &mut |_| {},
@@ -1923,7 +1976,26 @@ mod tests {
         assert_eq!(d.switches, 0);
         assert_eq!(moved, 8);
         assert_eq!(d.steps.len(), 9);
+        let reason = d.stop_reason.unwrap();
+        assert!(
+            reason.contains("nor released up to 6 rolling steps earlier"),
+            "{reason}"
+        );
+        // Not past the start: blocked after 3 steps, tried 2 and 1 steps earlier.
         let (d, _) = plan(3, None);
-        assert!(d.stop_reason.as_deref().unwrap().contains("at 3 steps"));
+        let reason = d.stop_reason.unwrap();
+        assert!(
+            reason.contains("at 3 steps") && reason.contains("up to 2 rolling steps earlier"),
+            "{reason}"
+        );
+    }
+
+    #[test]
+    fn a_defect_stops_the_plan_where_it_is_found_no_earlier_switch_in_its_place() {
+        // An earlier switch would serve (reach 4), but the one at the limit is a defect.
+        let (d, moved) = plan_with(6, Some(4), Some(6));
+        assert_eq!(d.switches, 0);
+        assert_eq!(moved, 6);
+        assert_eq!(d.stop_reason.as_deref(), Some("a defect at 6 steps"));
     }
 }

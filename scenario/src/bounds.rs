@@ -339,7 +339,7 @@ pub const REGION_EROSION: Count = Count::new(
 pub const NEIGHBOUR_RINGS: Count = Count::new(
     1,
     6,
-    "every grasp of the plan is evaluated once per candidate within the rings of each contact (about 3 r^2 of a triangle mesh's facets at r rings)",
+    "every grasp of the plan is evaluated once per candidate within the rings of each contact (3 r (r + 1) / 2 of a triangle mesh's facets at r rings: 3, 9, 18, ...)",
 );
 /// Upper bound on plan steps.
 pub const MAX_STEPS: Count = Count::new(

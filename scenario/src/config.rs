@@ -1376,6 +1376,11 @@ fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
     // estimated grasp to), or more, as headroom for contacts the estimate snaps a candidate
     // off the plan's.
     let plan_alpha = bounds::ALPHA.or("plan.alpha", raw.alpha, alpha)?;
+    if raw.neighbour_rings.is_some() && raw.neighbour_alpha.is_none() {
+        bail!(
+            "plan.neighbour_rings: the rings plan.neighbour_alpha is checked over, given without it (nothing is checked)"
+        );
+    }
     if plan_alpha < alpha {
         bail!(
             "plan.alpha: {} is below grasp.alpha = {}: the plan keeps at least the margin the hand's gate holds to (leave plan.alpha out to plan at grasp.alpha)",

@@ -122,6 +122,7 @@ pub fn replan(
     let settings = again.settings.clone();
     let mut plan = crate::follow::at_the_gate(&settings, &mut notes, |alpha| {
         again.settings.alpha = alpha;
+        again.settings.neighbour_alpha = settings.neighbour_alpha.map(|n| n.min(alpha));
         again.plan(&mut |_| beat())
     })
     .map_err(|error| ReplanError::Planning {

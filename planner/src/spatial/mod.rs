@@ -66,8 +66,8 @@ use nalgebra::{DMatrix, DVector, Rotation3, Unit};
 
 use crate::hand::{Finger, Hand};
 use crate::planner::{
-    FingerState, Phase, Plan, PlanError, QUALITY_SLACK, SQUEEZE_PROBE, Settings, Step, Stepper,
-    Switch, Switched, drive,
+    FingerState, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, SQUEEZE_PROBE, Settings, Step,
+    Stepper, Switch, Switched, drive,
 };
 use surface::Convex;
 
@@ -189,7 +189,7 @@ impl Stepper for Mapped<'_, '_> {
         theta: Real,
         why: &str,
         progress: &mut dyn FnMut(Real),
-    ) -> Result<Result<Switched<Touch>, String>, PlanError> {
+    ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
         self.scenario
             .switch(touches, k, theta, why, &self.maps, progress)
     }
@@ -928,6 +928,19 @@ impl SpatialScenario<'_> {
                 )));
             }
         }
+        if let Some(a) = s.neighbour_alpha {
+            if !(a.is_finite() && (0.0..=s.alpha).contains(&a)) {
+                return Err(PlanError::Settings(format!(
+                    "neighbour_alpha must be in [0, alpha = {}], got {a}",
+                    s.alpha
+                )));
+            }
+            if s.neighbour_rings == 0 {
+                return Err(PlanError::Settings(
+                    "neighbour_rings must be at least 1 where neighbour_alpha is checked".into(),
+                ));
+            }
+        }
         if !(self.spatial.part.is_finite() && self.spatial.part > 0.0) {
             return Err(PlanError::Settings(format!(
                 "the integration part must be > 0, got {}",
@@ -1078,7 +1091,7 @@ impl SpatialScenario<'_> {
         why: &str,
         maps: &[ReachMap],
         progress: &mut dyn FnMut(Real),
-    ) -> Result<Result<Switched<Touch>, String>, PlanError> {
+    ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
         let released = touches[k].finger;
         let free: Vec<&Finger> = self
             .hand
@@ -1087,9 +1100,9 @@ impl SpatialScenario<'_> {
             .filter(|f| touches.iter().all(|t| t.finger != f.id))
             .collect();
         if free.is_empty() {
-            return Ok(Err(format!(
+            return Ok(Err(NoSwitch::none(format!(
                 "finger {released} cannot roll on ({why}) and no free finger can take over"
-            )));
+            ))));
         }
         let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
         let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
@@ -1183,7 +1196,7 @@ impl SpatialScenario<'_> {
                         break 'tiers;
                     }
                     Attempt::Rejected => {}
-                    Attempt::Defect(why) => return Ok(Err(why)),
+                    Attempt::Defect(why) => return Ok(Err(NoSwitch::defect(why))),
                 }
             }
         }
@@ -1201,12 +1214,12 @@ impl SpatialScenario<'_> {
             },
         )) = chosen
         else {
-            return Ok(Err(format!(
+            return Ok(Err(NoSwitch::none(format!(
                 "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it ({tried} placements tried){}",
                 chosen_from.len(),
                 free.iter().map(|f| f.id).collect::<Vec<_>>(),
                 rejections(&rejected)
-            )));
+            ))));
         };
         let info = Switch {
             released,
