@@ -25,6 +25,11 @@ pub struct Report {
     pub cone_edges: usize,
     pub rho: Real,
     pub alpha: Real,
+    /// The plan's margin (`plan.alpha`) where it keeps more than the grasp's (`grasp.alpha`,
+    /// the hand's gate, which this analysis and its regions are at): `validate`, `plan` and
+    /// `run` hold the initial grasp to it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plan_alpha: Option<Real>,
     pub force_closure: bool,
     /// "force_closure", "origin_on_boundary", "origin_outside" or "degenerate".
     pub closure: &'static str,
@@ -270,6 +275,7 @@ pub fn analyze(config: &Config, progress: &mut dyn Progress) -> Result<Report> {
         cone_edges: g.model.edges(),
         rho,
         alpha: g.alpha,
+        plan_alpha: (config.plan.alpha > g.alpha).then_some(config.plan.alpha),
         force_closure: eval.force_closure(),
         closure: match eval.closure {
             Closure::ForceClosure => "force_closure",
@@ -370,6 +376,19 @@ fn print_text(out: &mut impl Write, r: &Report) -> Result<()> {
             "quality   alpha* = {:.6} {verdict} alpha = {} ({} hull facets)",
             r.quality, r.alpha, r.hull_facets
         )?;
+        if let Some(plan) = r.plan_alpha {
+            // The grasp validate, plan and run evaluate: on the section for a planar hand.
+            let quality = r.section_quality.unwrap_or(r.quality);
+            let (verdict, then) = if quality >= plan {
+                (">=", "validate, plan and run take it")
+            } else {
+                ("<", "validate, plan and run refuse it")
+            };
+            writeln!(
+                out,
+                "          {verdict} plan.alpha = {plan}, the plan's margin over the hand's: {then}"
+            )?;
+        }
         if r.contacts_on == "facets" {
             writeln!(
                 out,

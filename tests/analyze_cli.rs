@@ -246,3 +246,47 @@ fn a_point_contact_snaps_by_a_distance_and_a_far_one_is_refused() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// With `plan.alpha` above `grasp.alpha`, the analysis (at the grasp's margin, the hand's
+/// gate) says too whether the grasp keeps the plan's, which `validate`, `plan` and `run`
+/// hold it to; without it, nothing more is said.
+#[test]
+fn the_plan_s_margin_is_said_where_it_keeps_more_than_the_grasp_s() {
+    let dir = scratch("analyze-plan-alpha");
+    let text = std::fs::read_to_string(root().join("config/paper_sphere.toml")).unwrap();
+    let plain = json(&["analyze", "config/paper_sphere.toml", "--json"]);
+    assert!(plain.get("plan_alpha").is_none(), "{plain}");
+    let quality = plain["quality"].as_f64().unwrap();
+    for (plan, kept) in [(0.11, true), (0.9, false)] {
+        assert_eq!(quality >= plan, kept, "alpha* {quality}");
+        let path = dir.join(format!("plan_alpha_{plan}.toml"));
+        std::fs::write(
+            &path,
+            text.replace("[plan]\n", &format!("[plan]\nalpha = {plan}\n")),
+        )
+        .unwrap();
+        let path = path.to_str().unwrap();
+        // The grasp keeps the hand's margin either way: analyze succeeds.
+        let v = json(&["analyze", path, "--json"]);
+        assert_eq!(v["alpha"], 0.1);
+        assert_eq!(v["plan_alpha"], plan);
+        let out = icrflow(&["analyze", path]);
+        assert_eq!(out.status.code(), Some(0));
+        let said = String::from_utf8_lossy(&out.stdout);
+        let line = format!(
+            "{} plan.alpha = {plan}, the plan's margin over the hand's: validate, plan and run {}",
+            if kept { ">=" } else { "<" },
+            if kept { "take it" } else { "refuse it" }
+        );
+        assert!(said.contains(&line), "{said}");
+        // As validate has it.
+        let checked = icrflow(&["validate", path]);
+        assert_eq!(
+            checked.status.success(),
+            kept,
+            "{}",
+            String::from_utf8_lossy(&checked.stderr)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
