@@ -62,6 +62,9 @@ pub struct PhysicsSummary {
     /// The smallest alpha* of the true contacts over the plan steps (`None`: no step had a
     /// grasp in force closure to evaluate, or none came).
     pub min_true_quality: Option<Real>,
+    /// The smallest alpha* of the true contacts over the plan steps whose true grasp was in
+    /// force closure (`None`: none was).
+    pub min_true_quality_closed: Option<Real>,
     /// Plan steps whose true grasp was evaluated, and those of them not in force closure.
     pub steps_evaluated: u32,
     /// See `steps_evaluated`.
@@ -85,9 +88,7 @@ pub struct PhysicsTrack {
     lost: Vec<Loss>,
     first_stamp: Option<u64>,
     phase: &'static str,
-    min_quality: Option<Real>,
-    evaluated: u32,
-    not_closed: u32,
+    steps: TrueSteps,
     dropped: bool,
     /// Per slot of the newest plan step: its finger, and whether it is planned in contact.
     planned: [(u32, bool); MAX_FINGERS],
@@ -129,9 +130,7 @@ impl PhysicsTrack {
             lost: Vec::new(),
             first_stamp: None,
             phase: "none",
-            min_quality: None,
-            evaluated: 0,
-            not_closed: 0,
+            steps: TrueSteps::default(),
             dropped: false,
             planned: [(0, false); MAX_FINGERS],
             off: [(0, false); MAX_FINGERS],
@@ -156,8 +155,7 @@ impl PhysicsTrack {
             self.last_step = Some(p.step);
             if std::mem::take(&mut self.pending_due) {
                 let alpha = self.quality(&self.pending);
-                (self.min_quality, self.evaluated, self.not_closed) =
-                    counted(self.min_quality, self.evaluated, self.not_closed, alpha);
+                self.steps.count(alpha);
             }
         }
     }
@@ -268,15 +266,9 @@ impl PhysicsTrack {
     /// What it found.
     pub fn summary(&self) -> PhysicsSummary {
         // The step under way counts as it stands.
-        let (mut min_quality, mut evaluated, mut not_closed) =
-            (self.min_quality, self.evaluated, self.not_closed);
+        let mut steps = self.steps;
         if self.pending_due {
-            (min_quality, evaluated, not_closed) = counted(
-                min_quality,
-                evaluated,
-                not_closed,
-                self.quality(&self.pending),
-            );
+            steps.count(self.quality(&self.pending));
         }
         PhysicsSummary {
             engine: self.engine.clone(),
@@ -286,27 +278,36 @@ impl PhysicsTrack {
             max_friction_use: self.max_use,
             unplanned_losses: self.losses,
             losses: self.lost.clone(),
-            min_true_quality: min_quality,
-            steps_evaluated: evaluated,
-            steps_not_closed: not_closed,
+            min_true_quality: steps.min,
+            min_true_quality_closed: steps.min_closed,
+            steps_evaluated: steps.evaluated,
+            steps_not_closed: steps.not_closed,
             dropped: self.dropped,
         }
     }
 }
 
-/// The smallest quality, the steps evaluated and those not in force closure, with a step of
-/// quality `alpha` counted in.
-fn counted(
+/// The plan steps' true grasps so far: the smallest quality (of all, and of those in force
+/// closure), the steps evaluated and those not in force closure.
+#[derive(Debug, Clone, Copy, Default)]
+struct TrueSteps {
     min: Option<Real>,
+    min_closed: Option<Real>,
     evaluated: u32,
     not_closed: u32,
-    alpha: Real,
-) -> (Option<Real>, u32, u32) {
-    (
-        Some(min.map_or(alpha, |m| m.min(alpha))),
-        evaluated + 1,
-        not_closed + u32::from(alpha <= 0.0),
-    )
+}
+
+impl TrueSteps {
+    /// A step of quality `alpha` (0: not in force closure) counted in.
+    fn count(&mut self, alpha: Real) {
+        self.min = Some(self.min.map_or(alpha, |m| m.min(alpha)));
+        self.evaluated += 1;
+        if alpha <= 0.0 {
+            self.not_closed += 1;
+        } else {
+            self.min_closed = Some(self.min_closed.map_or(alpha, |m| m.min(alpha)));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -429,5 +430,7 @@ mod tests {
         let s = track.summary();
         assert_eq!((s.steps_evaluated, s.steps_not_closed), (2, 1), "{s:?}");
         assert_eq!(s.min_true_quality, Some(0.0));
+        // The step in force closure keeps its quality apart.
+        assert_eq!(s.min_true_quality_closed, Some(alpha));
     }
 }

@@ -464,6 +464,12 @@ impl RunSummary {
                 )?,
                 None => writeln!(o, "           no plan step's true grasp was evaluated")?,
             }
+            if let (1.., Some(q)) = (p.steps_not_closed, p.min_true_quality_closed) {
+                writeln!(
+                    o,
+                    "           the steps in force closure: true grasp quality >= {q:.3}"
+                )?;
+            }
         }
         if verbose {
             writeln!(
