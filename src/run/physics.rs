@@ -42,6 +42,23 @@ pub struct Loss {
     pub at_s: Real,
 }
 
+/// A plan step whose true grasp was not in force closure when it was evaluated (at the step's
+/// last truth).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct NotClosed {
+    /// The plan step, and its phase.
+    pub step: u64,
+    /// See `step`.
+    pub phase: &'static str,
+    /// The fingers whose contacts made the grasp evaluated (touching, or planned in contact
+    /// and off for fewer truths than make a loss).
+    pub fingers: Vec<u32>,
+    /// The object's true rotation then (deg).
+    pub rotation_deg: Real,
+    /// Seconds since the first truth.
+    pub at_s: Real,
+}
+
 /// The summary's `physics`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PhysicsSummary {
@@ -69,6 +86,8 @@ pub struct PhysicsSummary {
     pub steps_evaluated: u32,
     /// See `steps_evaluated`.
     pub steps_not_closed: u32,
+    /// Which steps were not (the first [`LOSSES_KEPT`]).
+    pub not_closed: Vec<NotClosed>,
     /// Whether the object left the hand.
     pub dropped: bool,
 }
@@ -89,6 +108,7 @@ pub struct PhysicsTrack {
     first_stamp: Option<u64>,
     phase: &'static str,
     steps: TrueSteps,
+    not_closed: Vec<NotClosed>,
     dropped: bool,
     /// Per slot of the newest plan step: its finger, and whether it is planned in contact.
     planned: [(u32, bool); MAX_FINGERS],
@@ -106,6 +126,10 @@ pub struct PhysicsTrack {
     /// attaching finger may not touch yet, and at the run's first the hand has not yet
     /// pressed).
     pending: Vec<usize>,
+    /// The fingers of `pending`, and the object's true rotation (rad) and the seconds since
+    /// the first truth at it.
+    pending_fingers: Vec<u32>,
+    pending_at: (Real, Real),
     pending_due: bool,
     last_step: Option<u64>,
 }
@@ -131,12 +155,15 @@ impl PhysicsTrack {
             first_stamp: None,
             phase: "none",
             steps: TrueSteps::default(),
+            not_closed: Vec::new(),
             dropped: false,
             planned: [(0, false); MAX_FINGERS],
             off: [(0, false); MAX_FINGERS],
             made: [false; MAX_FINGERS],
             last_touch: [None; MAX_FINGERS],
             pending: Vec::with_capacity(MAX_FINGERS),
+            pending_fingers: Vec::with_capacity(MAX_FINGERS),
+            pending_at: (0.0, 0.0),
             pending_due: false,
             last_step: None,
         })
@@ -145,18 +172,32 @@ impl PhysicsTrack {
     /// A plan step: which fingers the plan has in contact; its grasp is evaluated at the
     /// next truth.
     pub fn plan_step(&mut self, p: &PlanStepHeader) {
+        if self.last_step != Some(p.step) {
+            if std::mem::take(&mut self.pending_due) {
+                let alpha = self.quality(&self.pending);
+                self.steps.count(alpha);
+                if alpha <= 0.0 && self.not_closed.len() < LOSSES_KEPT {
+                    self.not_closed.push(self.open_step());
+                }
+            }
+            self.last_step = Some(p.step);
+        }
         let n = (p.finger_count as usize).min(MAX_FINGERS);
         self.planned = [(0, false); MAX_FINGERS];
         self.phase = PlanPhase::name_of(p.phase);
         for (slot, t) in p.targets.iter().enumerate().take(n) {
             self.planned[slot] = (t.finger, t.in_contact == 1);
         }
-        if self.last_step != Some(p.step) {
-            self.last_step = Some(p.step);
-            if std::mem::take(&mut self.pending_due) {
-                let alpha = self.quality(&self.pending);
-                self.steps.count(alpha);
-            }
+    }
+
+    /// The step under way, its grasp pending, as one not in force closure.
+    fn open_step(&self) -> NotClosed {
+        NotClosed {
+            step: self.last_step.unwrap_or(0),
+            phase: self.phase,
+            fingers: self.pending_fingers.clone(),
+            rotation_deg: self.pending_at.0.to_degrees(),
+            at_s: self.pending_at.1,
         }
     }
 
@@ -235,6 +276,12 @@ impl PhysicsTrack {
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
         let origin = Vec3::from(t.position) - q * self.setup.object.centre_of_mass;
         self.pending.clear();
+        self.pending_fingers.clear();
+        let first = self.first_stamp.unwrap_or(t.header.source_time_ns);
+        self.pending_at = (
+            t.rotation,
+            t.header.source_time_ns.saturating_sub(first) as Real * 1e-9,
+        );
         for slot in 0..(t.finger_count as usize).min(MAX_FINGERS) {
             let planned = self.planned_in_contact(t.finger_ids[slot]);
             let Some((point, _)) =
@@ -247,6 +294,7 @@ impl PhysicsTrack {
                 && !self.pending.contains(&c)
             {
                 self.pending.push(c);
+                self.pending_fingers.push(t.finger_ids[slot]);
             }
         }
     }
@@ -267,8 +315,13 @@ impl PhysicsTrack {
     pub fn summary(&self) -> PhysicsSummary {
         // The step under way counts as it stands.
         let mut steps = self.steps;
+        let mut not_closed = self.not_closed.clone();
         if self.pending_due {
-            steps.count(self.quality(&self.pending));
+            let alpha = self.quality(&self.pending);
+            steps.count(alpha);
+            if alpha <= 0.0 && not_closed.len() < LOSSES_KEPT {
+                not_closed.push(self.open_step());
+            }
         }
         PhysicsSummary {
             engine: self.engine.clone(),
@@ -282,6 +335,7 @@ impl PhysicsTrack {
             min_true_quality_closed: steps.min_closed,
             steps_evaluated: steps.evaluated,
             steps_not_closed: steps.not_closed,
+            not_closed,
             dropped: self.dropped,
         }
     }
@@ -430,6 +484,10 @@ mod tests {
         let s = track.summary();
         assert_eq!((s.steps_evaluated, s.steps_not_closed), (2, 1), "{s:?}");
         assert_eq!(s.min_true_quality, Some(0.0));
+        // Which: step 2 (phase 0 in these messages: "start"), only fingers 1 and 4 touching.
+        assert_eq!(s.not_closed.len(), 1, "{s:?}");
+        assert_eq!((s.not_closed[0].step, s.not_closed[0].phase), (2, "start"));
+        assert_eq!(s.not_closed[0].fingers, vec![1, 4]);
         // The step in force closure keeps its quality apart.
         assert_eq!(s.min_true_quality_closed, Some(alpha));
     }

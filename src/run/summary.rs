@@ -464,6 +464,13 @@ impl RunSummary {
                 )?,
                 None => writeln!(o, "           no plan step's true grasp was evaluated")?,
             }
+            for n in &p.not_closed {
+                writeln!(
+                    o,
+                    "           not in force closure: step {} ({}) at {:.2} s, fingers {:?} touching, the object at {:.1} deg",
+                    n.step, n.phase, n.at_s, n.fingers, n.rotation_deg
+                )?;
+            }
             if let (1.., Some(q)) = (p.steps_not_closed, p.min_true_quality_closed) {
                 writeln!(
                     o,
