@@ -701,10 +701,10 @@ where
     // Switches since the last rolling step, and the finger the last switch attached.
     let mut switches_in_a_row = 0;
     let mut just_attached: Option<u32> = None;
-    // The rolling steps kept (their step's index and contacts), and those since the last
-    // switch (where an earlier switch may be tried: the rotation and contacts).
-    let mut rolled: Vec<(usize, Vec<S::Contact>)> = Vec::new();
-    let mut since_switch: Vec<(usize, Real)> = Vec::new();
+    // The rolling steps kept (their step's index, rotation and contacts), and where in them
+    // the run since the last switch begins (an earlier switch may be tried within it).
+    let mut rolled: Vec<(usize, Real, Vec<S::Contact>)> = Vec::new();
+    let mut run_start = 0;
     while theta < settings.goal - 1e-9 {
         if steps.len() >= settings.max_steps {
             stop_reason = Some(format!(
@@ -724,8 +724,7 @@ where
                 just_attached = None;
                 contacts = next;
                 theta += step;
-                rolled.push((steps.len(), contacts.clone()));
-                since_switch.push((rolled.len() - 1, theta));
+                rolled.push((steps.len(), theta, contacts.clone()));
                 steps.push(s.record(steps.len(), Phase::Rolling, theta, quality, &contacts));
                 progress(theta);
             }
@@ -742,10 +741,15 @@ where
                     // Released earlier, the latest first (not in place of a defect).
                     let mut tried = 0;
                     for back in (1..=EARLY_SWITCH_STEPS).filter(|_| !defect) {
-                        let Some(&(r, at)) = since_switch.iter().rev().nth(back) else {
+                        // The current grasp is the last rolled (if any since the switch).
+                        let Some(r) = rolled
+                            .len()
+                            .checked_sub(1 + back)
+                            .filter(|&r| r >= run_start)
+                        else {
                             break;
                         };
-                        let earlier = &rolled[r].1;
+                        let (at, earlier) = (rolled[r].1, &rolled[r].2);
                         let Some(j) = earlier.iter().position(|c| S::finger_of(c) == finger) else {
                             break;
                         };
@@ -782,13 +786,13 @@ where
                     contacts = detach;
                     switches += 1;
                     switches_in_a_row += 1;
-                    since_switch.clear();
+                    run_start = rolled.len();
                     progress(theta);
                 }
             }
         }
     }
-    for (_, c) in &rolled {
+    for (_, _, c) in &rolled {
         moved(c);
     }
     let min_quality = steps
@@ -1980,6 +1984,13 @@ pub(crate) mod tests {
         assert!(
             reason.contains("nor released up to 6 rolling steps earlier"),
             "{reason}"
+        );
+        // Blocked before any rolling step: nothing earlier to try.
+        let (d, moved) = plan(0, None);
+        assert_eq!((d.steps.len(), moved), (1, 0));
+        assert_eq!(
+            d.stop_reason.as_deref(),
+            Some("no free finger reaches at 0 steps")
         );
         // Not past the start: blocked after 3 steps, tried 2 and 1 steps earlier.
         let (d, _) = plan(3, None);

@@ -840,48 +840,42 @@ impl SpatialScenario<'_> {
 
     fn quality(&self, touches: &[Touch]) -> Result<Real, GraspError> {
         let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
-        let e = self.problem.evaluate(&idx)?;
+        self.quality_at(&idx)
+    }
+
+    /// The quality of the grasp at candidates `idx` (0: not in force closure).
+    fn quality_at(&self, idx: &[usize]) -> Result<Real, GraspError> {
+        let e = self.problem.evaluate(idx)?;
         Ok(if e.force_closure() { e.quality } else { 0.0 })
     }
 
     /// Where `touches` would lose [`Settings::neighbour_alpha`] with one contact moved to a
-    /// candidate within [`Settings::neighbour_rings`] rings of its own: (the contact, the
-    /// candidate, the quality there); `None` where every such grasp keeps it, or it is not
-    /// asked for.
-    fn one_off(&self, touches: &[Touch]) -> Result<Option<(usize, usize, Real)>, GraspError> {
+    /// candidate within [`Settings::neighbour_rings`] rings of its own: that contact, and why;
+    /// `None` where every such grasp keeps it, or it is not asked for.
+    fn one_off(&self, touches: &[Touch]) -> Result<Option<(usize, String)>, GraspError> {
         let Some(alpha) = self.settings.neighbour_alpha else {
             return Ok(None);
         };
-        let floor = alpha * (1.0 - QUALITY_SLACK);
+        let rings = self.settings.neighbour_rings;
         let adjacency = &self.problem.candidates().adjacency;
         let mut idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
         for (i, t) in touches.iter().enumerate() {
-            for n in adjacency.rings(t.candidate, self.settings.neighbour_rings) {
+            for n in adjacency.rings(t.candidate, rings) {
                 idx[i] = n as usize;
-                let e = self.problem.evaluate(&idx)?;
-                let q = if e.force_closure() { e.quality } else { 0.0 };
-                if q < floor {
-                    return Ok(Some((i, n as usize, q)));
+                let q = self.quality_at(&idx)?;
+                if q < alpha * (1.0 - QUALITY_SLACK) {
+                    return Ok(Some((
+                        i,
+                        format!(
+                            "with finger {}'s contact at {n}, within {rings} rings of candidates of its own, the grasp would keep {q:.6} < plan.neighbour_alpha = {alpha}",
+                            t.finger
+                        ),
+                    )));
                 }
             }
             idx[i] = t.candidate;
         }
         Ok(None)
-    }
-
-    /// Why `touches` would lose [`Settings::neighbour_alpha`] one candidate off, if it would.
-    fn one_off_why(&self, touches: &[Touch]) -> Result<Option<(usize, String)>, GraspError> {
-        Ok(self.one_off(touches)?.map(|(i, n, q)| {
-            (
-                i,
-                format!(
-                    "with finger {}'s contact at {n}, within {} rings of candidates of its own, the grasp would keep {q:.6} < plan.neighbour_alpha = {}",
-                    touches[i].finger,
-                    self.settings.neighbour_rings,
-                    self.settings.neighbour_alpha.unwrap_or_default()
-                ),
-            )
-        }))
     }
 
     fn check(&self) -> Result<(), PlanError> {
@@ -1058,7 +1052,7 @@ impl SpatialScenario<'_> {
                 self.settings.alpha
             )));
         }
-        if let Some((i, why)) = self.one_off_why(&next)? {
+        if let Some((i, why)) = self.one_off(&next)? {
             return Ok(Roll::Blocked(i, why));
         }
         Ok(Roll::Moved(next, quality))
@@ -1295,7 +1289,7 @@ impl SpatialScenario<'_> {
             )));
         }
         for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
-            if let Some((_, why)) = self.one_off_why(grasp)? {
+            if let Some((_, why)) = self.one_off(grasp)? {
                 return reject(format!("{name}: {why}"));
             }
         }
