@@ -1,13 +1,14 @@
 //! A MuJoCo run of a config in lockstep (`icrflow_nodes::lockstep`): what the physics did,
 //! per plan phase, for tuning the plant's controls.
 //!
-//!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [SECONDS] [KEY=VALUE ...]
+//!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [--seconds S]
+//!         [--every-s S] [--replan-s S] [SECTION.KEY=VALUE ...]
 //!
-//! Keys: kp, kv, squeeze_mm, friction_margin, feedforward (0/1), timestep_ms,
-//! min_normal_force, joint_speed_deg_s, rotation_deg, seed (the noise's), every_s (the
-//! interval of the lines, 0.5 s unless given), replan_s (simulated seconds a re-plan takes:
-//! `lockstep::run`'s `replan_s`, 0 unless given), push_at_s, push_fx, push_fy (N), push_tz
-//! (N m), push_ms (a push of the object: `pipeline.push_*`). Prints a line every `every_s` of
+//! `--seconds`: simulated seconds to run (40); `--every-s`: the interval of the lines (0.5 s);
+//! `--replan-s`: simulated seconds a re-plan takes (`lockstep::run`'s `replan_s`, 0).
+//! `SECTION.KEY=VALUE`: a config key set over the file's, the value in TOML (e.g. `plant.kp=5
+//! pipeline.seed=2 pipeline.push_nm=[0,0,0.05]`), validated with the file as `run` validates
+//! it (a value out of its bounds is refused by its key). Prints a line every `--every-s` of
 //! simulated time (true, estimated and planned rotation; per fingertip its normal force, the
 //! commanded force's magnitude in brackets, friction use and slip speed in mm/s; each finger's
 //! contact candidate, estimated / planned; how far each fingertip is from its command across
@@ -16,8 +17,10 @@
 //! contacts lost while planned.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, Result, bail};
+use clap::Parser;
 use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlantTruth};
 use icrflow_nodes::lockstep;
 use icrflow_scenario::{Config, Setup};
@@ -42,53 +45,77 @@ fn pressing(truth: &PlantTruth, slot: usize, mu: f64) -> (f64, f64) {
     (normal, tangential / (mu * normal.max(1e-9)))
 }
 
-fn main() -> Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let Some(path) = args.first() else {
-        bail!("usage: lockstep CONFIG [SECONDS] [KEY=VALUE ...]");
-    };
-    let mut config = Config::load(std::path::Path::new(path))?;
-    let mut seconds = 40.0;
-    let mut every = 0.5;
-    let mut replan_s = 0.0;
-    for a in &args[1..] {
-        if let Ok(s) = a.parse::<f64>() {
-            seconds = s;
-            continue;
-        }
-        let (k, v) = a.split_once('=').context("KEY=VALUE")?;
-        let v: f64 = v.parse().with_context(|| format!("{k}: a number"))?;
-        match k {
-            "kp" => config.plant.kp = v,
-            "kv" => config.plant.kv = v,
-            "squeeze_mm" => config.plant.squeeze = v * 1e-3,
-            "friction_margin" => config.plant.friction_margin = v,
-            "feedforward" => config.plant.feedforward = v != 0.0,
-            "timestep_ms" => config.plant.timestep = v * 1e-3,
-            "min_normal_force" => config.pipeline.min_normal_force = v,
-            "joint_speed_deg_s" => config.pipeline.joint_speed = v.to_radians(),
-            "rotation_deg" => config.plan.goal = v.to_radians(),
-            "seed" => config.pipeline.seed = v as u64,
-            "every_s" => every = v,
-            "replan_s" => replan_s = v,
-            "push_at_s" | "push_fx" | "push_fy" | "push_tz" | "push_ms" => {
-                let p = config.pipeline.push.get_or_insert(icrflow_scenario::Push {
-                    force: [0.0; 3],
-                    torque: [0.0; 3],
-                    at: icrflow_scenario::DEFAULT_PUSH_AT_S,
-                    duration: icrflow_scenario::DEFAULT_PUSH_MS * 1e-3,
-                });
-                match k {
-                    "push_at_s" => p.at = v,
-                    "push_fx" => p.force[0] = v,
-                    "push_fy" => p.force[1] = v,
-                    "push_tz" => p.torque[2] = v,
-                    _ => p.duration = v * 1e-3,
-                }
-            }
-            _ => bail!("unknown key {k}"),
-        }
+/// The example's command line (see the module's docs).
+#[derive(Debug, Parser)]
+#[command(name = "lockstep")]
+struct Cli {
+    /// The config (a MuJoCo plant's).
+    config: PathBuf,
+    /// Simulated seconds to run.
+    #[arg(long, default_value_t = 40.0)]
+    seconds: f64,
+    /// Simulated seconds between the lines.
+    #[arg(long, default_value_t = 0.5)]
+    every_s: f64,
+    /// Simulated seconds a re-plan takes.
+    #[arg(long, default_value_t = 0.0)]
+    replan_s: f64,
+    /// A config key set over the file's, its value in TOML: `plant.kp=5`.
+    #[arg(value_name = "SECTION.KEY=VALUE", value_parser = setting)]
+    set: Vec<Setting>,
+}
+
+/// A config key set from the command line.
+#[derive(Debug, Clone)]
+struct Setting {
+    section: String,
+    key: String,
+    value: toml::Value,
+}
+
+/// Reads `SECTION.KEY=VALUE` (the value in TOML).
+fn setting(text: &str) -> Result<Setting> {
+    let (name, value) = text
+        .split_once('=')
+        .with_context(|| format!("{text:?}: expected SECTION.KEY=VALUE, e.g. plant.kp=5"))?;
+    let (section, key) = name
+        .split_once('.')
+        .with_context(|| format!("{name:?}: expected SECTION.KEY, e.g. plant.kp"))?;
+    let value: toml::Table = format!("v = {value}")
+        .parse()
+        .with_context(|| format!("{name}: {value:?} is not a TOML value"))?;
+    let value = value.get("v").cloned().context("a TOML value")?;
+    Ok(Setting {
+        section: section.trim().into(),
+        key: key.trim().into(),
+        value,
+    })
+}
+
+/// The config file with the settings over it, validated as `run` validates a file.
+fn configured(path: &Path, settings: &[Setting]) -> Result<Config> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read config {}", path.display()))?;
+    let mut table: toml::Table = text
+        .parse()
+        .with_context(|| format!("invalid config {}", path.display()))?;
+    for s in settings {
+        let section = table
+            .entry(s.section.clone())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let toml::Value::Table(section) = section else {
+            bail!("{}: not a section of the config", s.section);
+        };
+        section.insert(s.key.clone(), s.value.clone());
     }
+    Config::from_table(table, path)
+        .with_context(|| format!("invalid config {} with the settings given", path.display()))
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    let config = configured(&cli.config, &cli.set)?;
+    let (seconds, every, replan_s) = (cli.seconds, cli.every_s, cli.replan_s);
     let setup = Setup::new(&config)?;
     let mu = config.grasp.model.mu();
     let mut stats: BTreeMap<&'static str, PhaseStats> = BTreeMap::new();

@@ -295,6 +295,44 @@ struct Tracker<'a> {
     centring: [f64; 3],
 }
 
+/// Whether the estimate the gate accepted has finger `id` touching the object.
+fn touching(gate: &Gate, id: u32) -> bool {
+    gate.grasp().is_some_and(|g| {
+        let n = (g.finger_count as usize).min(MAX_FINGERS);
+        g.fingers[..n]
+            .iter()
+            .any(|c| c.finger == id && c.in_contact == 1)
+    })
+}
+
+/// Joint targets toward `goal` (its first `joints`) along a straight line in joint space,
+/// from `from` (none: the goal itself), the largest joint motion at most `max_step`: every
+/// joint of the finger scaled alike, so the fingertip follows the planned rolling between the
+/// planner's closely spaced targets (clamping each joint on its own would bend the path off
+/// the object's surface).
+fn step_toward(
+    from: Option<[f64; MAX_JOINTS]>,
+    goal: &[f64; MAX_JOINTS],
+    joints: usize,
+    max_step: f64,
+    out: &mut [f64; MAX_JOINTS],
+) {
+    let scale = from.map_or(1.0, |from| {
+        let largest = (0..joints).fold(0.0_f64, |m, j| m.max((goal[j] - from[j]).abs()));
+        if largest > max_step {
+            max_step / largest
+        } else {
+            1.0
+        }
+    });
+    for j in 0..joints {
+        out[j] = match from {
+            Some(from) => from[j] + scale * (goal[j] - from[j]),
+            None => goal[j],
+        };
+    }
+}
+
 /// Why a plan step was not tracked: no forces balance its contacts (an outcome: the
 /// commander holds), or the force problem could not be posed.
 #[derive(Debug, thiserror::Error)]
@@ -319,82 +357,12 @@ impl Tracker<'_> {
     ) -> Result<HandCommand, Untracked> {
         let (config, setup) = (self.config, self.setup);
         let p = &config.pipeline;
-        let hand = &setup.hand;
-        let cands = setup.problem.candidates();
         let theta = gate.grasp().map_or(0.0, |g| g.rotation);
         let axis = nalgebra::Unit::new_normalize(config.turn.axis);
         let rot = nalgebra::Rotation3::from_axis_angle(&axis, theta);
         let n = (plan.finger_count as usize).min(MAX_FINGERS);
-        let mut slots = [0usize; MAX_FINGERS];
-        let mut set = [u32::MAX; MAX_FINGERS];
-        let mut count = 0;
-        // Whether the estimate has finger `id` touching the object.
-        let touching = |id: u32| {
-            gate.grasp().is_some_and(|g| {
-                let n = (g.finger_count as usize).min(MAX_FINGERS);
-                g.fingers[..n]
-                    .iter()
-                    .any(|c| c.finger == id && c.in_contact == 1)
-            })
-        };
-        // The contacts that carry forces: those of the plan step that the estimate has made.
-        // An attaching finger presses only once it touches: given its share while it still
-        // approaches, it would hit the object with it, and the others, their forces already
-        // those of the grasp with it, would let the object slip meanwhile. A finger that
-        // pressed in the last command goes on pressing while the plan has it in contact,
-        // whatever the estimate says meanwhile: a contact that flickers off in the estimate
-        // for a tick does not change the forces (nor solve them again).
-        let mut pressing = [u32::MAX; MAX_FINGERS];
-        for (k, target) in plan.targets.iter().enumerate().take(n) {
-            if target.in_contact == 1
-                && (target.candidate as usize) < cands.points.len()
-                && (self.pressing.contains(&target.finger) || touching(target.finger))
-            {
-                slots[count] = k;
-                set[count] = target.candidate;
-                pressing[count] = target.finger;
-                count += 1;
-            }
-        }
-        self.pressing = pressing;
-        // The forces in the object's frame, solved once per contact set: the load is the
-        // object's weight (`plant.gravity`), in the object's frame; turning about the hand's
-        // z axis (a planar hand's, or a spatial plan's vertical axis) leaves it unchanged,
-        // and the problem is invariant under that rotation (cones, equilibrium, and the
-        // least squared force alike), so the hand-frame forces are these rotated. About
-        // another axis, a weight turns in the object's frame as the object turns: solved again
-        // every RESOLVE_TURN of it. The cones are narrowed by `plant.friction_margin`.
-        let weight = Vec3::from(config.plant.weight(setup.object.volume));
-        let turns_load = weight != Vec3::zeros() && axis.cross(&Vec3::z()).norm() > 1e-9;
-        let current = self
-            .solved_for
-            .is_some_and(|(s, at)| s == set && (!turns_load || (at - theta).abs() <= RESOLVE_TURN));
-        if !current {
-            self.solved_for = None;
-            self.contacts.clear();
-            for &c in set.iter().take(count) {
-                self.contacts.push(ForceContact {
-                    point: cands.points[c as usize] - setup.object.centre_of_mass,
-                    normal: cands.normals[c as usize],
-                });
-            }
-            let load = Load {
-                force: rot.inverse() * weight,
-                ..Load::none()
-            };
-            let found = self.solver.solve(
-                &self.contacts,
-                &load,
-                config.grasp.model.mu() * (1.0 - config.plant.friction_margin),
-                p.min_normal_force,
-                &mut self.forces,
-            )?;
-            if let Balance::Infeasible { .. } = found {
-                return Err(Untracked::Infeasible(found));
-            }
-            self.solved_for = Some((set, theta));
-        }
-        let forces = &self.forces;
+        let (slots, set, count) = self.pressing_contacts(plan, gate, n);
+        self.balance(&set, count, theta, &axis, &rot)?;
         let mut c = HandCommand {
             header,
             mode: CommandMode::Track as u32,
@@ -402,20 +370,7 @@ impl Tracker<'_> {
             quality: gate.quality(),
             ..Default::default()
         };
-        let dt = 1.0 / p.rate_hz;
-        // The motion is that of the time since the last tracking command (a late input moves
-        // the command on as far as the hand has gone meanwhile). Resumed, after no tracking
-        // command for longer than the watchdog's periods (a hold, a restart): the hand sets off
-        // from where it stands, one period's motion, and does not jump to where the plan has
-        // gone meanwhile.
-        let since = self
-            .last
-            .map(|(_, when)| t.saturating_sub(when) as f64 * 1e-9);
-        let resumed = since.is_none_or(|s| s > WATCHDOG_PERIODS * dt);
-        let elapsed = match since {
-            Some(s) if !resumed => s.max(dt),
-            _ => dt,
-        };
+        let (elapsed, resumed) = self.elapsed(t, 1.0 / p.rate_hz);
         let max_step = p.joint_speed * elapsed;
         let moved = gate.grasp().map_or([0.0; 3], |g| g.position);
         // The object held where the plan has it: the fingers in contact move together against
@@ -424,57 +379,18 @@ impl Tracker<'_> {
         for (c, m) in self.centring.iter_mut().zip(moved) {
             *c = (*c - CENTRING_RATE * elapsed * m).clamp(-CENTRING_LIMIT, CENTRING_LIMIT);
         }
-        let centring = self.centring;
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
-            let Some(f) = hand.finger(target.finger) else {
+            let Some(f) = setup.hand.finger(target.finger) else {
                 continue;
             };
             let joints = (target.joint_count as usize).min(MAX_JOINTS).min(f.dof());
-            let mut goal = [0.0; MAX_JOINTS];
-            goal[..joints].copy_from_slice(&target.joints[..joints]);
-            // The plan is about the object's starting centre. A finger that does not touch
-            // the object (free, or on its way to attach) aims where the estimate has the
-            // object moved, so that it meets the surface where it is; the fingers in contact
-            // are moved together by the centring (following the object with them would push
-            // it on for ever). A planar finger's fingertip is moved with its cap axis kept
-            // (`Finger::shift_planar`); a spatial finger's material point at its contact
-            // (touching: so that it carries the object rather than rolls on it) or its
-            // fingertip centre (`Finger::shift_point`), where it moves without its joints
-            // swinging.
-            let touches = touching(target.finger);
-            let shift = if touches { centring } else { moved };
-            if shift != [0.0; 3] {
-                let plan = goal;
-                if f.planar.is_some() {
-                    f.shift_planar(&plan[..joints], [shift[0], shift[1]], &mut goal[..joints]);
-                } else {
-                    let centre = f.tip_centre(&plan[..joints]);
-                    let point = match cands.normals.get(target.candidate as usize) {
-                        Some(n) if touches && target.in_contact == 1 => {
-                            centre - rot * n * f.tip_radius
-                        }
-                        _ => centre,
-                    };
-                    if !f.shift_point(
-                        &plan[..joints],
-                        &point,
-                        &Vec3::from(shift),
-                        &mut goal[..joints],
-                    ) {
-                        goal = plan;
-                    }
-                }
-            }
-            for (j, g) in goal.iter_mut().enumerate().take(joints) {
-                *g = g.clamp(f.joints[j].lower, f.joints[j].upper);
-            }
-            // Toward the goal along a straight line in joint space, the largest joint motion at
-            // most `max_step`: every joint of the finger scaled alike, so the fingertip follows
-            // the planned rolling between the planner's closely spaced targets (clamping each
-            // joint on its own would bend the path off the object's surface). From the last
-            // tracking command; when resumed, from the joints the grasp state was estimated
-            // from: where the hand stopped, which may be short of the last command.
+            let touches = touching(gate, target.finger);
+            let shift = if touches { self.centring } else { moved };
+            let goal = self.goal(f, target, joints, touches, shift, &rot);
+            // From the last tracking command; when resumed, from the joints the grasp state
+            // was estimated from: where the hand stopped, which may be short of the last
+            // command.
             let from = match self.last {
                 Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
                 _ => gate.grasp().and_then(|g| {
@@ -484,27 +400,165 @@ impl Tracker<'_> {
                         .map(|s| g.joints[s])
                 }),
             };
-            let scale = from.map_or(1.0, |from| {
-                let largest = (0..joints).fold(0.0_f64, |m, j| m.max((goal[j] - from[j]).abs()));
-                if largest > max_step {
-                    max_step / largest
-                } else {
-                    1.0
-                }
-            });
-            for j in 0..joints {
-                c.joint_targets[k][j] = match from {
-                    Some(from) => from[j] + scale * (goal[j] - from[j]),
-                    None => goal[j],
-                };
-            }
+            step_toward(from, &goal, joints, max_step, &mut c.joint_targets[k]);
         }
-        for (slot, f) in slots.iter().zip(forces) {
+        for (slot, f) in slots.iter().zip(&self.forces) {
             let f = rot * f;
             c.forces[*slot] = [f.x, f.y, f.z];
         }
         self.last = Some((c, t));
         Ok(c)
+    }
+
+    /// The contacts that carry forces: those of the plan step (its first `n` targets) that
+    /// the estimate has made: their slots in the plan step, their candidates (padded with
+    /// MAX) and how many. An attaching finger presses only once it touches: given its share
+    /// while it still approaches, it would hit the object with it, and the others, their
+    /// forces already those of the grasp with it, would let the object slip meanwhile. A
+    /// finger that pressed in the last command goes on pressing while the plan has it in
+    /// contact, whatever the estimate says meanwhile: a contact that flickers off in the
+    /// estimate for a tick does not change the forces (nor solve them again).
+    fn pressing_contacts(
+        &mut self,
+        plan: &PlanStepHeader,
+        gate: &Gate,
+        n: usize,
+    ) -> ([usize; MAX_FINGERS], [u32; MAX_FINGERS], usize) {
+        let cands = self.setup.problem.candidates();
+        let mut slots = [0usize; MAX_FINGERS];
+        let mut set = [u32::MAX; MAX_FINGERS];
+        let mut count = 0;
+        let mut pressing = [u32::MAX; MAX_FINGERS];
+        for (k, target) in plan.targets.iter().enumerate().take(n) {
+            if target.in_contact == 1
+                && (target.candidate as usize) < cands.points.len()
+                && (self.pressing.contains(&target.finger) || touching(gate, target.finger))
+            {
+                slots[count] = k;
+                set[count] = target.candidate;
+                pressing[count] = target.finger;
+                count += 1;
+            }
+        }
+        self.pressing = pressing;
+        (slots, set, count)
+    }
+
+    /// The forces of the contact set (its first `count` candidates) in the object's frame,
+    /// at the object's rotation `theta` about `axis` (`rot`), into `self.forces`; solved once
+    /// per contact set: the load is the object's weight (`plant.gravity`), in the object's
+    /// frame; turning about the hand's z axis (a planar hand's, or a spatial plan's vertical
+    /// axis) leaves it unchanged, and the problem is invariant under that rotation (cones,
+    /// equilibrium, and the least squared force alike), so the hand-frame forces are these
+    /// rotated. About another axis, a weight turns in the object's frame as the object turns:
+    /// solved again every RESOLVE_TURN of it. The cones are narrowed by
+    /// `plant.friction_margin`.
+    fn balance(
+        &mut self,
+        set: &[u32; MAX_FINGERS],
+        count: usize,
+        theta: f64,
+        axis: &nalgebra::Unit<Vec3>,
+        rot: &nalgebra::Rotation3<f64>,
+    ) -> Result<(), Untracked> {
+        let (config, setup) = (self.config, self.setup);
+        let cands = setup.problem.candidates();
+        let weight = Vec3::from(config.plant.weight(setup.object.volume));
+        let turns_load = weight != Vec3::zeros() && axis.cross(&Vec3::z()).norm() > 1e-9;
+        let current = self.solved_for.is_some_and(|(s, at)| {
+            s == *set && (!turns_load || (at - theta).abs() <= RESOLVE_TURN)
+        });
+        if current {
+            return Ok(());
+        }
+        self.solved_for = None;
+        self.contacts.clear();
+        for &c in set.iter().take(count) {
+            self.contacts.push(ForceContact {
+                point: cands.points[c as usize] - setup.object.centre_of_mass,
+                normal: cands.normals[c as usize],
+            });
+        }
+        let load = Load {
+            force: rot.inverse() * weight,
+            ..Load::none()
+        };
+        let found = self.solver.solve(
+            &self.contacts,
+            &load,
+            config.grasp.model.mu() * (1.0 - config.plant.friction_margin),
+            config.pipeline.min_normal_force,
+            &mut self.forces,
+        )?;
+        if let Balance::Infeasible { .. } = found {
+            return Err(Untracked::Infeasible(found));
+        }
+        self.solved_for = Some((*set, theta));
+        Ok(())
+    }
+
+    /// The time this command's motion covers (s) and whether tracking resumes. The motion is
+    /// that of the time since the last tracking command (a late input moves the command on as
+    /// far as the hand has gone meanwhile). Resumed, after no tracking command for longer than
+    /// the watchdog's periods (a hold, a restart): the hand sets off from where it stands, one
+    /// period's (`dt`) motion, and does not jump to where the plan has gone meanwhile.
+    fn elapsed(&self, t: u64, dt: f64) -> (f64, bool) {
+        let since = self
+            .last
+            .map(|(_, when)| t.saturating_sub(when) as f64 * 1e-9);
+        let resumed = since.is_none_or(|s| s > WATCHDOG_PERIODS * dt);
+        let elapsed = match since {
+            Some(s) if !resumed => s.max(dt),
+            _ => dt,
+        };
+        (elapsed, resumed)
+    }
+
+    /// Finger `f`'s goal for `target` (its first `joints` joints), shifted by `shift` and
+    /// within its limits. The plan is about the object's starting centre. A finger that does
+    /// not touch the object (free, or on its way to attach) aims where the estimate has the
+    /// object moved, so that it meets the surface where it is; the fingers in contact are
+    /// moved together by the centring (following the object with them would push it on for
+    /// ever): the caller's `shift`. A planar finger's fingertip is moved with its cap axis kept
+    /// (`Finger::shift_planar`); a spatial finger's material point at its contact (touching:
+    /// so that it carries the object rather than rolls on it) or its fingertip centre
+    /// (`Finger::shift_point`), where it moves without its joints swinging.
+    fn goal(
+        &self,
+        f: &icrflow_plan::hand::Finger,
+        target: &icrflow_interfaces::FingerTarget,
+        joints: usize,
+        touches: bool,
+        shift: [f64; 3],
+        rot: &nalgebra::Rotation3<f64>,
+    ) -> [f64; MAX_JOINTS] {
+        let cands = self.setup.problem.candidates();
+        let mut goal = [0.0; MAX_JOINTS];
+        goal[..joints].copy_from_slice(&target.joints[..joints]);
+        if shift != [0.0; 3] {
+            let plan = goal;
+            if f.planar.is_some() {
+                f.shift_planar(&plan[..joints], [shift[0], shift[1]], &mut goal[..joints]);
+            } else {
+                let centre = f.tip_centre(&plan[..joints]);
+                let point = match cands.normals.get(target.candidate as usize) {
+                    Some(n) if touches && target.in_contact == 1 => centre - rot * n * f.tip_radius,
+                    _ => centre,
+                };
+                if !f.shift_point(
+                    &plan[..joints],
+                    &point,
+                    &Vec3::from(shift),
+                    &mut goal[..joints],
+                ) {
+                    goal = plan;
+                }
+            }
+        }
+        for (j, g) in goal.iter_mut().enumerate().take(joints) {
+            *g = g.clamp(f.joints[j].lower, f.joints[j].upper);
+        }
+        goal
     }
 
     /// A hold of the last tracking command (before any, no motion at all), saying `why`.

@@ -88,189 +88,268 @@ pub fn run(
         config.plant.kind == PlantKind::Mujoco,
         "a lockstep run needs plant.kind = \"mujoco\""
     );
-    let p = &config.pipeline;
-    let dt = (1e9 / p.rate_hz).round() as u64;
     // Any start time: the steps only compare times.
     let t0: u64 = 1_000_000_000_000;
-    let (joints, _) = setup.initial_grip(config)?;
-    let mut plant = Physical::new(config, setup, &joints, t0)?;
-    let mut estimator = Estimator::new(&setup.hand, setup.roller(config)?, &setup.problem, 0.0);
-    let mut wrench = WrenchSpace::new(&setup.problem, config.grasp.alpha);
-    let mut follower = Follower::new_with(
-        setup.planning(config)?,
-        CLEARANCE,
-        Tolerances::new(p.joint_noise),
-        &mut |_| {},
-        &mut |_| {},
-    )
-    .context("planning")?;
-    let mut commander = Commander::new(config, setup, t0);
-    let republish = (REPUBLISH * 1e9).round() as u64;
-    let (mut joint_seq, mut grasp_seq, mut wrench_seq, mut plan_seq, mut command_seq) =
-        (0u64, 0u64, 0u64, 0u64, 0u64);
-    let mut first_position: Option<[f64; 3]> = None;
-    let mut e = Estimate::default();
-    let mut command: Option<HandCommand> = None;
-    let mut plan: Option<PlanStepHeader> = None;
-    let mut last_grasp: Option<Header> = None;
-    let mut next_republish = t0;
-    let mut done_at: Option<u64> = None;
-    let mut holds = 0;
-    let mut holding: Option<String> = None;
-    let mut replanned = Vec::new();
-    let replan_ns = (replan_s.max(0.0) * 1e9) as u64;
-    // While the planner plans again (until then), it follows and publishes nothing.
-    let mut busy_until: Option<u64> = None;
+    let dt = (1e9 / config.pipeline.rate_hz).round() as u64;
+    let mut lp = Loop::new(config, setup, t0, replan_s)?;
     let end = t0 + (seconds * 1e9) as u64;
     let mut t = t0;
     while t < end {
         t += dt;
-        let out = plant.tick(t, command.as_ref());
-        joint_seq += 1;
-        let mut joints: JointState = out.joints;
-        joints.header = stamped(Header::new(Kind::JointState, joint_seq, 0, 0), t);
-        if let Some(pose) = &out.pose {
-            let start = *first_position.get_or_insert(pose.position);
-            let moved = [0, 1, 2].map(|k| pose.position[k] - start[k]);
-            let _ = estimator
-                .on_pose(
-                    estimator.rotation_of(pose.orientation),
-                    pose.captured_time_ns,
-                )
-                .and_then(|_| estimator.on_position(moved));
-        }
-        grasp_seq += 1;
-        let header = stamped(
-            Header::after(Kind::GraspState, grasp_seq, &joints.header, t),
-            t,
-        );
-        let grasp = estimator.on_joints(&joints, header).ok();
-        // The planner: the estimate followed, the current target republished on its timer.
-        let mut published: Option<PlanStepHeader> = None;
-        let mut publish = |follower: &Follower<'_>, k: usize, input: Option<Header>| {
-            let targets = follower.targets();
-            let at = k.min(targets.len() - 1);
-            plan_seq += 1;
-            let header = match input {
-                Some(h) => Header::after(Kind::PlanStep, plan_seq, &h, t),
-                None => Header::new(Kind::PlanStep, plan_seq, 0, 0),
-            };
-            let m = message(
-                &targets[at],
-                k >= targets.len(),
-                &Default::default(),
-                stamped(header, t),
-            );
-            published = Some(m);
-        };
-        // The new plan's first target, published when the planning is over.
-        let busy = busy_until.is_some_and(|b| t < b);
-        if !busy && busy_until.take().is_some() {
-            if let Some(k) = follower.current() {
-                publish(&follower, k, last_grasp);
-            }
-            next_republish = t + republish;
-        }
-        if let Some(g) = &grasp
-            && g.rotation.is_finite()
-            && !busy
-        {
-            last_grasp = Some(g.header);
-            estimate(g, &setup.hand, &mut e);
-            let followed = follower.on_estimate(&e, t, &mut || {});
-            match &followed.event {
-                Some(Event::Replanned(r)) => {
-                    let mut said = r.to_string();
-                    for n in &r.notes {
-                        said += &format!("; {n}");
-                    }
-                    if !r.plan.summary.completed {
-                        said += &format!(
-                            "; the new plan stops short of the goal: {}",
-                            r.plan.summary.stop_reason.as_deref().unwrap_or("?")
-                        );
-                    }
-                    replanned.push(((t - t0) as f64 * 1e-9, said));
-                    if replan_ns > 0 {
-                        busy_until = Some(t + replan_ns);
-                    }
-                }
-                Some(e @ Event::ReplanFailed { .. }) => {
-                    replanned.push(((t - t0) as f64 * 1e-9, e.to_string()));
-                }
-                _ => {}
-            }
-            if busy_until.is_none() {
-                for k in followed.commands() {
-                    publish(&follower, k, last_grasp);
-                }
-            }
-        }
-        if t >= next_republish && busy_until.is_none() {
-            next_republish = t + republish;
-            if let Some(k) = follower.current() {
-                publish(&follower, k, last_grasp);
-            }
-        }
-        if let Some(m) = published {
-            if m.phase == PlanPhase::Done as u32 {
-                done_at.get_or_insert(t);
-            }
-            let _ = commander.on_plan(&m, t);
-            plan = Some(m);
-        }
-        // The wrench space of the grasp state, and the command that answers it.
-        let mut made: Option<(HandCommand, Option<String>)> = None;
-        if let Some(g) = &grasp {
-            commander.on_grasp(g);
-            wrench_seq += 1;
-            let h = stamped(
-                Header::after(Kind::WrenchSpace, wrench_seq, &g.header, t),
-                t,
-            );
-            if let Ok(w) = wrench.on_grasp(g, h) {
-                let c = commander.on_wrench(&w.header, t);
-                made = Some((c.command, c.hold.map(str::to_string)));
-            }
-        }
-        if made.is_none()
-            && let Some(c) = commander.on_tick(t)
-        {
-            made = Some((c.command, c.hold.map(str::to_string)));
-        }
-        if let Some((mut c, why)) = made.take() {
-            command_seq += 1;
-            c.header.sequence = command_seq;
-            c.header.source_time_ns = t;
-            if c.mode == CommandMode::Hold as u32 {
-                holds += 1;
-            }
-            holding = why.clone();
-            command = Some(c);
-            made = Some((c, why));
-        }
+        let (out, joints) = lp.measure(t);
+        let grasp = lp.estimate(&joints, t);
+        lp.follow(grasp.as_ref(), t);
+        let made = lp.command(grasp.as_ref(), t);
         observe(&Tick {
             time: (t - t0) as f64 * 1e-9,
-            plant: &plant,
-            plan: plan.as_ref(),
+            plant: &lp.plant,
+            plan: lp.plan.as_ref(),
             grasp: grasp.as_ref(),
             command: made.as_ref().map(|(c, why)| (c, why.as_deref())),
             truth: out.truth.as_ref(),
         });
-        if done_at.is_some_and(|d| t >= d + (settle * 1e9) as u64) {
+        if lp.done_at.is_some_and(|d| t >= d + (settle * 1e9) as u64) {
             break;
         }
     }
     Ok(Ended {
-        done: done_at.is_some(),
+        done: lp.done_at.is_some(),
         time: (t - t0) as f64 * 1e-9,
-        estimated: estimator.rotation(),
-        rotation: plant.rotation(),
-        holds,
-        replans: follower.replans(),
-        holding,
-        replanned,
+        estimated: lp.estimator.rotation(),
+        rotation: lp.plant.rotation(),
+        holds: lp.holds,
+        replans: lp.follower.replans(),
+        holding: lp.holding,
+        replanned: lp.replanned,
     })
+}
+
+/// The sequence numbers of each topic's messages.
+#[derive(Default)]
+struct Sequences {
+    joint: u64,
+    grasp: u64,
+    wrench: u64,
+    plan: u64,
+    command: u64,
+}
+
+/// The loop's steps and what they carry from one tick to the next.
+struct Loop<'s> {
+    setup: &'s Setup,
+    t0: u64,
+    republish: u64,
+    replan_ns: u64,
+    plant: Physical<'s>,
+    estimator: Estimator<'s>,
+    wrench: WrenchSpace<'s>,
+    follower: Follower<'s>,
+    commander: Commander<'s>,
+    seq: Sequences,
+    /// The object's first measured position (the estimator takes the position moved since).
+    first_position: Option<[f64; 3]>,
+    e: Estimate,
+    /// The last command (the plant follows it at the next tick).
+    command: Option<HandCommand>,
+    /// The newest plan step published.
+    plan: Option<PlanStepHeader>,
+    last_grasp: Option<Header>,
+    next_republish: u64,
+    done_at: Option<u64>,
+    holds: u64,
+    holding: Option<String>,
+    replanned: Vec<(f64, String)>,
+    /// While the planner plans again (until then), it follows and publishes nothing.
+    busy_until: Option<u64>,
+}
+
+impl<'s> Loop<'s> {
+    fn new(config: &'s Config, setup: &'s Setup, t0: u64, replan_s: f64) -> Result<Self> {
+        let (joints, _) = setup.initial_grip(config)?;
+        Ok(Self {
+            setup,
+            t0,
+            republish: (REPUBLISH * 1e9).round() as u64,
+            replan_ns: (replan_s.max(0.0) * 1e9) as u64,
+            plant: Physical::new(config, setup, &joints, t0)?,
+            estimator: Estimator::new(&setup.hand, setup.roller(config)?, &setup.problem, 0.0),
+            wrench: WrenchSpace::new(&setup.problem, config.grasp.alpha),
+            follower: Follower::new_with(
+                setup.planning(config)?,
+                CLEARANCE,
+                Tolerances::new(config.pipeline.joint_noise),
+                &mut |_| {},
+                &mut |_| {},
+            )
+            .context("planning")?,
+            commander: Commander::new(config, setup, t0),
+            seq: Sequences::default(),
+            first_position: None,
+            e: Estimate::default(),
+            command: None,
+            plan: None,
+            last_grasp: None,
+            next_republish: t0,
+            done_at: None,
+            holds: 0,
+            holding: None,
+            replanned: Vec::new(),
+            busy_until: None,
+        })
+    }
+
+    /// The plant advances under the last command and measures: the joint state, stamped; a
+    /// pose when one is due goes to the estimator.
+    fn measure(&mut self, t: u64) -> (crate::plant::Output, JointState) {
+        let out = self.plant.tick(t, self.command.as_ref());
+        self.seq.joint += 1;
+        let mut joints: JointState = out.joints;
+        joints.header = stamped(Header::new(Kind::JointState, self.seq.joint, 0, 0), t);
+        if let Some(pose) = &out.pose {
+            let start = *self.first_position.get_or_insert(pose.position);
+            let moved = [0, 1, 2].map(|k| pose.position[k] - start[k]);
+            let _ = self
+                .estimator
+                .on_pose(
+                    self.estimator.rotation_of(pose.orientation),
+                    pose.captured_time_ns,
+                )
+                .and_then(|_| self.estimator.on_position(moved));
+        }
+        (out, joints)
+    }
+
+    /// The estimator's grasp state of the joint state.
+    fn estimate(&mut self, joints: &JointState, t: u64) -> Option<GraspState> {
+        self.seq.grasp += 1;
+        let header = stamped(
+            Header::after(Kind::GraspState, self.seq.grasp, &joints.header, t),
+            t,
+        );
+        self.estimator.on_joints(joints, header).ok()
+    }
+
+    /// The plan step message of the follower's target `k`, answering `input`.
+    fn message(&mut self, k: usize, input: Option<Header>, t: u64) -> PlanStepHeader {
+        let targets = self.follower.targets();
+        let at = k.min(targets.len() - 1);
+        self.seq.plan += 1;
+        let header = match input {
+            Some(h) => Header::after(Kind::PlanStep, self.seq.plan, &h, t),
+            None => Header::new(Kind::PlanStep, self.seq.plan, 0, 0),
+        };
+        message(
+            &targets[at],
+            k >= targets.len(),
+            &Default::default(),
+            stamped(header, t),
+        )
+    }
+
+    /// The planner: the estimate followed, the current target republished on its timer; the
+    /// last step published this tick goes to the command node.
+    fn follow(&mut self, grasp: Option<&GraspState>, t: u64) {
+        let mut published: Option<PlanStepHeader> = None;
+        // The new plan's first target, published when the planning is over.
+        let busy = self.busy_until.is_some_and(|b| t < b);
+        if !busy && self.busy_until.take().is_some() {
+            if let Some(k) = self.follower.current() {
+                published = Some(self.message(k, self.last_grasp, t));
+            }
+            self.next_republish = t + self.republish;
+        }
+        if let Some(g) = grasp
+            && g.rotation.is_finite()
+            && !busy
+        {
+            self.last_grasp = Some(g.header);
+            estimate(g, &self.setup.hand, &mut self.e);
+            let followed = self.follower.on_estimate(&self.e, t, &mut || {});
+            self.note_replan(followed.event.as_ref(), t);
+            if self.busy_until.is_none() {
+                for k in followed.commands() {
+                    published = Some(self.message(k, self.last_grasp, t));
+                }
+            }
+        }
+        if t >= self.next_republish && self.busy_until.is_none() {
+            self.next_republish = t + self.republish;
+            if let Some(k) = self.follower.current() {
+                published = Some(self.message(k, self.last_grasp, t));
+            }
+        }
+        if let Some(m) = published {
+            if m.phase == PlanPhase::Done as u32 {
+                self.done_at.get_or_insert(t);
+            }
+            let _ = self.commander.on_plan(&m, t);
+            self.plan = Some(m);
+        }
+    }
+
+    /// A re-plan said as the planner node logs it; the planner is busy for `replan_s` after.
+    fn note_replan(&mut self, event: Option<&Event>, t: u64) {
+        let time = (t - self.t0) as f64 * 1e-9;
+        match event {
+            Some(Event::Replanned(r)) => {
+                let mut said = r.to_string();
+                for n in &r.notes {
+                    said += &format!("; {n}");
+                }
+                if !r.plan.summary.completed {
+                    said += &format!(
+                        "; the new plan stops short of the goal: {}",
+                        r.plan.summary.stop_reason.as_deref().unwrap_or("?")
+                    );
+                }
+                self.replanned.push((time, said));
+                if self.replan_ns > 0 {
+                    self.busy_until = Some(t + self.replan_ns);
+                }
+            }
+            Some(e @ Event::ReplanFailed { .. }) => {
+                self.replanned.push((time, e.to_string()));
+            }
+            _ => {}
+        }
+    }
+
+    /// The wrench space of the grasp state, and the command that answers it (or the command
+    /// node's tick), numbered; the plant follows it at the next tick.
+    fn command(
+        &mut self,
+        grasp: Option<&GraspState>,
+        t: u64,
+    ) -> Option<(HandCommand, Option<String>)> {
+        let mut made: Option<(HandCommand, Option<String>)> = None;
+        if let Some(g) = grasp {
+            self.commander.on_grasp(g);
+            self.seq.wrench += 1;
+            let h = stamped(
+                Header::after(Kind::WrenchSpace, self.seq.wrench, &g.header, t),
+                t,
+            );
+            if let Ok(w) = self.wrench.on_grasp(g, h) {
+                let c = self.commander.on_wrench(&w.header, t);
+                made = Some((c.command, c.hold.map(str::to_string)));
+            }
+        }
+        if made.is_none()
+            && let Some(c) = self.commander.on_tick(t)
+        {
+            made = Some((c.command, c.hold.map(str::to_string)));
+        }
+        let (mut c, why) = made?;
+        self.seq.command += 1;
+        c.header.sequence = self.seq.command;
+        c.header.source_time_ns = t;
+        if c.mode == CommandMode::Hold as u32 {
+            self.holds += 1;
+        }
+        self.holding = why.clone();
+        self.command = Some(c);
+        Some((c, why))
+    }
 }
 
 /// `h` as published at `t` (the bus stamps the source time).

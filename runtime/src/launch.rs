@@ -1,6 +1,9 @@
 //! What a node process is started with ([`Launch`]): one typed description, handed to the
-//! node as its command-line arguments ([`Launch::to_args`]) and parsed back by
-//! [`crate::node::main`] ([`Launch::parse`]) into the node's context (`ctx.launch`).
+//! node as its command-line arguments ([`Launch::to_args`]) and parsed back by clap
+//! ([`LaunchArgs`], through [`Launch::parse`] in [`crate::node::main`]) into the node's
+//! context (`ctx.launch`). Every internal process takes its arguments this one way: the five
+//! loop nodes and the bridge through [`crate::node::main`], the visualizer with its modes
+//! flattening [`LaunchArgs`] and [`RecordingArgs`] into its own clap command line.
 //!
 //! The arguments, in any order:
 //!
@@ -20,7 +23,6 @@
 //! Secrets stay out of them (arguments are visible to every user of the machine): the Zenoh
 //! password comes from the environment (`ICRFLOW_ZENOH_PASSWORD`, read by the bridge).
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use crate::bus::{BusConfig, BusError};
@@ -66,141 +68,97 @@ pub struct RecordingLaunch {
     pub footer: bool,
 }
 
-/// A malformed launch description, with the argument named.
+/// A malformed launch description: clap's message names the argument and what it expects.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LaunchError {
-    /// An argument no node takes.
-    #[error("unknown argument {arg:?}")]
-    Unknown {
-        /// The argument.
-        arg: String,
-    },
-    /// A flag without its value.
-    #[error("{flag} needs a value")]
-    NoValue {
-        /// The flag.
-        flag: &'static str,
-    },
-    /// A flag given twice.
-    #[error("{flag} is given twice")]
-    Repeated {
-        /// The flag.
-        flag: &'static str,
-    },
-    /// A required flag missing.
-    #[error("{flag} is missing")]
-    Missing {
-        /// The flag.
-        flag: &'static str,
-    },
-    /// A value of the wrong form.
-    #[error("{flag} {value:?}: expected {expected}")]
-    Invalid {
-        /// The flag.
-        flag: &'static str,
-        /// Its value.
-        value: String,
-        /// What it should be.
-        expected: &'static str,
-    },
+    /// An argument unknown, missing, repeated, without its value or of the wrong form.
+    #[error("{}", .0.render())]
+    Arguments(#[from] clap::Error),
     /// The bus settings are unusable.
     #[error(transparent)]
     Bus(#[from] BusError),
 }
 
-/// The flags: whether each takes a value.
-const FLAGS: [(&str, bool); 10] = [
-    ("--config", true),
-    ("--rig", true),
-    ("--bus-prefix", true),
-    ("--bus-root", true),
-    ("--supervisor", true),
-    ("--realtime", true),
-    ("--log-contacts", false),
-    ("--recording", true),
-    ("--recording-id", true),
-    ("--no-footer", false),
-];
+/// The arguments of a node (see the [module](self)): parsed by clap, turned into a [`Launch`]
+/// by [`Launch::try_from`]. A binary with modes of its own (the visualizer) flattens them
+/// into its command line.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LaunchArgs {
+    /// The config file the node loads.
+    #[arg(long, value_name = "PATH")]
+    pub config: PathBuf,
+    /// The run's rig name.
+    #[arg(long)]
+    pub rig: String,
+    /// The run's bus prefix.
+    #[arg(long, value_name = "PREFIX")]
+    pub bus_prefix: String,
+    /// The run's bus root (an absolute path).
+    #[arg(long, value_name = "DIR")]
+    pub bus_root: PathBuf,
+    /// The supervisor's process id.
+    #[arg(long, value_name = "PID", value_parser = clap::value_parser!(u32).range(1..))]
+    pub supervisor: Option<u32>,
+    /// The SCHED_FIFO priority of the node's loop, 1 to 99.
+    #[arg(long, value_name = "PRIORITY", value_parser = clap::value_parser!(u8).range(1..=99))]
+    pub realtime: Option<u8>,
+    /// Log every contact change and every plan step published.
+    #[arg(long)]
+    pub log_contacts: bool,
+    /// Where the visualizer records.
+    #[command(flatten)]
+    pub recording: RecordingArgs,
+}
 
-/// The flags given, each with its value (`""` for a switch).
-struct Flags(BTreeMap<&'static str, String>);
+/// The recording arguments (`--recording TARGET --recording-id ID [--no-footer]`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct RecordingArgs {
+    /// The target: `rrd:PATH`, `spawn:PORT` or `connect:URL`.
+    #[arg(long, value_name = "TARGET", requires = "recording_id")]
+    pub recording: Option<String>,
+    /// The run's recording id.
+    #[arg(long, value_name = "ID", requires = "recording")]
+    pub recording_id: Option<String>,
+    /// No Rerun index footer (a live run).
+    #[arg(long, requires = "recording")]
+    pub no_footer: bool,
+}
 
-impl Flags {
-    fn parse(args: &[String]) -> Result<Self, LaunchError> {
-        let mut flags = BTreeMap::new();
-        let mut args = args.iter();
-        while let Some(arg) = args.next() {
-            let Some(&(flag, valued)) = FLAGS.iter().find(|(f, _)| *f == arg.as_str()) else {
-                return Err(LaunchError::Unknown { arg: arg.clone() });
-            };
-            let value = if valued {
-                args.next()
-                    .filter(|v| !v.starts_with("--"))
-                    .ok_or(LaunchError::NoValue { flag })?
-                    .clone()
-            } else {
-                String::new()
-            };
-            if flags.insert(flag, value).is_some() {
-                return Err(LaunchError::Repeated { flag });
-            }
-        }
-        Ok(Self(flags))
+impl From<RecordingArgs> for Option<RecordingLaunch> {
+    fn from(a: RecordingArgs) -> Self {
+        // clap has made `--recording` and `--recording-id` come together.
+        Some(RecordingLaunch {
+            target: a.recording?,
+            id: a.recording_id?,
+            footer: !a.no_footer,
+        })
     }
+}
 
-    fn take(&mut self, flag: &'static str) -> Option<String> {
-        self.0.remove(flag)
-    }
+impl TryFrom<LaunchArgs> for Launch {
+    type Error = LaunchError;
 
-    fn required(&mut self, flag: &'static str) -> Result<String, LaunchError> {
-        self.take(flag).ok_or(LaunchError::Missing { flag })
+    fn try_from(a: LaunchArgs) -> Result<Self, LaunchError> {
+        Ok(Self {
+            bus: BusConfig::new(&a.rig, &a.bus_prefix, a.bus_root)?,
+            config: a.config,
+            supervisor: a.supervisor,
+            realtime: a.realtime,
+            log: Log {
+                contacts: a.log_contacts,
+            },
+            recording: a.recording.into(),
+        })
     }
+}
 
-    fn number<T: std::str::FromStr>(
-        &mut self,
-        flag: &'static str,
-        expected: &'static str,
-        valid: impl Fn(&T) -> bool,
-    ) -> Result<Option<T>, LaunchError> {
-        self.take(flag)
-            .map(|value| match value.parse::<T>() {
-                Ok(n) if valid(&n) => Ok(n),
-                _ => Err(LaunchError::Invalid {
-                    flag,
-                    value,
-                    expected,
-                }),
-            })
-            .transpose()
-    }
-
-    /// The recording flags (`--recording-id` and `--no-footer` only with `--recording`).
-    fn recording(&mut self) -> Result<Option<RecordingLaunch>, LaunchError> {
-        let Some(target) = self.take("--recording") else {
-            for flag in ["--recording-id", "--no-footer"] {
-                if self.0.contains_key(flag) {
-                    return Err(LaunchError::Missing {
-                        flag: "--recording",
-                    });
-                }
-            }
-            return Ok(None);
-        };
-        Ok(Some(RecordingLaunch {
-            target,
-            id: self.required("--recording-id")?,
-            footer: self.take("--no-footer").is_none(),
-        }))
-    }
-
-    /// Refuses what is left.
-    fn done(self) -> Result<(), LaunchError> {
-        match self.0.into_keys().next() {
-            Some(flag) => Err(LaunchError::Unknown { arg: flag.into() }),
-            None => Ok(()),
-        }
-    }
+/// A node's whole command line: its [`LaunchArgs`].
+#[derive(Debug, clap::Parser)]
+#[command(no_binary_name = true, disable_help_flag = true)]
+struct NodeCommandLine {
+    #[command(flatten)]
+    launch: LaunchArgs,
 }
 
 impl Launch {
@@ -226,31 +184,8 @@ impl Launch {
 
     /// Reads the arguments a node was started with (those after its program).
     pub fn parse(args: &[String]) -> Result<Self, LaunchError> {
-        let mut flags = Flags::parse(args)?;
-        let config = PathBuf::from(flags.required("--config")?);
-        let (rig, prefix, root) = (
-            flags.required("--rig")?,
-            flags.required("--bus-prefix")?,
-            flags.required("--bus-root")?,
-        );
-        let bus = BusConfig::new(&rig, &prefix, PathBuf::from(root))?;
-        let supervisor = flags.number("--supervisor", "a process id", |&p: &u32| p > 0)?;
-        let realtime = flags.number("--realtime", "a priority from 1 to 99", |&p: &u8| {
-            (1..=99).contains(&p)
-        })?;
-        let log = Log {
-            contacts: flags.take("--log-contacts").is_some(),
-        };
-        let recording = flags.recording()?;
-        flags.done()?;
-        Ok(Self {
-            config,
-            bus,
-            supervisor,
-            realtime,
-            log,
-            recording,
-        })
+        use clap::Parser as _;
+        NodeCommandLine::try_parse_from(args)?.launch.try_into()
     }
 
     /// The arguments that hand this description to a node ([`Launch::parse`] reads them).
@@ -283,18 +218,7 @@ impl Launch {
 }
 
 impl RecordingLaunch {
-    /// Reads the recording arguments alone (`--recording TARGET --recording-id ID
-    /// [--no-footer]`): the visualizer's plan mode, which runs on no bus.
-    pub fn parse(args: &[String]) -> Result<Self, LaunchError> {
-        let mut flags = Flags::parse(args)?;
-        let recording = flags.recording()?.ok_or(LaunchError::Missing {
-            flag: "--recording",
-        })?;
-        flags.done()?;
-        Ok(recording)
-    }
-
-    /// Its arguments ([`RecordingLaunch::parse`] reads them).
+    /// Its arguments ([`RecordingArgs`] reads them).
     pub fn to_args(&self) -> Vec<String> {
         let mut args = vec![
             "--recording".into(),
@@ -339,12 +263,6 @@ mod tests {
         for l in [plain, full, by_hand] {
             assert_eq!(Launch::parse(&l.to_args()).unwrap(), l);
         }
-        let r = RecordingLaunch {
-            target: "spawn:9876".into(),
-            id: "x".into(),
-            footer: true,
-        };
-        assert_eq!(RecordingLaunch::parse(&r.to_args()).unwrap(), r);
     }
 
     #[test]
@@ -364,30 +282,25 @@ mod tests {
             a.extend(args(extra));
             Launch::parse(&a).unwrap_err().to_string()
         };
-        assert_eq!(with(&["--verbose"]), "unknown argument \"--verbose\"");
-        assert_eq!(with(&["--realtime"]), "--realtime needs a value");
-        assert_eq!(
-            with(&["--realtime", "0"]),
-            "--realtime \"0\": expected a priority from 1 to 99"
-        );
-        assert_eq!(
-            with(&["--realtime", "100"]),
-            "--realtime \"100\": expected a priority from 1 to 99"
-        );
-        assert_eq!(
-            with(&["--supervisor", "me"]),
-            "--supervisor \"me\": expected a process id"
-        );
-        assert_eq!(with(&["--rig", "s"]), "--rig is given twice");
-        assert_eq!(with(&["--recording-id", "x"]), "--recording is missing");
-        assert_eq!(
-            with(&["--recording", "rrd:/a.rrd"]),
-            "--recording-id is missing"
-        );
-        assert_eq!(
-            Launch::parse(&base[2..]).unwrap_err().to_string(),
-            "--config is missing"
-        );
+        for (extra, names) in [
+            (&["--verbose"][..], &["--verbose"][..]),
+            (&["--realtime"], &["--realtime", "a value is required"]),
+            (&["--realtime", "0"], &["--realtime", "1..=99"]),
+            (&["--realtime", "100"], &["--realtime", "1..=99"]),
+            (&["--supervisor", "me"], &["--supervisor", "me"]),
+            (&["--supervisor", "0"], &["--supervisor", "0"]),
+            (&["--rig", "s"], &["--rig", "cannot be used multiple times"]),
+            (&["--recording-id", "x"], &["--recording <TARGET>"]),
+            (&["--no-footer"], &["--recording <TARGET>"]),
+            (&["--recording", "rrd:/a.rrd"], &["--recording-id <ID>"]),
+        ] {
+            let e = with(extra);
+            for name in names {
+                assert!(e.contains(name), "{extra:?}: {e}");
+            }
+        }
+        let e = Launch::parse(&base[2..]).unwrap_err().to_string();
+        assert!(e.contains("--config <PATH>"), "{e}");
         let mut relative = base.clone();
         relative[7] = "tmp/b".into();
         assert!(

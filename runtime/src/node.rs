@@ -8,7 +8,7 @@ use anyhow::{Context as _, Result, anyhow, bail};
 use iceoryx2::prelude::{LogLevel, set_log_level};
 
 use crate::bus::Bus;
-pub use crate::launch::Launch;
+pub use crate::launch::{Launch, LaunchError};
 
 /// A node's context: its name, what it was started with, what it loaded from its config file
 /// (`S`: the config, or the config with what it builds), and its bus connection.
@@ -24,20 +24,31 @@ pub struct Context<S> {
 }
 
 /// Runs node `name`: reads what it was started with from its arguments ([`Launch::parse`]),
-/// follows its supervisor, loads the config with `load`, builds the context and calls `body`;
-/// errors (a malformed launch among them) are printed with the node's name and give exit
-/// status 1.
+/// then as [`main_launched`].
 pub fn main<S>(
     name: &'static str,
     load: fn(&Path) -> Result<S>,
     body: fn(&Context<S>) -> Result<()>,
 ) -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    main_launched(name, Launch::parse(&args), load, body)
+}
+
+/// Runs node `name` started with `launch` (parsed by the caller: a binary with modes of its
+/// own flattens [`crate::launch::LaunchArgs`] into its command line): follows its supervisor,
+/// loads the config with `load`, builds the context and calls `body`; errors (a malformed
+/// launch among them) are printed with the node's name and give exit status 1.
+pub fn main_launched<S>(
+    name: &'static str,
+    launch: Result<Launch, LaunchError>,
+    load: fn(&Path) -> Result<S>,
+    body: fn(&Context<S>) -> Result<()>,
+) -> ExitCode {
     set_log_level(LogLevel::Warn);
     let result = (|| -> Result<()> {
-        let args: Vec<String> = std::env::args().skip(1).collect();
-        let launch = Launch::parse(&args).with_context(|| {
+        let launch = launch.with_context(|| {
             format!(
-                "usage: icrflow-{name} --config CONFIG --rig RIG --bus-prefix PREFIX --bus-root DIR [...] (started by `icrflow run`; see icrflow_runtime::launch)"
+                "icrflow-{name} is started by `icrflow run` (see icrflow_runtime::launch for its arguments)"
             )
         })?;
         let supervisor = follow_supervisor(launch.supervisor)?;

@@ -438,97 +438,16 @@ pub fn log_frames(
                     rec.set_duration_secs(TIME, t);
                 }
                 rec.set_time_sequence(STEP, step);
-                let (translation, [x, y, z, w]) = pose;
-                rec.log(
-                    paths::OBJECT,
-                    &rerun::Transform3D::from_translation_rotation(
-                        translation,
-                        rerun::Quaternion::from_xyzw([x, y, z, w]),
-                    ),
-                )?;
-                rec.log(
-                    paths::CONTACTS,
-                    &rerun::Points3D::new(contacts)
-                        .with_radii([0.0025])
-                        .with_colors([colours::CONTACTS]),
-                )?;
-                rec.log(
-                    paths::CONES,
-                    &rerun::LineStrips3D::new(cones)
-                        .with_radii([0.0009])
-                        .with_colors([colours::CONES]),
-                )?;
-                for f in &fingers {
-                    let base = format!("{}/finger_{}", paths::FINGERS, f.finger);
-                    rec.log(
-                        format!("{base}/links"),
-                        &rerun::LineStrips3D::new([f.links.clone()])
-                            .with_radii([0.003])
-                            .with_colors([finger_colour(f.finger)]),
-                    )?;
-                    // Translucent: the contact, its cone and the ICR show through.
-                    rec.log(
-                        format!("{base}/tip"),
-                        &rerun::Ellipsoids3D::from_centers_and_radii([f.tip.0], [f.tip.1])
-                            .with_colors([finger_colour(f.finger) & 0xffffff00 | 0x50])
-                            .with_fill_mode(rerun::FillMode::Solid),
-                    )?;
-                    let angle = match angles.get(&f.finger) {
-                        Some(&last) => crate::geometry::unwrap_deg(last, f.angle_deg),
-                        None => f.angle_deg,
-                    };
-                    angles.insert(f.finger, angle);
-                    rec.log(
-                        format!("{}/finger_{}", paths::ANGLES, f.finger),
-                        &rerun::Scalars::single(angle),
-                    )?;
-                }
+                log_object(rec, pose, contacts, cones)?;
+                log_fingers(rec, &fingers, &mut angles)?;
                 rec.log(
                     format!("{}/object", paths::ANGLES),
                     &rerun::Scalars::single(object_deg),
                 )?;
                 if let Some(truth) = truth {
-                    rec.log(
-                        paths::TRUE_CONTACTS,
-                        &rerun::Points3D::new(truth.contacts.iter().copied())
-                            .with_radii([0.0018])
-                            .with_colors([colours::TRUTH]),
-                    )?;
-                    rec.log(
-                        paths::TRUE_FORCES,
-                        &rerun::Arrows3D::from_vectors(
-                            truth.forces.iter().map(|f| {
-                                [f[0] * FORCE_SCALE, f[1] * FORCE_SCALE, f[2] * FORCE_SCALE]
-                            }),
-                        )
-                        .with_origins(truth.contacts)
-                        .with_radii([0.0008])
-                        .with_colors([colours::TRUTH]),
-                    )?;
-                    rec.log(
-                        format!("{}/object_true", paths::ANGLES),
-                        &rerun::Scalars::single(truth.rotation_deg),
-                    )?;
+                    log_truth(rec, truth)?;
                 }
-                rec.log(
-                    format!("{}/alpha", paths::QUALITY),
-                    &rerun::Scalars::single(alpha),
-                )?;
-                if let Some(q) = quality {
-                    rec.log(
-                        format!("{}/alpha_star", paths::QUALITY),
-                        &rerun::Scalars::single(q),
-                    )?;
-                }
-                if let Some(l) = latency {
-                    for (name, us) in LATENCY_NAMES.iter().zip(l) {
-                        rec.log(
-                            format!("{}/{name}", paths::LATENCY),
-                            &rerun::Scalars::single(us),
-                        )?;
-                    }
-                }
-                rec.log(paths::DROPPED, &rerun::Scalars::single(dropped as f64))?;
+                log_signals(rec, alpha, quality, latency, dropped)?;
             }
             Frame::Step {
                 t,
@@ -557,52 +476,198 @@ pub fn log_frames(
                         )),
                     )?;
                 }
-                for (finger, in_contact, points) in &icrs {
-                    let path = format!("{}/finger_{finger}", paths::ICR);
-                    if *in_contact {
-                        rec.log(
-                            path,
-                            &rerun::Points3D::new(points.iter().copied())
-                                .with_radii([0.0028])
-                                .with_colors([finger_colour(*finger)]),
-                        )?;
-                    } else {
-                        rec.log(path, &rerun::Clear::flat())?;
-                    }
-                }
-                match rendezvous {
-                    Some((finger, points)) => {
-                        rec.log(
-                            paths::RENDEZVOUS,
-                            &rerun::Points3D::new(points)
-                                .with_radii([0.0035])
-                                .with_colors([colours::RENDEZVOUS]),
-                        )?;
-                        rec.log(
-                            paths::EVENTS,
-                            &rerun::TextLog::new(format!(
-                                "step {number}: finger {finger} attaches in its rendezvous region"
-                            )),
-                        )?;
-                    }
-                    None => rec.log(paths::RENDEZVOUS, &rerun::Clear::flat())?,
-                }
-                rec.log(paths::GWS, &mesh(&gws, colours::GWS))?;
-                rec.log(
-                    paths::PRIMITIVE,
-                    &rerun::Points3D::new(primitive)
-                        .with_radii([0.02])
-                        .with_colors([colours::PRIMITIVE]),
-                )?;
-                rec.log(
-                    paths::CANDIDATES,
-                    &rerun::Points3D::new(candidates)
-                        .with_radii([0.008])
-                        .with_colors([colours::CANDIDATES]),
-                )?;
+                log_regions(rec, number, &icrs, rendezvous)?;
+                log_wrench_panel(rec, &gws, primitive, candidates)?;
             }
         }
         logged += 1;
     }
     Ok(logged)
+}
+
+/// A tick's object: its pose, the estimated contacts and their friction cones.
+fn log_object(
+    rec: &rerun::RecordingStream,
+    pose: (P3, [f32; 4]),
+    contacts: Vec<P3>,
+    cones: Vec<Vec<P3>>,
+) -> Result<()> {
+    let (translation, [x, y, z, w]) = pose;
+    rec.log(
+        paths::OBJECT,
+        &rerun::Transform3D::from_translation_rotation(
+            translation,
+            rerun::Quaternion::from_xyzw([x, y, z, w]),
+        ),
+    )?;
+    rec.log(
+        paths::CONTACTS,
+        &rerun::Points3D::new(contacts)
+            .with_radii([0.0025])
+            .with_colors([colours::CONTACTS]),
+    )?;
+    rec.log(
+        paths::CONES,
+        &rerun::LineStrips3D::new(cones)
+            .with_radii([0.0009])
+            .with_colors([colours::CONES]),
+    )?;
+    Ok(())
+}
+
+/// A tick's fingers: links, fingertips, and each fingertip's angle, continued from `angles`
+/// (each finger's last, unwrapped).
+fn log_fingers(
+    rec: &rerun::RecordingStream,
+    fingers: &[FingerView],
+    angles: &mut std::collections::HashMap<u32, f64>,
+) -> Result<()> {
+    for f in fingers {
+        let base = format!("{}/finger_{}", paths::FINGERS, f.finger);
+        rec.log(
+            format!("{base}/links"),
+            &rerun::LineStrips3D::new([f.links.clone()])
+                .with_radii([0.003])
+                .with_colors([finger_colour(f.finger)]),
+        )?;
+        // Translucent: the contact, its cone and the ICR show through.
+        rec.log(
+            format!("{base}/tip"),
+            &rerun::Ellipsoids3D::from_centers_and_radii([f.tip.0], [f.tip.1])
+                .with_colors([finger_colour(f.finger) & 0xffffff00 | 0x50])
+                .with_fill_mode(rerun::FillMode::Solid),
+        )?;
+        let angle = match angles.get(&f.finger) {
+            Some(&last) => crate::geometry::unwrap_deg(last, f.angle_deg),
+            None => f.angle_deg,
+        };
+        angles.insert(f.finger, angle);
+        rec.log(
+            format!("{}/finger_{}", paths::ANGLES, f.finger),
+            &rerun::Scalars::single(angle),
+        )?;
+    }
+    Ok(())
+}
+
+/// A tick's ground truth (a physics plant's): the true contacts, forces and rotation.
+fn log_truth(rec: &rerun::RecordingStream, truth: TruthView) -> Result<()> {
+    rec.log(
+        paths::TRUE_CONTACTS,
+        &rerun::Points3D::new(truth.contacts.iter().copied())
+            .with_radii([0.0018])
+            .with_colors([colours::TRUTH]),
+    )?;
+    rec.log(
+        paths::TRUE_FORCES,
+        &rerun::Arrows3D::from_vectors(
+            truth
+                .forces
+                .iter()
+                .map(|f| [f[0] * FORCE_SCALE, f[1] * FORCE_SCALE, f[2] * FORCE_SCALE]),
+        )
+        .with_origins(truth.contacts)
+        .with_radii([0.0008])
+        .with_colors([colours::TRUTH]),
+    )?;
+    rec.log(
+        format!("{}/object_true", paths::ANGLES),
+        &rerun::Scalars::single(truth.rotation_deg),
+    )?;
+    Ok(())
+}
+
+/// A tick's time series: the margin and alpha*, the latencies, the frames dropped.
+fn log_signals(
+    rec: &rerun::RecordingStream,
+    alpha: f64,
+    quality: Option<f64>,
+    latency: Option<[f64; 7]>,
+    dropped: u64,
+) -> Result<()> {
+    rec.log(
+        format!("{}/alpha", paths::QUALITY),
+        &rerun::Scalars::single(alpha),
+    )?;
+    if let Some(q) = quality {
+        rec.log(
+            format!("{}/alpha_star", paths::QUALITY),
+            &rerun::Scalars::single(q),
+        )?;
+    }
+    if let Some(l) = latency {
+        for (name, us) in LATENCY_NAMES.iter().zip(l) {
+            rec.log(
+                format!("{}/{name}", paths::LATENCY),
+                &rerun::Scalars::single(us),
+            )?;
+        }
+    }
+    rec.log(paths::DROPPED, &rerun::Scalars::single(dropped as f64))?;
+    Ok(())
+}
+
+/// A plan step's regions: each finger's ICR (cleared for a finger not in contact) and, in an
+/// attach step, the attaching finger's rendezvous region, said in the events.
+fn log_regions(
+    rec: &rerun::RecordingStream,
+    number: u64,
+    icrs: &[(u32, bool, Vec<P3>)],
+    rendezvous: Option<(u32, Vec<P3>)>,
+) -> Result<()> {
+    for (finger, in_contact, points) in icrs {
+        let path = format!("{}/finger_{finger}", paths::ICR);
+        if *in_contact {
+            rec.log(
+                path,
+                &rerun::Points3D::new(points.iter().copied())
+                    .with_radii([0.0028])
+                    .with_colors([finger_colour(*finger)]),
+            )?;
+        } else {
+            rec.log(path, &rerun::Clear::flat())?;
+        }
+    }
+    match rendezvous {
+        Some((finger, points)) => {
+            rec.log(
+                paths::RENDEZVOUS,
+                &rerun::Points3D::new(points)
+                    .with_radii([0.0035])
+                    .with_colors([colours::RENDEZVOUS]),
+            )?;
+            rec.log(
+                paths::EVENTS,
+                &rerun::TextLog::new(format!(
+                    "step {number}: finger {finger} attaches in its rendezvous region"
+                )),
+            )?;
+        }
+        None => rec.log(paths::RENDEZVOUS, &rerun::Clear::flat())?,
+    }
+    Ok(())
+}
+
+/// A plan step's wrench panel: the grasp wrench space's hull, its primitive wrenches and the
+/// candidates' wrenches.
+fn log_wrench_panel(
+    rec: &rerun::RecordingStream,
+    gws: &Mesh,
+    primitive: Vec<P3>,
+    candidates: Vec<P3>,
+) -> Result<()> {
+    rec.log(paths::GWS, &mesh(gws, colours::GWS))?;
+    rec.log(
+        paths::PRIMITIVE,
+        &rerun::Points3D::new(primitive)
+            .with_radii([0.02])
+            .with_colors([colours::PRIMITIVE]),
+    )?;
+    rec.log(
+        paths::CANDIDATES,
+        &rerun::Points3D::new(candidates)
+            .with_radii([0.008])
+            .with_colors([colours::CANDIDATES]),
+    )?;
+    Ok(())
 }

@@ -59,48 +59,25 @@ pub fn parse_size(text: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// What to render.
-#[derive(Debug, Clone)]
+/// What to render: the render mode's arguments (`RRD --at END|STEP --out PNG --size WxH
+/// --viewer RERUN`), parsed by clap in the visualizer's command line.
+#[derive(Debug, Clone, clap::Args)]
 pub struct Request {
     /// The recording.
+    #[arg(value_name = "RRD")]
     pub rrd: PathBuf,
-    /// Where in it.
+    /// Where in it: END, or a plan step.
+    #[arg(long, value_name = "END|STEP", default_value = "END", value_parser = At::parse)]
     pub at: At,
     /// The PNG to write.
+    #[arg(long, value_name = "PNG")]
     pub out: PathBuf,
-    /// The window size (logical points).
+    /// The window size (logical points), WIDTHxHEIGHT.
+    #[arg(long, value_name = "WxH", default_value = "1280x720", value_parser = parse_size)]
     pub size: (u32, u32),
     /// The `rerun` executable (0.36).
+    #[arg(long, value_name = "RERUN")]
     pub viewer: PathBuf,
-}
-
-impl Request {
-    /// From the mode's arguments after `--render`: `RRD --at AT --out PNG --size WxH --viewer
-    /// RERUN`.
-    pub fn parse(args: &[String]) -> Result<Self> {
-        let [rrd, rest @ ..] = args else {
-            bail!("--render RRD --at END|STEP --out PNG --size WxH --viewer RERUN");
-        };
-        let (mut at, mut out, mut size, mut viewer) = (At::End, None, (1280, 720), None);
-        let mut it = rest.iter();
-        while let Some(flag) = it.next() {
-            let value = it.next().with_context(|| format!("{flag} needs a value"))?;
-            match flag.as_str() {
-                "--at" => at = At::parse(value)?,
-                "--out" => out = Some(PathBuf::from(value)),
-                "--size" => size = parse_size(value)?,
-                "--viewer" => viewer = Some(PathBuf::from(value)),
-                other => bail!("unknown argument {other}"),
-            }
-        }
-        Ok(Self {
-            rrd: PathBuf::from(rrd),
-            at,
-            out: out.context("--out PNG is required")?,
-            size,
-            viewer: viewer.context("--viewer RERUN is required")?,
-        })
-    }
 }
 
 /// The viewer process (in a process group of its own: `rerun` from pip is a launcher that
@@ -385,12 +362,24 @@ mod tests {
             let e = parse_size(bad).unwrap_err().to_string();
             assert!(e.contains("--size") && e.contains("WIDTHxHEIGHT"), "{e}");
         }
-        let args: Vec<String> = ["r.rrd", "--at", "7", "--out", "p.png", "--viewer", "rerun"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect();
-        let r = Request::parse(&args).unwrap();
+        #[derive(Debug, clap::Parser)]
+        #[command(no_binary_name = true)]
+        struct Cli {
+            #[command(flatten)]
+            request: Request,
+        }
+        let args = ["r.rrd", "--at", "7", "--out", "p.png", "--viewer", "rerun"];
+        let r = <Cli as clap::Parser>::try_parse_from(args).unwrap().request;
         assert_eq!((r.at, r.size), (At::Step(7), (1280, 720)));
-        assert!(Request::parse(&args[..5]).is_err());
+        let e = <Cli as clap::Parser>::try_parse_from(&args[..5])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--viewer <RERUN>"), "{e}");
+        let e = <Cli as clap::Parser>::try_parse_from([
+            "r.rrd", "--at", "x", "--out", "p.png", "--viewer", "v",
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--at") && e.contains("END"), "{e}");
     }
 }
