@@ -479,11 +479,25 @@ fn check_cargo(cmd: &Cmd, repo: &Repo) -> Vec<String> {
     }
     if let Some(example) = example {
         let source = std::fs::read_to_string(example).unwrap();
+        // The lockstep example's settings are config keys (`SECTION.KEY=VALUE`), its flags
+        // the fields of its clap command line.
+        let raw = std::fs::read_to_string(root().join("scenario/src/raw.rs")).unwrap();
         for arg in theirs {
-            if let Some((key, _)) = arg.split_once('=')
-                && !source.contains(&format!("\"{key}\" =>"))
+            if let Some((name, _)) = arg.split_once('=') {
+                let known = name.split_once('.').is_some_and(|(section, key)| {
+                    raw.contains(&format!("pub {section}: Option<Raw"))
+                        && raw.contains(&format!("pub {key}: "))
+                });
+                if !known {
+                    problems.push(format!(
+                        "{}: {name} is no SECTION.KEY of the config (scenario/src/raw.rs)",
+                        cmd.at()
+                    ));
+                }
+            } else if let Some(flag) = arg.strip_prefix("--")
+                && !source.contains(&format!("    {}: ", flag.replace('-', "_")))
             {
-                problems.push(format!("{}: the example takes no key {key}", cmd.at()));
+                problems.push(format!("{}: the example takes no flag --{flag}", cmd.at()));
             }
         }
     }
@@ -550,7 +564,7 @@ target/release/icrflow render out/never_written.rrd --at END --out out/x.png
 target/release/icrflow no-such-verb config/paper_sphere.toml
 icrflow validate config/paper_sphere.toml
 cargo bench -p icrflow-grasp --bench no_such_bench
-cargo run --release -p icrflow-nodes --example lockstep -- config/paper_sphere_mujoco.toml 60 no_such_key=1
+cargo run --release -p icrflow-nodes --example lockstep -- config/paper_sphere_mujoco.toml --no-such-seconds 60 plant.no_such_key=1
 make everything
 ```
 ";
@@ -564,7 +578,8 @@ make everything
         "`icrflow no-such-verb` is not a verb",
         "commands run the CLI as target/release/icrflow",
         "no_such_bench.rs does not exist",
-        "the example takes no key no_such_key",
+        "plant.no_such_key is no SECTION.KEY of the config",
+        "the example takes no flag --no-such-seconds",
         "no check for the program make",
     ] {
         assert!(
