@@ -5,7 +5,6 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::{Context as _, Result, anyhow, bail};
-use iceoryx2::prelude::{LogLevel, set_log_level};
 
 use crate::bus::Bus;
 pub use crate::launch::Launch;
@@ -32,7 +31,7 @@ pub fn main<S>(
     load: fn(&Path) -> Result<S>,
     body: fn(&Context<S>) -> Result<()>,
 ) -> ExitCode {
-    set_log_level(LogLevel::Warn);
+    crate::bus::set_up_logging();
     let result = (|| -> Result<()> {
         let args: Vec<String> = std::env::args().skip(1).collect();
         let launch = Launch::parse(&args).with_context(|| {
