@@ -637,7 +637,20 @@ fn the_monitor_says_when_the_run_ended() {
         text.replace("rotation_deg = 360.0", "rotation_deg = 60.0"),
     )
     .unwrap();
-    let (run, summary) = spawn_run(&config);
+    let summary = config.with_extension("json");
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args([
+            "run",
+            config.to_str().unwrap(),
+            "--no-visualizer",
+            "--summary-json",
+        ])
+        .arg(&summary)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     std::thread::sleep(Duration::from_secs(1));
     let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
         .args(["monitor", "--connect", &endpoint, "--seconds", "12"])
