@@ -523,7 +523,7 @@ mod tests {
         // With the plan's last step `done`: said.
         let done = serde_json::json!({
             "schema": 1, "topic": "plan_step", "rig": "sim", "sequence": 9, "time_ns": 1,
-            "origin_ns": 0, "phase": "done", "step": 72, "rotation": 6.28, "rotation_deg": 360.0,
+            "origin_ns": 0, "phase": "done", "step": 72, "rotation": 1.0, "rotation_deg": 57.3,
             "quality": 0.2, "targets": []
         });
         view.take("plan_step", done.to_string().as_bytes()).unwrap();
