@@ -112,8 +112,9 @@ pub enum Command {
     },
     /// Watch a running pipeline over Zenoh (from this or another machine): phase, rotation,
     /// quality against alpha, contacts, node health and restarts, latency, redrawn in place on
-    /// a terminal, one line per second otherwise. Read-only. Waits for a run to appear; stops
-    /// on Ctrl-C.
+    /// a terminal, otherwise every second as short lines with the time (one or more per part).
+    /// Read-only. Waits for a run to appear, says when it has ended (every node silent), and
+    /// waits for the next; stops on Ctrl-C.
     Monitor {
         /// The Zenoh endpoint of the pipeline's bridge (`zenoh.listen` of its config).
         #[arg(long, default_value = "tcp/127.0.0.1:7447")]
