@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 /// In-hand rolling manipulation with independent contact regions and a quality margin.
 #[derive(Debug, Parser)]
@@ -11,16 +11,55 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
-    /// Show the progress of loading the object and building the grasp problem (validate,
-    /// analyze, plan) once it has taken this long, in seconds (0 to 3600; 0: always).
+    /// `--progress-after` before the verb (`icrflow --progress-after 0 plan ...`), as it was
+    /// taken when the flag was global; offered in the help of the verbs it acts on only
+    /// ([`Progress`]), and refused before any other verb.
     #[arg(
-        long,
-        global = true,
+        long = "progress-after",
+        hide = true,
         value_name = "SECONDS",
-        default_value = "1",
         value_parser = crate::progress::parse_after
     )]
-    pub progress_after: std::time::Duration,
+    pub progress_after: Option<std::time::Duration>,
+}
+
+/// The flag of the verbs that load the object and build the grasp problem (validate, analyze,
+/// plan).
+#[derive(Debug, Args)]
+pub struct Progress {
+    /// Show the progress of loading the object and building the grasp problem (and, for
+    /// plan, of planning) once it has taken this long, in seconds (0 to 3600; 0: always)
+    /// [default: 1].
+    #[arg(
+        long = "progress-after",
+        value_name = "SECONDS",
+        value_parser = crate::progress::parse_after
+    )]
+    pub progress_after: Option<std::time::Duration>,
+}
+
+/// `--progress-after`'s default.
+pub const PROGRESS_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
+
+impl Cli {
+    /// The `--progress-after` of the verb that takes it (`verb`'s, else the one before the
+    /// verb, else [`PROGRESS_AFTER`]); the flag before a verb it does not act on is refused as
+    /// a usage error (exit status 2).
+    pub fn progress_delay(&self, verb: Option<&Progress>) -> std::time::Duration {
+        match (verb, self.progress_after) {
+            (Some(p), before) => p.progress_after.or(before).unwrap_or(PROGRESS_AFTER),
+            (None, None) => PROGRESS_AFTER,
+            (None, Some(_)) => {
+                use clap::CommandFactory as _;
+                Self::command()
+                    .error(
+                        clap::error::ErrorKind::ArgumentConflict,
+                        "--progress-after acts on validate, analyze and plan only",
+                    )
+                    .exit()
+            }
+        }
+    }
 }
 
 /// The verbs.
@@ -35,6 +74,8 @@ pub enum Command {
         /// Print one JSON object instead of text.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        progress: Progress,
     },
     /// Run the pipeline on CONFIG: every node its own process on a private iceoryx2 bus,
     /// supervised, closed loop on the simulated hand, until the goal rotation (or Ctrl-C with
@@ -71,8 +112,9 @@ pub enum Command {
     },
     /// Watch a running pipeline over Zenoh (from this or another machine): phase, rotation,
     /// quality against alpha, contacts, node health and restarts, latency, redrawn in place on
-    /// a terminal, one line per second otherwise. Read-only. Waits for a run to appear; stops
-    /// on Ctrl-C.
+    /// a terminal, otherwise every second as short lines with the time (one or more per part).
+    /// Read-only. Waits for a run to appear, says when it has ended (every node silent), and
+    /// waits for the next; stops on Ctrl-C.
     Monitor {
         /// The Zenoh endpoint of the pipeline's bridge (`zenoh.listen` of its config).
         #[arg(long, default_value = "tcp/127.0.0.1:7447")]
@@ -95,6 +137,8 @@ pub enum Command {
     Validate {
         /// Config file (TOML; see config/README.md).
         config: PathBuf,
+        #[command(flatten)]
+        progress: Progress,
     },
     /// Plan the in-hand rolling scenario in CONFIG offline: roll within the ICRs, switch
     /// fingers at their limits, until the object has turned by plan.rotation_deg. Writes
@@ -120,9 +164,12 @@ pub enum Command {
         /// Record the plan to the Rerun viewer at this URL.
         #[arg(long, value_name = "URL")]
         connect_viewer: Option<String>,
+        #[command(flatten)]
+        progress: Progress,
     },
     /// Render a recording of `run` or `plan` into a PNG as the Rerun viewer shows it at a plan
-    /// step or at the end, headless (`rerun` 0.36 beside $ICRFLOW_PYTHON or on the PATH).
+    /// step or at the end, headless (`rerun` 0.36 beside $ICRFLOW_PYTHON, in the project's venv
+    /// ${ICRFLOW_CACHE:-$HOME/.cache/icrflow}/venv/bin that scripts/setup.sh makes, or on the PATH).
     Render {
         /// The recording (.rrd).
         rrd: PathBuf,

@@ -5,10 +5,13 @@ mod cli;
 mod exit;
 mod monitor;
 mod output;
+mod percentile;
 mod plan;
 mod progress;
 mod render;
 mod run;
+mod validate;
+mod wrap;
 
 use std::process::ExitCode;
 
@@ -16,9 +19,17 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
-    let after = cli.progress_after;
+    let verb = match &cli.command {
+        cli::Command::Analyze { progress, .. }
+        | cli::Command::Plan { progress, .. }
+        | cli::Command::Validate { progress, .. } => Some(progress),
+        cli::Command::Run { .. } | cli::Command::Monitor { .. } | cli::Command::Render { .. } => {
+            None
+        }
+    };
+    let after = cli.progress_delay(verb);
     let result = match cli.command {
-        cli::Command::Analyze { config, json } => analyze::run(&config, json, after),
+        cli::Command::Analyze { config, json, .. } => analyze::run(&config, json, after),
         cli::Command::Plan {
             config,
             out,
@@ -26,6 +37,7 @@ fn main() -> ExitCode {
             rrd,
             spawn_viewer,
             connect_viewer,
+            ..
         } => plan::run(
             &config,
             out,
@@ -39,7 +51,7 @@ fn main() -> ExitCode {
             after,
         ),
         cli::Command::Render { rrd, at, out, size } => render::run(&rrd, &at, &out, &size),
-        cli::Command::Validate { config } => plan::validate(&config, after),
+        cli::Command::Validate { config, .. } => validate::run(&config, after),
         cli::Command::Monitor {
             connect,
             rig,

@@ -1,12 +1,15 @@
 //! `icrflow monitor`: a live view of a running pipeline over Zenoh, from this or another
 //! machine. It subscribes to the rig's monitoring key expressions (`icrflow/<rig>/**`, JSON,
 //! see `icrflow_bridge::json`), and shows phase, rotation, quality against alpha, contacts,
-//! node health and restarts, and latency: redrawn in place on a terminal, one plain line per
-//! second otherwise. Objects that are not monitoring JSON of our schema are ignored, with an
+//! node health and restarts, and latency: redrawn in place on a terminal, otherwise every
+//! second as plain lines of at most [`PLAIN_WIDTH`] characters, each with the time (one per
+//! part of the view). Objects that are not monitoring JSON of our schema are ignored, with an
 //! error on stderr (once per key expression and reason).
 //!
 //! It waits for a run to appear at the endpoint (saying so), and warns when nothing arrives for
-//! its rig while other rigs publish there (a wrong `--rig`), or nothing at all does.
+//! its rig while other rigs publish there (a wrong `--rig`), or nothing at all does. When every
+//! node it has seen has gone silent, it says that the run ended (on stderr, once per run, and
+//! in the view), and waits for the next.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{IsTerminal, Write};
@@ -27,6 +30,9 @@ const REFRESH: Duration = Duration::from_millis(200);
 const LINE: Duration = Duration::from_secs(1);
 /// A node whose last health report is older than this is shown as silent.
 const SILENT: Duration = Duration::from_secs(1);
+/// The width of a plain line (not on a terminal), its time included; a longer part of the
+/// view goes on over several lines.
+const PLAIN_WIDTH: usize = 100;
 /// Latencies kept for the percentiles.
 const WINDOW: usize = 1000;
 /// How long the monitor waits for its rig's first message before it warns.
@@ -110,15 +116,22 @@ impl View {
         Ok(())
     }
 
-    /// The latencies' p50 and p99, from one sort.
+    /// The latencies' p50 and p99 (the nearest rank, [`crate::percentile`]), from one sort.
     fn percentiles(&self) -> Option<(f64, f64)> {
         let mut v: Vec<f64> = self.latencies.iter().copied().collect();
-        if v.is_empty() {
-            return None;
-        }
         v.sort_by(f64::total_cmp);
-        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-        Some((at(0.5), at(0.99)))
+        let at = |q: f64| crate::percentile::of_sorted(&v, q);
+        at(0.5).zip(at(0.99))
+    }
+
+    /// How long since the last node reported, when every node seen has gone silent: the run
+    /// ended (or the link to it is down); `None` while one reports, or before any did.
+    fn ended(&self) -> Option<Duration> {
+        self.health
+            .values()
+            .map(|seen| seen.when.elapsed())
+            .min()
+            .filter(|d| *d > SILENT)
     }
 
     /// The view as lines.
@@ -127,20 +140,30 @@ impl View {
             "icrflow monitor  rig {rig}  via {endpoint}  ({} messages, {} ignored)",
             self.received, self.ignored
         )];
+        let ended = self.ended();
         // Silence: the link, the bridge or the run is gone; what follows is the last state.
-        match self.last.map(|t| t.elapsed()) {
-            Some(d) if d > SILENT => out.push(format!(
+        match (self.last.map(|t| t.elapsed()), ended) {
+            (Some(_), Some(d)) => out.push(format!(
+                "RUN ENDED: no node has reported for {:.1} s{} (or the link to it is down); its last state follows",
+                d.as_secs_f64(),
+                if self.plan.as_ref().is_some_and(|p| p.phase == "done") {
+                    ", its plan done"
+                } else {
+                    ""
+                }
+            )),
+            (Some(d), None) if d > SILENT => out.push(format!(
                 "NO DATA for {:.1} s: the last state received follows",
                 d.as_secs_f64()
             )),
-            None if self.others.is_empty() => {
+            (None, _) if self.others.is_empty() => {
                 out.push(format!("waiting for data of rig {rig} (icrflow/{rig}/*)"))
             }
-            None => out.push(format!(
+            (None, _) => out.push(format!(
                 "waiting for data of rig {rig}; other rigs publish here: {} (--rig?)",
                 self.others.keys().cloned().collect::<Vec<_>>().join(", ")
             )),
-            Some(_) => {}
+            (Some(_), None) => {}
         }
         out.push(match &self.plan {
             Some(p) => format!(
@@ -226,7 +249,9 @@ impl View {
             .iter()
             .map(|(name, seen)| {
                 let h = &seen.health;
-                let state = if seen.when.elapsed() > SILENT {
+                let state = if ended.is_some() {
+                    name.clone()
+                } else if seen.when.elapsed() > SILENT {
                     format!("{name} SILENT {:.0} s", seen.when.elapsed().as_secs_f64())
                 } else if h.state == "degraded" || (h.state == "starting" && !h.message.is_empty())
                 {
@@ -244,13 +269,39 @@ impl View {
             })
             .collect();
         out.push(format!(
-            "nodes     {}",
+            "nodes     {}{}",
+            if ended.is_some() { "ended: " } else { "" },
             if nodes.is_empty() {
                 "-".into()
             } else {
                 nodes.join(", ")
             }
         ));
+        out
+    }
+
+    /// The view as plain lines (not on a terminal), each beginning with `time` and at most
+    /// [`PLAIN_WIDTH`] characters long (a longer part of the view is cut into several at its
+    /// commas; a single word longer than that stays whole): one or more per part, the header
+    /// left out.
+    fn plain(&self, rig: &str, endpoint: &str, time: &str) -> Vec<String> {
+        let width = PLAIN_WIDTH.saturating_sub(time.chars().count() + 1);
+        let mut out = Vec::new();
+        for line in self.lines(rig, endpoint).iter().skip(1) {
+            // The parts' names are 10 characters wide: their continuations go under their text.
+            let (name, text) = match line.split_at_checked(10) {
+                Some((name, text)) if name.ends_with("  ") => (name, text),
+                _ => ("", line.as_str()),
+            };
+            let room = width.saturating_sub(name.len());
+            let parts = crate::wrap::wrap_at(text, ", ", room)
+                .into_iter()
+                .flat_map(|part| crate::wrap::wrap(&part, room));
+            for (i, part) in parts.enumerate() {
+                let lead = if i == 0 { name } else { "          " };
+                out.push(format!("{time} {}{part}", &lead[..name.len()]));
+            }
+        }
         out
     }
 }
@@ -321,6 +372,8 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
     let mut view = View::default();
     let mut reported = BTreeSet::new();
     let mut warned = false;
+    // Whether the run's end was said (again once nodes report anew: the next run).
+    let mut said_ended = false;
     let mut next = Instant::now() + every;
     let mut out = std::io::stdout().lock();
     loop {
@@ -345,10 +398,23 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
                 );
             }
         }
+        match view.ended() {
+            Some(d) if !said_ended => {
+                said_ended = true;
+                eprintln!(
+                    "monitor: the run has ended: no node of rig {rig:?} has reported for {:.1} s; waiting for the next (Ctrl-C to stop)",
+                    d.as_secs_f64()
+                );
+            }
+            None if said_ended && view.health.values().any(|s| s.when.elapsed() <= SILENT) => {
+                said_ended = false;
+            }
+            _ => {}
+        }
         if now >= next {
             next += every;
-            let lines = view.lines(rig, endpoint);
             if terminal {
+                let lines = view.lines(rig, endpoint);
                 // Home, then each line cleared to its end, then the rest of the screen.
                 write!(out, "\x1b[H")?;
                 for l in &lines {
@@ -356,12 +422,10 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
                 }
                 write!(out, "\x1b[J")?;
             } else {
-                writeln!(
-                    out,
-                    "{:.1}s {}",
-                    started.elapsed().as_secs_f64(),
-                    lines[1..].join(" | ")
-                )?;
+                let time = format!("{:.1}s", started.elapsed().as_secs_f64());
+                for l in view.plain(rig, endpoint, &time) {
+                    writeln!(out, "{l}")?;
+                }
             }
             out.flush()?;
         }
@@ -397,4 +461,97 @@ pub fn run(endpoint: &str, rig: &str, user: Option<&str>, seconds: Option<f64>) 
         return Ok(crate::exit::INCOMPLETE);
     }
     Ok(crate::exit::DONE)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A health report of `node` (process `pid`) as the bridge publishes it.
+    fn health(node: &str, pid: u32) -> Vec<u8> {
+        serde_json::json!({
+            "schema": 1, "topic": "node_health", "rig": "sim", "sequence": 1, "time_ns": 1,
+            "origin_ns": 0, "node": node, "state": "running", "pid": pid, "processed": 5,
+            "refused": 0, "message": ""
+        })
+        .to_string()
+        .into_bytes()
+    }
+
+    #[test]
+    fn plain_lines_are_short_and_the_end_of_the_run_is_said() {
+        let mut view = View::default();
+        let nodes = [
+            "bridge",
+            "command",
+            "estimator",
+            "planner",
+            "plant",
+            "visualizer",
+            "wrench",
+        ];
+        for (pid, node) in (100..).zip(nodes) {
+            view.take("node_health", &health(node, pid)).unwrap();
+        }
+        let plain = view.plain("sim", "tcp/127.0.0.1:7447", "12.0s");
+        assert!(
+            plain
+                .iter()
+                .all(|l| l.starts_with("12.0s ") && l.chars().count() <= PLAIN_WIDTH),
+            "{plain:#?}"
+        );
+        // Every node on the nodes' lines, which go on under their text.
+        let text = plain.join("\n");
+        for node in nodes {
+            assert!(text.contains(&format!("{node} running")), "{text}");
+        }
+        assert!(text.contains("12.0s nodes     bridge running"), "{text}");
+        assert!(text.contains("12.0s           "), "{text}");
+        assert_eq!(view.ended(), None);
+        assert!(!text.contains("ENDED"), "{text}");
+        // Every node silent after it was seen: the run ended, said once, not node by node.
+        for seen in view.health.values_mut() {
+            seen.when -= SILENT + Duration::from_millis(500);
+        }
+        view.last = view.last.map(|t| t - SILENT - Duration::from_millis(500));
+        assert!(view.ended().is_some_and(|d| d > SILENT));
+        let lines = view.lines("sim", "tcp/127.0.0.1:7447");
+        assert!(
+            lines[1].starts_with("RUN ENDED: no node has reported for 1.5 s (or"),
+            "{lines:#?}"
+        );
+        // With the plan's last step `done`: said.
+        let done = serde_json::json!({
+            "schema": 1, "topic": "plan_step", "rig": "sim", "sequence": 9, "time_ns": 1,
+            "origin_ns": 0, "phase": "done", "step": 72, "rotation": 1.0, "rotation_deg": 57.3,
+            "quality": 0.2, "targets": []
+        });
+        view.take("plan_step", done.to_string().as_bytes()).unwrap();
+        let lines = view.lines("sim", "tcp/127.0.0.1:7447");
+        assert!(
+            lines[1].contains("reported for 1.5 s, its plan done (or the link"),
+            "{lines:#?}"
+        );
+        assert!(lines.iter().all(|l| !l.contains("SILENT")), "{lines:#?}");
+        assert!(
+            lines
+                .last()
+                .unwrap()
+                .starts_with("nodes     ended: bridge, command"),
+            "{lines:#?}"
+        );
+        let plain = view.plain("sim", "tcp/127.0.0.1:7447", "12.0s");
+        assert!(
+            plain.iter().all(|l| l.chars().count() <= PLAIN_WIDTH),
+            "{plain:#?}"
+        );
+        // One node silent while the others report: that node is SILENT, the run goes on.
+        view.take("node_health", &health("plant", 104)).unwrap();
+        assert_eq!(view.ended(), None);
+        let lines = view.lines("sim", "tcp/127.0.0.1:7447").join("\n");
+        assert!(
+            lines.contains("bridge SILENT") && lines.contains("plant running"),
+            "{lines}"
+        );
+    }
 }

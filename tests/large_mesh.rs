@@ -156,3 +156,39 @@ fn a_bad_progress_delay_is_refused_naming_the_flag() {
         assert!(!err.contains("panicked"), "{value}: {err}");
     }
 }
+
+#[test]
+fn the_progress_delay_is_offered_by_the_verbs_it_acts_on_only() {
+    // Offered (and taken) by validate, analyze and plan; not by run, monitor, render.
+    for verb in ["validate", "analyze", "plan", "run", "monitor", "render"] {
+        let o = icrflow(&[verb, "--help"]);
+        let help = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{verb}: {}", stderr(&o));
+        let acts = matches!(verb, "validate" | "analyze" | "plan");
+        assert_eq!(help.contains("--progress-after"), acts, "{verb}: {help}");
+    }
+    let o = icrflow(&["render", "x.rrd", "--out", "x.png", "--progress-after", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("unexpected argument '--progress-after'"),
+        "{}",
+        stderr(&o)
+    );
+    // Before the verb, as when the flag was global: still taken by the verbs it acts on,
+    // refused (a usage error) before the others.
+    let config = "config/ellipsoid_spatial.toml";
+    let o = icrflow(&["--progress-after", "0", "validate", config]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("progress   reading the mesh: "),
+        "{}",
+        stderr(&o)
+    );
+    let o = icrflow(&["--progress-after", "0", "monitor", "--seconds", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--progress-after acts on validate, analyze and plan only"),
+        "{}",
+        stderr(&o)
+    );
+}

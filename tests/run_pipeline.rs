@@ -750,6 +750,8 @@ fn a_live_run_stops_cleanly_on_ctrl_c() {
     let out = run.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
+    // No library noise: iceoryx2's lookup of a config file (none here) is not said.
+    assert!(!err.contains("No config file was loaded"), "{err}");
     let s = json(&std::fs::read(&summary).unwrap());
     assert_eq!(s["completed"], false, "stopped halfway: {s}");
     assert!(s["reason"].as_str().unwrap().contains("signal"), "{s}");

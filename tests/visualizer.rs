@@ -373,21 +373,29 @@ fn render_refuses_bad_input_by_name() {
     let dir = scratch("visualizer-render-bad");
     std::fs::create_dir_all(&dir).unwrap();
     let png = dir.join("x.png");
-    let run = |args: &[&str], env_path: Option<&str>| {
+    // The project's venv (scripts/setup-python.sh's, where the test venv's Python is).
+    let python = python();
+    let cache = Path::new(&python).ancestors().nth(3).unwrap().to_path_buf();
+    let run_in = |args: &[&str], env_path: Option<&str>, cache: &Path| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_icrflow"));
         c.args(args).arg("--out").arg(&png).current_dir(root());
         match env_path {
+            // Neither $ICRFLOW_PYTHON nor the PATH: the project's venv under `cache` (or none).
             Some(p) => {
-                c.env("PATH", p).env_remove("ICRFLOW_PYTHON");
+                c.env("PATH", p)
+                    .env_remove("ICRFLOW_PYTHON")
+                    .env("ICRFLOW_CACHE", cache)
+                    .env("HOME", cache);
             }
             None => {
-                c.env("ICRFLOW_PYTHON", python());
+                c.env("ICRFLOW_PYTHON", &python);
             }
         }
         let out = c.output().unwrap();
         assert!(!out.status.success(), "{args:?}");
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
+    let run = |args: &[&str], env_path: Option<&str>| run_in(args, env_path, &dir);
     let missing = dir.join("missing.rrd");
     let err = run(&["render", missing.to_str().unwrap()], None);
     assert!(
@@ -408,6 +416,19 @@ fn render_refuses_bad_input_by_name() {
     let err = run(&["render", rrd], Some(dir.to_str().unwrap()));
     assert!(
         err.contains("no Rerun viewer") && err.contains("rerun-sdk==0.36.3"),
+        "{err}"
+    );
+    // The error names where it looked: the project's venv under ICRFLOW_CACHE, the PATH.
+    let venv = dir.join("venv/bin/rerun");
+    assert!(
+        err.contains(&venv.display().to_string()) && err.contains("the PATH (1 directories)"),
+        "{err}"
+    );
+    // The viewer scripts/setup.sh installed into the project's venv is found without
+    // ICRFLOW_PYTHON or the PATH: the render goes on to read the file.
+    let err = run_in(&["render", rrd], Some(dir.to_str().unwrap()), &cache);
+    assert!(
+        err.contains("is not a Rerun recording") && err.contains("some.rrd"),
         "{err}"
     );
     let err = run(&["render", rrd], None);

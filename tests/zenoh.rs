@@ -174,8 +174,9 @@ fn watched_run(name: &str, extra: &str) -> Watched {
     let text = String::from_utf8_lossy(&monitor.stdout);
     let err = String::from_utf8_lossy(&monitor.stderr);
     assert!(monitor.status.success(), "monitor: {err}");
-    let last = text.lines().last().unwrap_or_default().to_string();
+    let last = last_state(&text);
     assert!(text.lines().count() >= 2, "monitor printed: {text}\n{err}");
+    assert_short(&text);
     let _ = std::fs::remove_dir_all(&dir);
     Watched {
         run_err,
@@ -183,6 +184,31 @@ fn watched_run(name: &str, extra: &str) -> Watched {
         last,
         replies,
         keys,
+    }
+}
+
+/// The last state a monitor printed as plain lines: the lines of its last second (each begins
+/// with its time).
+fn last_state(text: &str) -> String {
+    let time = text
+        .lines()
+        .last()
+        .and_then(|l| l.split(' ').next())
+        .unwrap_or_default();
+    text.lines()
+        .filter(|l| l.starts_with(&format!("{time} ")))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Every plain line of a monitor is at most 100 characters long.
+fn assert_short(text: &str) {
+    for l in text.lines() {
+        assert!(
+            l.chars().count() <= 100,
+            "{} characters: {l}",
+            l.chars().count()
+        );
     }
 }
 
@@ -519,13 +545,8 @@ fn a_killed_bridge_is_restarted_and_the_monitor_reconnects() {
         "no progress seen after the kill: {text}"
     );
     // And it shows the bridge's restart (a new process of the node), not "running" throughout.
-    assert!(
-        text.lines()
-            .last()
-            .unwrap_or_default()
-            .contains("(restarted 1x"),
-        "{text}"
-    );
+    assert!(last_state(&text).contains("(restarted 1x"), "{text}");
+    assert_short(&text);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -594,5 +615,142 @@ fn the_monitor_waits_for_a_run_and_warns_of_a_wrong_rig() {
             && err.contains("--rig sim?"),
         "{err}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `icrflow monitor` says when the run it watches has ended (every node it saw gone silent),
+/// in its view and once on stderr, instead of each node as SILENT; its plain lines are short.
+#[test]
+fn the_monitor_says_when_the_run_ended() {
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-ended");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let config = paper_config(
+        &dir,
+        "ended",
+        &format!("[zenoh]\nlisten = [\"{endpoint}\"]"),
+    );
+    // A short run: a sixth of a turn.
+    let text = std::fs::read_to_string(&config).unwrap();
+    std::fs::write(
+        &config,
+        text.replace("rotation_deg = 360.0", "rotation_deg = 60.0"),
+    )
+    .unwrap();
+    let summary = config.with_extension("json");
+    let run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args([
+            "run",
+            config.to_str().unwrap(),
+            "--no-visualizer",
+            "--summary-json",
+        ])
+        .arg(&summary)
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(1));
+    let monitor = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["monitor", "--connect", &endpoint, "--seconds", "12"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let run = run.wait_with_output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(read_summary(&summary)["completed"], true);
+    let monitor = monitor.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&monitor.stdout);
+    let err = String::from_utf8_lossy(&monitor.stderr);
+    assert!(monitor.status.success(), "{err}\n{text}");
+    // It saw the run, then its end.
+    assert!(text.contains("plant running"), "{text}");
+    assert_eq!(
+        err.matches("monitor: the run has ended").count(),
+        1,
+        "{err}"
+    );
+    let last = last_state(&text);
+    assert!(
+        last.contains("RUN ENDED: no node has reported for"),
+        "{last}"
+    );
+    assert!(
+        last.contains("nodes     ended: ") && !last.contains("SILENT"),
+        "{last}"
+    );
+    assert_short(&text);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A split run whose other host never comes says on its status line which input it waits for,
+/// and from where, once its planner has planned (not the planner's last "planning: N %").
+#[test]
+fn a_split_run_says_which_input_from_the_other_host_it_waits_for() {
+    use std::io::BufRead as _;
+    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch("zenoh-alone");
+    let (listen, connect) = (
+        format!("tcp/127.0.0.1:{}", free_port()),
+        format!("tcp/127.0.0.1:{}", free_port()),
+    );
+    // The workstation's half of config/split_workstation.toml, the robot's host absent.
+    let config = paper_config(
+        &dir,
+        "alone",
+        &format!(
+            "[pipeline]\nnodes = [\"wrench\", \"planner\"]\n\n[zenoh]\nlisten = [\"{listen}\"]\nconnect = [\"{connect}\"]"
+        ),
+    );
+    let mut run = Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["run", config.to_str().unwrap(), "--no-visualizer"])
+        .current_dir(root())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let want = format!(
+        "run: waiting for grasp_state from the other host (Zenoh, connecting to {connect}, listening on {listen}), "
+    );
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stderr = run.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut said = String::new();
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            said.push_str(&line);
+            said.push('\n');
+            let _ = tx.send(line);
+        }
+        said
+    });
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    let mut found = false;
+    while let Some(rest) = deadline.checked_duration_since(std::time::Instant::now()) {
+        match rx.recv_timeout(rest) {
+            Ok(line) if line.starts_with(&want) => {
+                found = true;
+                break;
+            }
+            Ok(_) => {}
+            Err(_) => break,
+        }
+    }
+    let interrupted = Command::new("kill")
+        .args(["-INT", &run.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
+    let _ = run.wait();
+    let said = reader.join().unwrap();
+    assert!(found, "never said {want:?}:\n{said}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -242,6 +242,21 @@ fn topic_error(topic: &str, what: &str, e: impl Debug) -> BusError {
     }
 }
 
+/// Sets iceoryx2's logging for one of our processes: its warnings and errors on stderr, not
+/// its notes. And iceoryx2's process-wide default configuration is loaded now, with its
+/// logging off: our nodes are made with the run's own configuration ([`BusConfig::iceoryx`]),
+/// but iceoryx2 falls back on the process-wide one where none is given (the resources of a
+/// dead node whose details could not be read, which [`crate::supervise::cleanup_dead_nodes`]
+/// removes), and loading it warns "No config file was loaded, a config with default values
+/// will be used" on stderr where no iceoryx2 config file exists: library noise in a run's
+/// messages. Loaded now, it is what iceoryx2 would load then (a config file if there is one,
+/// else the defaults), said nowhere.
+pub fn set_up_logging() {
+    set_log_level(LogLevel::Fatal);
+    let _ = Config::global_config();
+    set_log_level(LogLevel::Warn);
+}
+
 impl Bus {
     /// Creates this process's iceoryx2 node `name` on the run's bus.
     pub fn new(name: &str, config: &BusConfig) -> Result<Self, BusError> {

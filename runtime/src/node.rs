@@ -5,7 +5,6 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::{Context as _, Result, anyhow, bail};
-use iceoryx2::prelude::{LogLevel, set_log_level};
 
 use crate::bus::Bus;
 pub use crate::launch::{Launch, LaunchError};
@@ -44,7 +43,7 @@ pub fn main_launched<S>(
     load: fn(&Path) -> Result<S>,
     body: fn(&Context<S>) -> Result<()>,
 ) -> ExitCode {
-    set_log_level(LogLevel::Warn);
+    crate::bus::set_up_logging();
     let result = (|| -> Result<()> {
         let launch = launch.with_context(|| {
             format!(

@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use icrflow_interfaces::TRACE_STAMPS;
 
-use super::summary::{Allocations, Histogram, Hops, Latencies, Stages};
+use super::histogram::Histogram;
+use super::summary::{Allocations, Hops, Latencies, Stages};
 use super::watch::WARM_UP;
 
 /// Per node: the running process's first health report, its baseline (the first report after

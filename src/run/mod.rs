@@ -6,11 +6,15 @@
 //! | [`launch`] | what each process is started with, the run's bus, the visualizer started first |
 //! | [`watch`] | the run's event loop: what it takes off the bus, and why it stops ([`stop::StopReason`]) |
 //! | [`measure`] | latencies, rates, steady-state allocations, `/proc` samples |
+//! | [`histogram`] | latency percentiles in constant memory |
+//! | [`hold_cause`] | the cause of a hold, from its reason, with its numbers |
 //! | [`status`] | what the run says on stderr as it goes: its messages and one status line |
 //! | [`physics`] | the run against MuJoCo's truth: the summary's `physics` |
 //! | [`track`] | the state machines the watch feeds: heartbeats, the estimate against the truth, re-plans, SIGHUP |
 //! | [`summary`] | what the run prints at the end and writes with `--summary-json` |
 
+pub(crate) mod histogram;
+pub(crate) mod hold_cause;
 pub(crate) mod launch;
 pub(crate) mod measure;
 pub(crate) mod physics;
@@ -24,7 +28,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use iceoryx2::prelude::*;
 use icrflow_plan::rolling::Surface;
 use icrflow_plan::spatial::surface::Convex;
 use icrflow_runtime::bus::Bus;
@@ -180,7 +183,7 @@ pub fn run(
     }
     .specs()?;
     let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
-    set_log_level(LogLevel::Warn);
+    icrflow_runtime::bus::set_up_logging();
     // A run that was killed outright (SIGKILL, power loss) leaves its bus and the plant's and
     // estimator's checkpoints behind under its pid; a later run given the same pid must not
     // resume from them. No live process has our pid, so what is there is stale.

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result};
 use icrflow_interfaces::{GraspState, PlantTruth};
 
-use super::summary::{Histogram, Percentiles};
+use super::histogram::{Histogram, Percentiles};
 
 /// A node silent (no health report, which every node sends every 100 ms) this long is
 /// reported: within a second of its last report.

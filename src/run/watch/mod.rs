@@ -1,6 +1,19 @@
 //! Watching the run: what `run` takes off the bus while the nodes run ([`Watch`], fed on every
 //! wake-up of its event loop, `icrflow_runtime::event`'s as every node's) until it stops
 //! ([`StopReason`]); what it saw goes to the summary ([`Seen`]).
+//!
+//! | module | what the watch takes |
+//! |---|---|
+//! | this one | the loop: the topics read, each wake-up and tick, what was seen at the end |
+//! | [`plan`] | the plan steps, and whether the plan still goes on |
+//! | [`commands`] | the hand commands: tracking, and holds by cause |
+//! | [`nodes`] | the nodes' health reports, `/proc` samples, silences |
+//! | [`line`] | the status line on stderr |
+
+mod commands;
+mod line;
+mod nodes;
+mod plan;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::ControlFlow;
@@ -8,28 +21,24 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use icrflow_interfaces::{
-    CommandMode, GraspState, HandCommand, JointState, NodeHealth, NodeState, PlanPhase,
-    PlanStepHeader, PlantTruth, TEXT_BYTES, read_text, topics,
+    GraspState, HandCommand, JointState, NodeHealth, PlanStepHeader, PlantTruth, TEXT_BYTES,
+    read_text, topics,
 };
 use icrflow_runtime::bus::{Bus, SliceSub, Sub};
 use icrflow_runtime::event::{Loop, RESYNC};
 use icrflow_runtime::supervise::Supervisor;
 use icrflow_scenario::{Config, PlantKind};
 
+use super::histogram::Histogram;
+use super::hold_cause::HoldCause;
 use super::launch::{VisualizerStart, report, start_visualizer};
-use super::measure::{AllocationTrack, Rate, Timing, resident_kib, scheduling};
+use super::measure::{AllocationTrack, Rate, Timing};
 use super::physics::{PhysicsSummary, PhysicsTrack};
 use super::status::{Status, say};
 use super::stop::StopReason;
-use super::summary::{Allocations, Histogram, Latencies, Memory, PlanStream};
-use super::track::{EstimateError, Hangup, Heartbeats, ReplanProgress, Silence, TruthTrack};
-
-/// A hold this long is reported on stderr, and again every time as long.
-const HOLD_REPORT: Duration = Duration::from_secs(1);
-
-/// The text a hold because of the estimate starts with (the command node's
-/// `Hold::Estimate`).
-const ESTIMATE_OFF: &str = "the estimate is off";
+use super::summary::{Allocations, Latencies, Memory, PlanStream};
+use super::track::{EstimateError, Hangup, Heartbeats, ReplanProgress, TruthTrack};
+use nodes::silence;
 
 /// How long a run to the goal may take, from its first plan step (and how long it waits for
 /// that one).
@@ -54,6 +63,8 @@ pub(super) struct Seen {
     pub holds: u64,
     pub startup_holds: u64,
     pub hold_causes: BTreeMap<String, u64>,
+    /// The holds' causes with their numbers as the reasons had them, by cause.
+    pub hold_figures: BTreeMap<String, String>,
     pub planned_after: Option<f64>,
     pub sent: u64,
     pub measurements: u64,
@@ -120,6 +131,31 @@ struct Limits {
     /// of a split run that plans (its planner republishes `Done`, which the other host's run
     /// needs to hear to stop), none otherwise.
     linger: Duration,
+    /// The topics a split run takes from the other host and watches for ([`WATCHED`]), and
+    /// its Zenoh link, in words (`connecting to tcp/..., listening on tcp/...`).
+    imports: Vec<&'static str>,
+    link: String,
+}
+
+/// The topics the run reads (and so sees arrive) that can come from the other host of a split
+/// run.
+const WATCHED: [topics::TopicId; 4] = [
+    topics::TopicId::JointState,
+    topics::TopicId::GraspState,
+    topics::TopicId::PlanStep,
+    topics::TopicId::HandCommand,
+];
+
+/// A split run's link to the other host, in words: where its bridge connects and listens.
+fn link(zenoh: &icrflow_scenario::ZenohSpec) -> String {
+    let mut parts = Vec::new();
+    if !zenoh.connect.is_empty() {
+        parts.push(format!("connecting to {}", zenoh.connect.join(", ")));
+    }
+    if !zenoh.listen.is_empty() {
+        parts.push(format!("listening on {}", zenoh.listen.join(", ")));
+    }
+    format!("Zenoh, {}", parts.join(", "))
 }
 
 /// How long the planning host of a split run goes on after its goal, so that the planner's
@@ -163,6 +199,8 @@ pub(super) struct Watch {
     /// Holds after the start-up (see [`Watch::command`]), and by cause.
     holds: u64,
     hold_causes: BTreeMap<String, u64>,
+    /// The holds' causes with their numbers, by cause.
+    hold_figures: BTreeMap<String, HoldCause>,
     /// Holds of the start-up: before the hand first tracked, for an input not there yet
     /// (the plan, while the planner node plans).
     startup_holds: u64,
@@ -182,6 +220,10 @@ pub(super) struct Watch {
     first_plan: Option<Instant>,
     /// The planner node's last word while it plans (its `Starting` health report).
     planning: Option<String>,
+    /// Whether the planner node has planned (it reports that it runs).
+    planned: bool,
+    /// The topics seen on the bus so far (their names), of those a split run can wait for.
+    arrived: BTreeSet<&'static str>,
     /// What `run` says on stderr as it goes.
     status: Status,
     /// Whether the goal's reaching was said.
@@ -295,6 +337,17 @@ impl Watch {
                 } else {
                     Duration::ZERO
                 },
+                imports: if p.split() {
+                    topics::links(&p.nodes)
+                        .import
+                        .into_iter()
+                        .filter(|t| WATCHED.contains(t))
+                        .map(|t| t.name())
+                        .collect()
+                } else {
+                    Vec::new()
+                },
+                link: link(&config.zenoh),
             },
             hangup,
             names,
@@ -319,6 +372,7 @@ impl Watch {
             rotation: 0.0,
             holds: 0,
             hold_causes: BTreeMap::new(),
+            hold_figures: BTreeMap::new(),
             startup_holds: 0,
             tracked: false,
             sent: 0,
@@ -330,6 +384,8 @@ impl Watch {
             progress: None,
             first_plan: None,
             planning: None,
+            planned: false,
+            arrived: BTreeSet::new(),
             status: Status::default(),
             goal_said: false,
             goal_at: None,
@@ -387,136 +443,6 @@ impl Watch {
         Ok(None)
     }
 
-    /// The status line: what the planner node does until the first plan step, then how far
-    /// the run has got (`now`: drawn now, whatever the period).
-    fn show(&mut self, now: bool) {
-        if !self.status.due(now) {
-            return;
-        }
-        let l = &self.limits;
-        let elapsed = l.started.elapsed().as_secs_f64();
-        let text = match (&self.first_plan, &self.planning) {
-            (None, Some(doing)) => format!("run: the planner node is {doing}, {elapsed:.1} s"),
-            // The processes' start: said once it takes a while.
-            (None, None) if !now && elapsed < super::status::LINE_EVERY.as_secs_f64() => return,
-            (None, None) => format!("run: waiting for the first plan step, {elapsed:.1} s"),
-            (Some(_), _) => format!(
-                "run: {:.1} of {:.1} deg | {} switches | min alpha* {} (alpha {}) | {} holds | {} restarts | {elapsed:.1} s",
-                self.rotation.to_degrees(),
-                l.goal.to_degrees(),
-                self.attaches.len(),
-                if self.min_quality.is_finite() {
-                    format!("{:.4}", self.min_quality)
-                } else {
-                    "-".into()
-                },
-                l.alpha,
-                self.holds,
-                self.restarts
-            ),
-        };
-        self.status.update(now, || text);
-    }
-
-    /// A plan step.
-    fn plan_step(&mut self, p: &PlanStepHeader) {
-        self.plan_published += 1;
-        if let Some(physics) = &mut self.physics {
-            physics.plan_step(p);
-        }
-        if let [.., taken, published] = p.header.trace.as_slice() {
-            self.plan_compute
-                .add(published.saturating_sub(*taken) as f64 * 1e-3);
-        }
-        if self.first_plan.is_none() {
-            let now = Instant::now();
-            self.first_plan = Some(now);
-            self.status.clear();
-            say!(
-                "run: the plan is ready after {:.1} s (the hand held the initial grasp meanwhile); the hand follows it",
-                now.duration_since(self.limits.started).as_secs_f64()
-            );
-            self.show(true);
-        }
-        if p.phase == PlanPhase::Done as u32 {
-            self.done = true;
-            return;
-        }
-        self.last_step = self.last_step.max(p.step);
-        if self.progress.is_none_or(|(step, _)| step != p.step) {
-            self.progress = Some((p.step, Instant::now()));
-        }
-        if p.phase == PlanPhase::Attach as u32 {
-            self.attaches.insert(p.step);
-        }
-        if p.phase == PlanPhase::Start as u32
-            && p.step > 0
-            && self.replans.insert(p.step)
-            && let Some(why) = self.replan_progress.replanned(p.rotation, self.limits.goal)
-        {
-            self.gave_up.get_or_insert(why);
-        }
-    }
-
-    /// A hand command.
-    fn command(&mut self, c: &HandCommand) {
-        self.sent += 1;
-        if c.mode == CommandMode::Track as u32 {
-            self.tracked = true;
-            if let Some((since, _)) = self.holding.take()
-                && since.elapsed() >= HOLD_REPORT
-            {
-                say!(
-                    "run: the hand tracks again after holding {:.1} s",
-                    since.elapsed().as_secs_f64()
-                );
-            }
-            self.min_quality = self.min_quality.min(c.quality);
-            self.truth.tracked(1, self.limits.estimate_bound);
-            self.doubting = false;
-            self.timing.add(c.header.trace.as_slice());
-            if c.header.origin_time_ns > 0 {
-                let made = c.header.source_time_ns;
-                if made.saturating_sub(c.header.origin_time_ns) > self.limits.max_age_ns {
-                    self.stale_tracked += 1;
-                }
-            }
-            return;
-        }
-        let reason = read_text(&c.reason);
-        // The start-up: the hand holds its initial grasp until every input has come (the
-        // plan, while the planner node plans): not a hold of the run, and no reason to give
-        // up (the planner node's failure is the supervisor's).
-        if !self.tracked && reason.starts_with("no ") && reason.ends_with(" yet") {
-            self.startup_holds += 1;
-            return;
-        }
-        self.holds += 1;
-        *self.hold_causes.entry(cause(&reason)).or_default() += 1;
-        self.hold_reason = c.reason;
-        if c.reason.starts_with(ESTIMATE_OFF.as_bytes()) {
-            self.estimate_holds += 1;
-            // Said at once, once a spell: the loop noticed its estimate is wrong.
-            if !self.doubting {
-                say!("run: the hand holds: {reason}");
-            }
-            self.doubting = true;
-        } else {
-            self.doubting = false;
-        }
-        // A hold longer than HOLD_REPORT is reported (with its reason), then every
-        // HOLD_REPORT again; short ones only count.
-        let now = Instant::now();
-        let (since, reported) = self.holding.get_or_insert((now, now));
-        if now.duration_since(*reported) >= HOLD_REPORT {
-            *reported = now;
-            say!(
-                "run: the hand has held for {:.1} s: {reason}",
-                now.duration_since(*since).as_secs_f64()
-            );
-        }
-    }
-
     /// The periodic wake-up: the topics read on it, the supervisor, the heartbeats, the
     /// samples; why the run stops, if it does.
     fn tick(&mut self, ports: &Ports, supervisor: &mut Supervisor) -> Result<Option<StopReason>> {
@@ -529,8 +455,10 @@ impl Watch {
             };
             self.last_joint = j.header.sequence;
             self.measurement_rate.saw(self.measurements);
+            self.arrived.insert(topics::TopicId::JointState.name());
         }
         if let Some(g) = ports.grasps.latest()? {
+            self.arrived.insert(topics::TopicId::GraspState.name());
             self.rotation = g.rotation;
             self.truth.estimate(&g);
         }
@@ -570,88 +498,6 @@ impl Watch {
         Ok(self.stalled())
     }
 
-    /// Whether a run to the goal cannot go on: a plan that does not go on while the hand
-    /// tracks (a target it never reaches, and the planner node does not plan again), or
-    /// ended short of the goal (a plan made again from the estimate may); a hand that holds
-    /// too long.
-    fn stalled(&self) -> Option<StopReason> {
-        let l = &self.limits;
-        if l.live {
-            return None;
-        }
-        let short = self.rotation < l.goal - icrflow_plan::follow::GOAL_TOLERANCE;
-        // Before the first plan step the planner node plans: however long that takes, it is
-        // no stall (a planner node that fails is the supervisor's, and said).
-        let (step, since) = self.progress.map(|(step, t)| (step, t.elapsed()))?;
-        if (!self.done || short) && self.holding.is_none() && since >= l.max_hold {
-            return Some(if self.done {
-                StopReason::PlanEndedShort {
-                    step,
-                    rotation: self.rotation,
-                }
-            } else {
-                StopReason::PlanStalled {
-                    step,
-                    since,
-                    rotation: self.rotation,
-                }
-            });
-        }
-        // A run to the goal does not wait for ever on a hand that cannot go on.
-        match self.holding {
-            Some((since, _)) if since.elapsed() >= l.max_hold => Some(StopReason::HandHeld {
-                since: since.elapsed(),
-                reason: read_text(&self.hold_reason),
-            }),
-            _ => None,
-        }
-    }
-
-    /// Samples each process's scheduling policy and resident memory.
-    fn sample(&mut self, supervisor: &Supervisor) {
-        for n in &self.names {
-            if let Some(policy) = supervisor.pid(n).and_then(scheduling) {
-                self.policies.insert(n.clone(), policy);
-            }
-            if let Some(kib) = supervisor.pid(n).and_then(resident_kib) {
-                let m = self.memory.entry(n.clone()).or_insert(Memory {
-                    first: kib,
-                    ..Memory::default()
-                });
-                m.last = kib;
-                m.max = m.max.max(kib);
-                m.samples += 1;
-            }
-        }
-    }
-
-    /// Takes a node's health report, taken off the bus at `now`: its heartbeat, its
-    /// allocations into its track, and the visualizer's frames recorded and dropped (per
-    /// process).
-    fn take_health(&mut self, h: &NodeHealth, now: Instant) {
-        let node = read_text(&h.node);
-        if h.state == NodeState::Starting as u32 {
-            // A node that says it starts up (the planner node planning) is not watched for
-            // hangs until it runs; what it does is shown.
-            if node == icrflow_interfaces::topics::NodeRole::Planner.name() {
-                let doing = read_text(&h.message);
-                if self.planning.is_none() {
-                    say!("run: the planner node is {doing}");
-                }
-                self.planning = Some(doing);
-            }
-            return;
-        }
-        self.beats.beat(&node, h.pid, now);
-        if node == icrflow_interfaces::topics::NodeRole::Visualizer.name() {
-            self.frames.insert(h.pid, (h.processed, h.refused));
-        }
-        self.tracks
-            .entry(node)
-            .or_default()
-            .report(h.pid, h.allocations, h.processed, now);
-    }
-
     /// What the run saw, as it stopped for `stop`.
     fn seen(self, stop: StopReason) -> Seen {
         Seen {
@@ -665,6 +511,11 @@ impl Watch {
             holds: self.holds,
             startup_holds: self.startup_holds,
             hold_causes: self.hold_causes,
+            hold_figures: self
+                .hold_figures
+                .iter()
+                .map(|(k, c)| (k.clone(), c.shown()))
+                .collect(),
             planned_after: self
                 .first_plan
                 .map(|t| t.duration_since(self.limits.started).as_secs_f64()),
@@ -694,84 +545,5 @@ impl Watch {
                 .values()
                 .fold((0, 0), |(a, b), (p, r)| (a + p, b + r)),
         }
-    }
-}
-
-/// The cause of a hold, from its reason: the text before its details, the parts up to the
-/// first with a number (`grasp state: stale` of `grasp state: stale: 12.1 ms old, limit
-/// 10.0 ms`), numbers in the first part as `N`.
-pub(super) fn cause(reason: &str) -> String {
-    let mut parts = reason.split(':');
-    let mut head = parts.next().unwrap_or(reason).trim().to_string();
-    if !head.chars().any(|c| c.is_ascii_digit()) {
-        for part in parts.take_while(|p| !p.chars().any(|c| c.is_ascii_digit())) {
-            head.push(':');
-            head.push_str(part);
-        }
-    }
-    let head = head.trim();
-    let mut out = String::with_capacity(head.len());
-    let mut in_number = false;
-    for ch in head.chars() {
-        if ch.is_ascii_digit() || (in_number && ch == '.') {
-            if !in_number {
-                out.push('N');
-            }
-            in_number = true;
-        } else {
-            in_number = false;
-            out.push(ch);
-        }
-    }
-    out
-}
-
-/// Says what a node's silence is, and kills a hung node (the supervisor restarts it).
-fn silence(s: &Silence, supervisor: &mut Supervisor, restart_s: f64) {
-    match s {
-        Silence::Silent { name, pid, since } => say!(
-            "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: hung or stopped? (restarted after {restart_s} s: pipeline.hung_restart_s)",
-            since.as_secs_f64()
-        ),
-        Silence::Hung { name, pid, since } => {
-            supervisor.kill(name);
-            say!(
-                "run: node {name} (pid {pid}) has sent no heartbeat for {:.1} s: killed, to be restarted",
-                since.as_secs_f64()
-            );
-        }
-        Silence::Back { name, after } => say!(
-            "run: node {name} sends heartbeats again after {:.1} s",
-            after.as_secs_f64()
-        ),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_holds_cause_is_its_reason_without_the_details() {
-        assert_eq!(
-            cause("grasp state is stale: 12.1 ms old, limit 10.0 ms"),
-            "grasp state is stale"
-        );
-        assert_eq!(
-            cause("grasp state: stale: 3.2 ms old, limit 0.0 ms"),
-            "grasp state: stale"
-        );
-        assert_eq!(
-            cause("the estimate is off: pose innovation 3.20 deg over the bound 2.00 deg"),
-            "the estimate is off"
-        );
-        assert_eq!(
-            cause("no wrench space for 31.5 ms"),
-            "no wrench space for N ms"
-        );
-        assert_eq!(
-            cause("quality alpha* = 0.0812 below the margin alpha = 0.1"),
-            "quality alpha* = N below the margin alpha = N"
-        );
     }
 }

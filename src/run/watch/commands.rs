@@ -1,0 +1,88 @@
+//! The hand commands as the run sees them: tracking (quality, latency, staleness) and holds,
+//! counted by cause ([`HoldCause`]) and reported on stderr while they last.
+
+use std::collections::btree_map::Entry;
+use std::time::{Duration, Instant};
+
+use icrflow_interfaces::topics::TopicId;
+use icrflow_interfaces::{CommandMode, HandCommand, read_text};
+
+use super::Watch;
+use crate::run::hold_cause::HoldCause;
+use crate::run::status::say;
+
+/// A hold this long is reported on stderr, and again every time as long.
+const HOLD_REPORT: Duration = Duration::from_secs(1);
+
+/// The text a hold because of the estimate starts with (the command node's
+/// `Hold::Estimate`).
+const ESTIMATE_OFF: &str = "the estimate is off";
+
+impl Watch {
+    /// A hand command.
+    pub(super) fn command(&mut self, c: &HandCommand) {
+        self.sent += 1;
+        self.arrived.insert(TopicId::HandCommand.name());
+        if c.mode == CommandMode::Track as u32 {
+            self.tracked = true;
+            if let Some((since, _)) = self.holding.take()
+                && since.elapsed() >= HOLD_REPORT
+            {
+                say!(
+                    "run: the hand tracks again after holding {:.1} s",
+                    since.elapsed().as_secs_f64()
+                );
+            }
+            self.min_quality = self.min_quality.min(c.quality);
+            self.truth.tracked(1, self.limits.estimate_bound);
+            self.doubting = false;
+            self.timing.add(c.header.trace.as_slice());
+            if c.header.origin_time_ns > 0 {
+                let made = c.header.source_time_ns;
+                if made.saturating_sub(c.header.origin_time_ns) > self.limits.max_age_ns {
+                    self.stale_tracked += 1;
+                }
+            }
+            return;
+        }
+        let reason = read_text(&c.reason);
+        // The start-up: the hand holds its initial grasp until every input has come (the
+        // plan, while the planner node plans): not a hold of the run, and no reason to give
+        // up (the planner node's failure is the supervisor's).
+        if !self.tracked && reason.starts_with("no ") && reason.ends_with(" yet") {
+            self.startup_holds += 1;
+            return;
+        }
+        self.holds += 1;
+        let cause = HoldCause::of(&reason);
+        *self.hold_causes.entry(cause.key()).or_default() += 1;
+        match self.hold_figures.entry(cause.key()) {
+            Entry::Vacant(e) => {
+                e.insert(cause);
+            }
+            Entry::Occupied(mut e) => e.get_mut().widen(&cause),
+        }
+        self.hold_reason = c.reason;
+        if c.reason.starts_with(ESTIMATE_OFF.as_bytes()) {
+            self.estimate_holds += 1;
+            // Said at once, once a spell: the loop noticed its estimate is wrong.
+            if !self.doubting {
+                say!("run: the hand holds: {reason}");
+            }
+            self.doubting = true;
+        } else {
+            self.doubting = false;
+        }
+        // A hold longer than HOLD_REPORT is reported (with its reason), then every
+        // HOLD_REPORT again; short ones only count.
+        let now = Instant::now();
+        let (since, reported) = self.holding.get_or_insert((now, now));
+        if now.duration_since(*reported) >= HOLD_REPORT {
+            *reported = now;
+            say!(
+                "run: the hand has held for {:.1} s: {reason}",
+                now.duration_since(*since).as_secs_f64()
+            );
+        }
+    }
+}
