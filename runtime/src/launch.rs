@@ -75,6 +75,12 @@ pub enum LaunchError {
     /// An argument unknown, missing, repeated, without its value or of the wrong form.
     #[error("{}", .0.render())]
     Arguments(#[from] clap::Error),
+    /// A required argument missing (where clap was told not to require it).
+    #[error("{flag} is missing")]
+    Missing {
+        /// The argument.
+        flag: &'static str,
+    },
     /// The bus settings are unusable.
     #[error(transparent)]
     Bus(#[from] BusError),
@@ -82,21 +88,23 @@ pub enum LaunchError {
 
 /// The arguments of a node (see the [module](self)): parsed by clap, turned into a [`Launch`]
 /// by [`Launch::try_from`]. A binary with modes of its own (the visualizer) flattens them
-/// into its command line.
+/// into its command line, its modes subcommands that lift their requirement
+/// (`subcommand_negates_reqs`): hence the `Option`s of the required ones, which clap requires
+/// (and [`Launch::try_from`] refuses missing, naming them).
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
     /// The config file the node loads.
-    #[arg(long, value_name = "PATH")]
-    pub config: PathBuf,
+    #[arg(long, value_name = "PATH", required = true)]
+    pub config: Option<PathBuf>,
     /// The run's rig name.
-    #[arg(long)]
-    pub rig: String,
+    #[arg(long, required = true)]
+    pub rig: Option<String>,
     /// The run's bus prefix.
-    #[arg(long, value_name = "PREFIX")]
-    pub bus_prefix: String,
+    #[arg(long, value_name = "PREFIX", required = true)]
+    pub bus_prefix: Option<String>,
     /// The run's bus root (an absolute path).
-    #[arg(long, value_name = "DIR")]
-    pub bus_root: PathBuf,
+    #[arg(long, value_name = "DIR", required = true)]
+    pub bus_root: Option<PathBuf>,
     /// The supervisor's process id.
     #[arg(long, value_name = "PID", value_parser = clap::value_parser!(u32).range(1..))]
     pub supervisor: Option<u32>,
@@ -140,9 +148,14 @@ impl TryFrom<LaunchArgs> for Launch {
     type Error = LaunchError;
 
     fn try_from(a: LaunchArgs) -> Result<Self, LaunchError> {
+        let missing = |flag| LaunchError::Missing { flag };
+        let (rig, prefix) = (
+            a.rig.ok_or(missing("--rig"))?,
+            a.bus_prefix.ok_or(missing("--bus-prefix"))?,
+        );
         Ok(Self {
-            bus: BusConfig::new(&a.rig, &a.bus_prefix, a.bus_root)?,
-            config: a.config,
+            bus: BusConfig::new(&rig, &prefix, a.bus_root.ok_or(missing("--bus-root"))?)?,
+            config: a.config.ok_or(missing("--config"))?,
             supervisor: a.supervisor,
             realtime: a.realtime,
             log: Log {

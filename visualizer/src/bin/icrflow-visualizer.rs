@@ -18,12 +18,16 @@ static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
 
 /// The visualizer's command line: a node's arguments, or one of its two modes.
 #[derive(Debug, Parser)]
-#[command(name = "icrflow-visualizer", args_conflicts_with_subcommands = true)]
+#[command(
+    name = "icrflow-visualizer",
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 struct Cli {
     #[command(subcommand)]
     mode: Option<Mode>,
     #[command(flatten)]
-    node: Option<LaunchArgs>,
+    node: LaunchArgs,
 }
 
 /// The modes that are not the pipeline's node.
@@ -74,15 +78,12 @@ fn main() -> ExitCode {
                 .ok_or_else(|| anyhow::anyhow!("--plan needs --recording TARGET --recording-id ID"))
                 .and_then(|r| icrflow_visualizer::plan::run(&config, &trajectory, &r).map(|_| ())),
         ),
-        (None, Some(node)) => icrflow_runtime::node::main_launched(
+        (None, node) => icrflow_runtime::node::main_launched(
             "visualizer",
             Launch::try_from(node),
             icrflow_scenario::Loaded::load,
             icrflow_visualizer::run,
         ),
-        (None, None) => exit(Err(anyhow::anyhow!(
-            "started by `icrflow run` (a node's --config ... arguments), `icrflow plan --rrd` (--plan) or `icrflow render` (--render); see --help"
-        ))),
     }
 }
 
@@ -110,7 +111,7 @@ mod tests {
         });
         let cli = parse(&launch.to_args()).unwrap();
         assert!(cli.mode.is_none());
-        assert_eq!(Launch::try_from(cli.node.unwrap()).unwrap(), launch);
+        assert_eq!(Launch::try_from(cli.node).unwrap(), launch);
         // The plan mode, as `icrflow plan --rrd` starts it.
         let mut plan: Vec<String> = ["--plan", "c.toml", "t.json"].map(String::from).into();
         plan.extend(launch.recording.clone().unwrap().to_args());
@@ -135,10 +136,12 @@ mod tests {
             Some(Mode::Render(r)) => assert_eq!((r.size, r.out), ((800, 600), "p.png".into())),
             other => panic!("{other:?}"),
         }
-        // A mode with a node's argument, or nothing at all, is refused.
+        // A mode with a node's argument is refused, and so is a node without its own.
         let mut mixed = render.to_vec();
         mixed.extend(["--rig".into(), "r".into()]);
         assert!(parse(&mixed).is_err());
+        let e = parse(&launch.to_args()[2..]).unwrap_err().to_string();
+        assert!(e.contains("--config <PATH>"), "{e}");
         assert!(parse(&plan[..3]).is_ok_and(|c| matches!(c.mode, Some(Mode::Plan { .. }))));
     }
 }
