@@ -5,7 +5,7 @@ use anyhow::{Result, bail};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::wrench::{ContactModel, Space};
 
-use super::each;
+use super::{components, each};
 use crate::bounds;
 use crate::raw::{self, RawContact};
 
@@ -99,11 +99,11 @@ fn contact_spec(i: usize, c: RawContact) -> Result<FingerContact> {
                 .check(&format!("grasp.contacts[{i}].angle_deg"), a)?
                 .to_radians(),
         ),
-        (None, Some(p)) => ContactSpec::Point(Vec3::from(each(
-            &format!("grasp.contacts[{i}].point"),
-            p,
-            bounds::CONTACT_POINT,
-        )?)),
+        (None, Some(p)) => {
+            let key = format!("grasp.contacts[{i}].point");
+            let p = components(&key, &p, "[x, y, z] (m, body frame)")?;
+            ContactSpec::Point(Vec3::from(each(&key, p, bounds::CONTACT_POINT)?))
+        }
     };
     let cap_angle = c
         .cap_angle_deg

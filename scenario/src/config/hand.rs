@@ -8,7 +8,7 @@ use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion};
 use icrflow_plan::hand::{Hand, planar_finger};
 use icrflow_plan::urdf::UrdfFinger;
 
-use super::{each, existing_file};
+use super::{components, each, existing_file};
 use crate::bounds::{self, num};
 use crate::raw::RawHand;
 
@@ -161,14 +161,22 @@ pub(crate) fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
     match raw.urdf {
         Some(file) => {
             let full = existing_file("hand.urdf", "a URDF file", base.join(&file))?;
+            let vector = |key: &str, v: &Option<Vec<Real>>, what: &str| -> Result<[Real; 3]> {
+                v.as_deref()
+                    .map_or(Ok([0.0; 3]), |v| components(key, v, what))
+            };
             let o = each(
                 "hand.urdf_origin",
-                raw.urdf_origin.unwrap_or([0.0; 3]),
+                vector("hand.urdf_origin", &raw.urdf_origin, "[x, y, z] (m)")?,
                 bounds::HAND_POSITION,
             )?;
             let r = each(
                 "hand.urdf_rpy_deg",
-                raw.urdf_rpy_deg.unwrap_or([0.0; 3]),
+                vector(
+                    "hand.urdf_rpy_deg",
+                    &raw.urdf_rpy_deg,
+                    "[roll, pitch, yaw] (deg)",
+                )?,
                 bounds::HAND_ANGLE,
             )?
             .map(Real::to_radians);
@@ -179,10 +187,16 @@ pub(crate) fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
             let mut fingers = Vec::new();
             for (i, f) in raw.fingers.into_iter().enumerate() {
                 let key = |k: &str| format!("hand.fingers[{i}].{k}");
-                if f.base.is_some() || f.links.is_some() || f.limits_deg.is_some() {
+                let link_length = [
+                    ("base", f.base.is_some()),
+                    ("base_yaw_deg", f.base_yaw_deg.is_some()),
+                    ("links", f.links.is_some()),
+                    ("limits_deg", f.limits_deg.is_some()),
+                ];
+                if let Some((k, _)) = link_length.iter().find(|(_, given)| *given) {
                     bail!(
-                        "{}: a URDF hand takes `tip_link` (and optionally `home_deg`, `fingertip_radius`), not base/links/limits",
-                        key("tip_link")
+                        "{}: a link-length finger's; a URDF hand takes `tip_link` (and optionally `home_deg`, `fingertip_radius`), not base/base_yaw_deg/links/limits_deg, so it has no effect: leave it out",
+                        key(k)
                     );
                 }
                 let Some(tip_link) = f.tip_link.clone() else {
@@ -208,6 +222,16 @@ pub(crate) fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
             })
         }
         None => {
+            for (key, given) in [
+                ("hand.urdf_origin", raw.urdf_origin.is_some()),
+                ("hand.urdf_rpy_deg", raw.urdf_rpy_deg.is_some()),
+            ] {
+                if given {
+                    bail!(
+                        "{key}: the placement of a URDF's root; this hand's fingers are given by link lengths (no hand.urdf), so it has no effect: leave it out, or set hand.urdf"
+                    );
+                }
+            }
             let mut fingers = Vec::new();
             for (i, f) in raw.fingers.into_iter().enumerate() {
                 let key = |k: &str| format!("hand.fingers[{i}].{k}");
@@ -217,7 +241,11 @@ pub(crate) fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
                 let Some(b) = f.base else {
                     bail!("{}: required ([x, y] in metres)", key("base"));
                 };
-                let b = each(&key("base"), b, bounds::HAND_POSITION)?;
+                let b = each(
+                    &key("base"),
+                    components::<2>(&key("base"), &b, "[x, y] (m)")?,
+                    bounds::HAND_POSITION,
+                )?;
                 let yaw = degrees(&key("base_yaw_deg"), f.base_yaw_deg.unwrap_or(0.0))?;
                 let Some(links) = f.links else {
                     bail!("{}: required (link lengths in metres)", key("links"));
@@ -238,8 +266,9 @@ pub(crate) fn hand_spec(raw: RawHand, base: &Path) -> Result<HandSpec> {
                     );
                 }
                 let mut lim = Vec::with_capacity(limits.len());
-                for (j, &[lo, hi]) in limits.iter().enumerate() {
+                for (j, limit) in limits.iter().enumerate() {
                     let k = format!("hand.fingers[{i}].limits_deg[{j}]");
+                    let [lo, hi] = components(&k, limit, "[lower, upper] (deg)")?;
                     let (lo_rad, hi_rad) = (degrees(&k, lo)?, degrees(&k, hi)?);
                     if lo > hi {
                         bail!(

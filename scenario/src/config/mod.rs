@@ -2,7 +2,7 @@
 //! ([`raw`](crate::raw)), then this validated, typed config, whose [`Config::load`] is the only
 //! way in. Every error names the offending key. One file per section, as the raw structs are:
 //! [`object`], [`grasp`], [`hand`], [`plan`], [`pipeline`], [`plant`], [`zenoh`],
-//! [`visualizer`]. The keys are documented in `config/README.md`.
+//! [`visualizer`]. The keys are documented in `docs/configuration.md`.
 
 use std::path::{Path, PathBuf};
 
@@ -47,6 +47,10 @@ pub struct Config {
     pub plan: Settings,
     /// The `[plan]` keys of the spatial planner: the axis the object turns about.
     pub turn: Turn,
+    /// Keys given that only one kind of hand's planning reads, refused for the other kind by
+    /// [`Setup::new`](crate::Setup::new) (whether a hand is planar or spatial is known once
+    /// it is built).
+    pub hand_keys: HandKeys,
     /// Pipeline settings.
     pub pipeline: PipelineSpec,
     /// What the plant simulates.
@@ -94,6 +98,11 @@ impl Config {
             Some(h) => hand_spec(h, base)?,
         };
         let turn = turn_spec(raw.plan.as_ref())?;
+        let link_radius = raw
+            .plant
+            .as_ref()
+            .is_some_and(|p| p.link_radius_mm.is_some() && p.kind.as_deref() != Some("mujoco"));
+        let hand_keys = hand_keys(raw.plan.as_ref(), link_radius);
         let plan = plan_spec(raw.plan, grasp.alpha)?;
         if let Some(a) = plan.neighbour_alpha {
             if grasp.space == Space::Planar {
@@ -142,6 +151,7 @@ impl Config {
             hand,
             plan,
             turn,
+            hand_keys,
             pipeline,
             plant,
             zenoh,
@@ -162,6 +172,13 @@ pub(crate) fn each<const N: usize>(
     Ok(values)
 }
 
+/// A vector key's components: exactly `N` of them (`what` says which, e.g. `[x, y, z] (m)`),
+/// else an error naming the key, the count given and the count expected.
+pub(crate) fn components<const N: usize>(key: &str, v: &[Real], what: &str) -> Result<[Real; N]> {
+    <[Real; N]>::try_from(v)
+        .map_err(|_| anyhow::anyhow!("{key}: {} components given, {N} expected: {what}", v.len()))
+}
+
 /// A named file the config refers to: it must exist and be a file.
 pub(crate) fn existing_file(key: &str, what: &str, full: PathBuf) -> Result<PathBuf> {
     if full.is_dir() {
@@ -176,6 +193,7 @@ pub(crate) fn existing_file(key: &str, what: &str, full: PathBuf) -> Result<Path
 #[cfg(test)]
 mod tests {
     use super::*;
+    use icrflow_grasp::math::Vec3;
 
     const GOOD: &str = r#"
 [object]
@@ -451,5 +469,246 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
                 assert!((pa.cap_axis - pb.cap_axis).norm() < 1e-12);
             }
         }
+    }
+
+    fn config_dir() -> std::path::PathBuf {
+        Path::new(
+            &std::env::var_os("CARGO_MANIFEST_DIR")
+                .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into()),
+        )
+        .join("../config")
+    }
+
+    /// A planar hand of link-length fingers (the paper's, written out).
+    const LINK_HAND: &str = "[hand]\nfingertip_radius = 0.025\n[[hand.fingers]]\nfinger = 1\nbase = [0.106, 0.106]\nbase_yaw_deg = 225.0\nlinks = [0.06, 0.045, 0.025]\nlimits_deg = [[-90.0, 90.0], [-120.0, 120.0], [-120.0, 120.0]]\n[[hand.fingers]]\nfinger = 2\nbase = [0.106, -0.106]\nbase_yaw_deg = 135.0\nlinks = [0.06, 0.045, 0.025]\nlimits_deg = [[-90.0, 90.0], [-120.0, 120.0], [-120.0, 120.0]]\n";
+
+    /// A spatial hand: the Allegro's, from `config/allegro_sphere.toml`.
+    fn allegro() -> String {
+        std::fs::read_to_string(config_dir().join("allegro_sphere.toml")).unwrap()
+    }
+
+    /// Every vector key takes exactly its components: one more or one fewer is refused
+    /// naming the key, the count given and the count expected (TOML's deserializer drops a
+    /// 4th component of a 3-array without a word); the right count is read.
+    #[test]
+    fn a_vector_key_takes_exactly_its_components() {
+        let mujoco = format!("{GOOD}\n[plant]\nkind = \"mujoco\"\n");
+        let links = format!("{GOOD}{LINK_HAND}");
+        let urdf = format!(
+            "{GOOD}[hand]\nurdf = \"hands/paper_hand.urdf\"\nurdf_origin = [0.0, 0.0, 0.0]\n[[hand.fingers]]\nfinger = 1\ntip_link = \"f1_tip\"\n[[hand.fingers]]\nfinger = 2\ntip_link = \"f2_tip\"\n"
+        );
+        let path = config_dir().join("x.toml");
+        let parse = |text: &str| Config::parse(text, &path);
+        for (text, says) in [
+            (
+                format!("{GOOD}\n[plan]\naxis = [0.0, 0.0, 1.0, 5.0]\n"),
+                "plan.axis: 4 components given, 3 expected: [x, y, z]",
+            ),
+            (
+                format!("{GOOD}\n[plan]\naxis = [0.0, 1.0]\n"),
+                "plan.axis: 2 components given, 3 expected",
+            ),
+            (
+                GOOD.replace(
+                    "{ finger = 2, angle_deg = -30.0 }",
+                    "{ finger = 2, point = [0.041, -0.024, 0.0, 1.0] }",
+                ),
+                "grasp.contacts[1].point: 4 components given, 3 expected",
+            ),
+            (
+                urdf.replace(
+                    "urdf_origin = [0.0, 0.0, 0.0]",
+                    "urdf_origin = [0.0, 0.0, 0.0, 1.0]",
+                ),
+                "hand.urdf_origin: 4 components given, 3 expected",
+            ),
+            (
+                urdf.replace(
+                    "urdf_origin = [0.0, 0.0, 0.0]",
+                    "urdf_rpy_deg = [0.0, 0.0, 0.0, 90.0]",
+                ),
+                "hand.urdf_rpy_deg: 4 components given, 3 expected",
+            ),
+            (
+                links.replacen("base = [0.106, 0.106]", "base = [0.106, 0.106, 0.0]", 1),
+                "hand.fingers[0].base: 3 components given, 2 expected",
+            ),
+            (
+                links.replacen(
+                    "[-120.0, 120.0], [-120.0, 120.0]]",
+                    "[-120.0, 120.0, 5.0], [-120.0, 120.0]]",
+                    1,
+                ),
+                "hand.fingers[0].limits_deg[1]: 3 components given, 2 expected",
+            ),
+            (
+                format!("{GOOD}\n[plant]\ngravity = [0.0, 0.0, -9.81, 1.0]\n"),
+                "plant.gravity: 4 components given, 3 expected",
+            ),
+            (
+                format!("{mujoco}\n[pipeline]\npush_n = [1.0, 0.0, 0.0, 1.0]\n"),
+                "pipeline.push_n: 4 components given, 3 expected",
+            ),
+            (
+                format!("{mujoco}\n[pipeline]\npush_nm = [0.0, 0.05]\n"),
+                "pipeline.push_nm: 2 components given, 3 expected",
+            ),
+        ] {
+            let e = format!("{:#}", parse(&text).unwrap_err());
+            assert!(e.contains(says), "{says}: {e}");
+        }
+        // The right counts are read as given.
+        let c = parse(&format!(
+            "{GOOD}\n[plan]\naxis = [0, 0, 2]\n[plant]\ngravity = [0.0, 0.0, -9.81]\n"
+        ))
+        .unwrap();
+        assert_eq!(c.turn.axis, Vec3::z());
+        assert_eq!(c.plant.gravity, [0.0, 0.0, -9.81]);
+        let c = parse(&urdf.replace("[0.0, 0.0, 0.0]", "[0.0, 0.0, 0.01]")).unwrap();
+        let HandSpec::Urdf { root, .. } = c.hand else {
+            panic!("a URDF hand")
+        };
+        assert_eq!(root.translation.vector, Vec3::new(0.0, 0.0, 0.01));
+        let c = parse(&links).unwrap();
+        let HandSpec::Links { fingers, .. } = c.hand else {
+            panic!("a link-length hand")
+        };
+        assert_eq!(fingers[0].base[..2], [0.106, 0.106]);
+        assert_eq!(
+            fingers[0].limits[1],
+            [-120.0_f64.to_radians(), 120.0_f64.to_radians()]
+        );
+    }
+
+    /// Each key that has no effect where it is given is refused by `validate`, naming the key
+    /// and the context; the same key where it acts is accepted.
+    #[test]
+    fn a_key_without_effect_in_its_context_is_refused_naming_it() {
+        let mujoco = "[plant]\nkind = \"mujoco\"\n";
+        for (key, value) in [
+            ("timestep_ms", "1.0"),
+            ("kp", "5.0"),
+            ("kv", "0.05"),
+            ("noslip_iterations", "5"),
+            ("squeeze_mm", "1.0"),
+            ("feedforward", "false"),
+        ] {
+            let e = err(&format!("{GOOD}\n[plant]\n{key} = {value}\n"));
+            assert!(
+                e.contains(&format!("plant.{key}: ")) && e.contains("with the kinematic plant"),
+                "{key}: {e}"
+            );
+            let e = err(&format!(
+                "{GOOD}\n[plant]\nkind = \"kinematic\"\n{key} = {value}\n"
+            ));
+            assert!(e.contains(&format!("plant.{key}: ")), "{key}: {e}");
+            Config::parse(
+                &format!("{GOOD}\n{mujoco}{key} = {value}\n"),
+                Path::new("x.toml"),
+            )
+            .unwrap();
+        }
+        // Keys the kinematic plant's run reads (the hand command node's force targets).
+        Config::parse(
+            &format!("{GOOD}\n[plant]\ngravity = [0.0, 0.0, -9.81]\ndensity = 800.0\nfriction_margin = 0.1\n"),
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        let e = err(&format!("{GOOD}\n[pipeline]\nslip_at_s = 2.0\n"));
+        assert!(
+            e.contains("pipeline.slip_at_s: there is no slip to time"),
+            "{e}"
+        );
+        let e = err(&format!(
+            "{GOOD}\n[pipeline]\nslip_deg = 0.0\nslip_at_s = 2.0\n"
+        ));
+        assert!(e.contains("pipeline.slip_at_s"), "{e}");
+        Config::parse(
+            &format!("{GOOD}\n[pipeline]\nslip_deg = 5.0\nslip_at_s = 2.0\n"),
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        for mode in ["spawn", "connect"] {
+            let e = err(&format!(
+                "{GOOD}\n[visualizer]\nmode = \"{mode}\"\nrrd = \"x.rrd\"\n"
+            ));
+            assert!(
+                e.contains("visualizer.rrd: ") && e.contains(&format!("mode = \"{mode}\"")),
+                "{e}"
+            );
+        }
+        let e = err(&format!("{GOOD}{LINK_HAND}").replace(
+            "fingertip_radius = 0.025\n",
+            "fingertip_radius = 0.025\nurdf_rpy_deg = [0.0, 0.0, 90.0]\n",
+        ));
+        assert!(
+            e.contains("hand.urdf_rpy_deg: ") && e.contains("link lengths (no hand.urdf)"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            Config::parse(
+                &format!("{GOOD}[hand]\nurdf = \"hands/paper_hand.urdf\"\n[[hand.fingers]]\nfinger = 1\ntip_link = \"f1_tip\"\nbase_yaw_deg = 10.0\n"),
+                &config_dir().join("x.toml"),
+            )
+            .unwrap_err()
+        );
+        assert!(
+            e.contains("hand.fingers[0].base_yaw_deg: ") && e.contains("a URDF hand takes"),
+            "{e}"
+        );
+    }
+
+    /// The keys of one planner are refused for the other's hand by `Setup::new`, naming the
+    /// key and the hand's kind; `plant.link_radius_mm` for a planar hand on the kinematic
+    /// plant likewise.
+    #[test]
+    fn a_planner_s_key_is_refused_for_the_other_planner_s_hand() {
+        let setup = |text: &str| {
+            let path = config_dir().join("x.toml");
+            crate::Setup::new(&Config::parse(text, &path)?).map(|_| ())
+        };
+        let planar = |extra: &str| format!("{GOOD}\n{extra}\n");
+        for (text, key) in [
+            (
+                planar("[plan]\nmin_mobility_mm = 10.0"),
+                "plan.min_mobility_mm",
+            ),
+            (
+                planar("[plan]\nneighbour_alpha = 0.05")
+                    .replace("space = \"planar\"", "space = \"spatial\""),
+                "plan.neighbour_alpha",
+            ),
+            (
+                planar("[plant]\nlink_radius_mm = 5.0"),
+                "plant.link_radius_mm",
+            ),
+        ] {
+            let e = format!("{:#}", setup(&text).unwrap_err());
+            assert!(
+                e.contains(&format!("{key}: ")) && e.contains("this hand is planar"),
+                "{key}: {e}"
+            );
+        }
+        setup(&planar(
+            "[plan]\nmin_manipulability = 1e-3\nattach_resolution_deg = 1.0\naxis = [0, 0, 1]",
+        ))
+        .unwrap();
+        setup(&planar("[plant]\nkind = \"mujoco\"\nlink_radius_mm = 5.0")).unwrap();
+        let spatial = allegro();
+        for key in ["min_manipulability = 1e-3", "attach_resolution_deg = 1.0"] {
+            let text = spatial.replace("[plan]\n", &format!("[plan]\n{key}\n"));
+            let e = format!("{:#}", setup(&text).unwrap_err());
+            let key = key.split(' ').next().unwrap_or_default();
+            assert!(
+                e.contains(&format!("plan.{key}: ")) && e.contains("this hand is spatial"),
+                "{key}: {e}"
+            );
+        }
+        let text = spatial.replace(
+            "[plan]\n",
+            "[plant]\nlink_radius_mm = 4.0\n\n[plan]\nmin_mobility_mm = 5.0\n",
+        );
+        setup(&text).unwrap();
     }
 }

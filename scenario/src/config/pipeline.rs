@@ -4,6 +4,7 @@
 use anyhow::{Result, bail};
 use icrflow_grasp::math::Real;
 
+use super::components;
 use crate::bounds::{self, num};
 use crate::raw::RawPipeline;
 
@@ -111,8 +112,11 @@ fn push_spec(raw: &RawPipeline) -> Result<Option<Push>> {
         }
         return Ok(None);
     }
-    let vector = |key: &str, v: Option<[f64; 3]>, range: &bounds::Range| -> Result<[Real; 3]> {
-        let v = v.unwrap_or([0.0; 3]);
+    let vector = |key: &str, v: &Option<Vec<f64>>, range: &bounds::Range| -> Result<[Real; 3]> {
+        let v = match v {
+            Some(v) => components(key, v, "[x, y, z] (hand frame)")?,
+            None => [0.0; 3],
+        };
         if v.iter().any(|x| !x.is_finite()) {
             bail!("{key}: every component must be a finite number, got {v:?}");
         }
@@ -122,8 +126,8 @@ fn push_spec(raw: &RawPipeline) -> Result<Option<Push>> {
         )?;
         Ok(v)
     };
-    let force = vector("pipeline.push_n", raw.push_n, &bounds::PUSH_FORCE)?;
-    let torque = vector("pipeline.push_nm", raw.push_nm, &bounds::PUSH_TORQUE)?;
+    let force = vector("pipeline.push_n", &raw.push_n, &bounds::PUSH_FORCE)?;
+    let torque = vector("pipeline.push_nm", &raw.push_nm, &bounds::PUSH_TORQUE)?;
     if force.iter().chain(&torque).all(|&x| x == 0.0) {
         bail!("pipeline.push_n / push_nm: both are zero, a push of nothing (leave them out)");
     }
@@ -211,6 +215,11 @@ pub(crate) fn pipeline_spec(raw: RawPipeline) -> Result<PipelineSpec> {
             ),
         },
     };
+    if raw.slip_at_s.is_some() && spec.slip == 0.0 {
+        bail!(
+            "pipeline.slip_at_s: there is no slip to time (the kinematic plant's scripted slip, pipeline.slip_deg, is not given or 0), so it has no effect: give slip_deg, or leave slip_at_s out"
+        );
+    }
     // The estimate's own noise must leave the innovation's bound for real errors: the
     // smoothed innovation's noise is a third of the pose noise, the estimate's 0.42 of it.
     if spec.pose_noise > 0.5 * spec.max_pose_innovation {

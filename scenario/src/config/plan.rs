@@ -5,6 +5,7 @@ use anyhow::{Result, bail};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_plan::planner::Settings;
 
+use super::components;
 use crate::bounds::{self, num};
 use crate::raw::RawPlan;
 
@@ -26,13 +27,78 @@ pub struct Turn {
     pub min_mobility: Real,
 }
 
+/// Keys given that only one kind of hand's planning reads: the `[plan]` keys of one planner,
+/// and `plant.link_radius_mm` on the kinematic plant (there only the spatial planner reads
+/// it). Which kind the hand is, the hand it builds says: [`Setup::new`](crate::Setup::new)
+/// refuses the other kind's keys, naming the key and the hand.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct HandKeys {
+    /// Keys only a planar hand's planning reads, as given: (key, what it is).
+    pub planar: Vec<(&'static str, &'static str)>,
+    /// Keys only a spatial hand's planning reads, as given: (key, what it is).
+    pub spatial: Vec<(&'static str, &'static str)>,
+}
+
+/// The [`HandKeys`] of a `[plan]` section; `link_radius`: whether `plant.link_radius_mm` is
+/// given with the kinematic plant.
+pub(crate) fn hand_keys(raw: Option<&RawPlan>, link_radius: bool) -> HandKeys {
+    let mut keys = HandKeys::default();
+    if let Some(r) = raw {
+        for (key, given, what) in [
+            (
+                "plan.min_manipulability",
+                r.min_manipulability.is_some(),
+                "the planar planner's least manipulability of a finger in contact (a spatial hand's limit is plan.min_mobility_mm)",
+            ),
+            (
+                "plan.attach_resolution_deg",
+                r.attach_resolution_deg.is_some(),
+                "the planar planner's grid of fingertip cap angles for an attaching finger (a spatial hand's fingertip touches where its inverse kinematics puts it)",
+            ),
+        ] {
+            if given {
+                keys.planar.push((key, what));
+            }
+        }
+        for (key, given, what) in [
+            (
+                "plan.min_mobility_mm",
+                r.min_mobility_mm.is_some(),
+                "the spatial planner's least fingertip mobility in contact (a planar hand's limit is plan.min_manipulability)",
+            ),
+            (
+                "plan.neighbour_alpha",
+                r.neighbour_alpha.is_some(),
+                "the spatial planner's check of the grasps with a contact moved to a neighbouring candidate (a planar hand keeps its contacts off the regions' edges by plan.region_erosion)",
+            ),
+            (
+                "plan.neighbour_rings",
+                r.neighbour_rings.is_some(),
+                "the rings the spatial planner checks plan.neighbour_alpha over",
+            ),
+        ] {
+            if given {
+                keys.spatial.push((key, what));
+            }
+        }
+    }
+    if link_radius {
+        keys.spatial.push((
+            "plant.link_radius_mm",
+            "the links' capsules, which only the MuJoCo plant and the spatial planner have (plant.kind = \"kinematic\" here)",
+        ));
+    }
+    keys
+}
+
 /// Default `plan.min_mobility_mm`.
 pub const DEFAULT_MIN_MOBILITY_MM: Real = 5.0;
 
 pub(crate) fn turn_spec(raw: Option<&RawPlan>) -> Result<Turn> {
-    let axis = match raw.and_then(|r| r.axis) {
+    let axis = match raw.and_then(|r| r.axis.as_deref()) {
         None => Vec3::z(),
         Some(a) => {
+            let a: [Real; 3] = components("plan.axis", a, "[x, y, z]")?;
             let v = Vec3::from(a);
             if !v.iter().all(|x| x.is_finite()) || v.norm() < 1e-9 {
                 bail!(

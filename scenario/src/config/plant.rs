@@ -4,6 +4,7 @@
 use anyhow::{Result, bail};
 use icrflow_grasp::math::Real;
 
+use super::components;
 use crate::bounds::{self, num};
 
 /// The plant of the pipeline (`plant.kind`).
@@ -62,7 +63,50 @@ pub(crate) fn plant_spec(raw: crate::raw::RawPlant) -> Result<PlantSpec> {
             "plant.kind: unknown plant {other:?}; the plants are \"kinematic\" (the default: our quasi-static model) and \"mujoco\""
         ),
     };
-    let gravity = raw.gravity.unwrap_or([0.0; 3]);
+    if kind == PlantKind::Kinematic {
+        for (key, given, what) in [
+            (
+                "timestep_ms",
+                raw.timestep_ms.is_some(),
+                "MuJoCo's timestep",
+            ),
+            (
+                "kp",
+                raw.kp.is_some(),
+                "the MuJoCo plant's joint servo gain",
+            ),
+            (
+                "kv",
+                raw.kv.is_some(),
+                "the MuJoCo plant's joint servo damping",
+            ),
+            (
+                "noslip_iterations",
+                raw.noslip_iterations.is_some(),
+                "MuJoCo's no-slip solver",
+            ),
+            (
+                "squeeze_mm",
+                raw.squeeze_mm.is_some(),
+                "how far past the surface the MuJoCo plant's servos aim",
+            ),
+            (
+                "feedforward",
+                raw.feedforward.is_some(),
+                "the MuJoCo plant's feed-forward joint torques",
+            ),
+        ] {
+            if given {
+                bail!(
+                    "plant.{key}: {what}; with the kinematic plant (plant.kind = \"kinematic\", the default) it has no effect: leave it out, or set plant.kind = \"mujoco\""
+                );
+            }
+        }
+    }
+    let gravity = match &raw.gravity {
+        Some(g) => components("plant.gravity", g, "[x, y, z] (m/s^2, hand frame)")?,
+        None => [0.0; 3],
+    };
     for (i, g) in gravity.iter().enumerate() {
         bounds::GRAVITY.check(&format!("plant.gravity[{i}]"), *g)?;
     }

@@ -98,6 +98,11 @@ pub(crate) fn visualizer_spec(raw: RawVisualizer, path: &Path) -> Result<Visuali
     let mode = raw.mode.unwrap_or_else(|| "rrd".into());
     let url = raw.url.unwrap_or_else(|| DEFAULT_VIEWER_URL.into());
     let (_, port) = viewer_url(&url).context("visualizer.url")?;
+    if raw.rrd.is_some() && matches!(mode.as_str(), "spawn" | "connect") {
+        bail!(
+            "visualizer.rrd: the file of visualizer.mode = \"rrd\"; with mode = {mode:?} nothing is saved to it, so it has no effect: leave it out, or set mode = \"rrd\""
+        );
+    }
     let recording = match mode.as_str() {
         "rrd" => Recording::Rrd(raw.rrd.unwrap_or_else(|| default_rrd(path))),
         "spawn" => Recording::Spawn(port),
