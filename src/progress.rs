@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use icrflow_grasp::progress::{Progress, Stage};
 
 /// Faces of a mesh file above which `validate`, `analyze` and `plan` warn of the cost (and
-/// say what to do): config/README.md, "Large meshes".
+/// say what to do): docs/configuration.md, "Large meshes".
 pub const LARGE_MESH_FACES: usize = 500_000;
 
 /// Seconds per million faces, measured (BENCHMARKS.md, "Large meshes"), for the warning:
@@ -66,7 +66,7 @@ impl Shown {
         self.warned = true;
         let millions = faces as f64 / 1e6;
         let text = format!(
-            "warning    the mesh has {faces} faces (more than {LARGE_MESH_FACES}): expect ~{:.0} s to load it and build the grasp problem, and far longer for analyze and plan (BENCHMARKS.md, \"Large meshes\"); the grasp quality changes little above ~100000 faces: decimate it (config/README.md, \"Large meshes\")",
+            "warning    the mesh has {faces} faces (more than {LARGE_MESH_FACES}): expect ~{:.0} s to load it and build the grasp problem, and far longer for analyze and plan (BENCHMARKS.md, \"Large meshes\"); the grasp quality changes little above ~100000 faces: decimate it (docs/configuration.md, \"Large meshes\")",
             LOAD_S_PER_MILLION * millions
         );
         self.line(&text);

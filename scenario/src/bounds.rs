@@ -2,7 +2,8 @@
 //! messages that name them.
 //!
 //! Each bound is a [`Range`] (or an [`Count`] for integers) with the reason for it; the same
-//! reasons are in `config/README.md`. A value outside is refused naming the key, the value (in
+//! reasons are in the configuration reference, `docs/configuration.md`, which lists every
+//! bounded key ([`KEYS`]). A value outside is refused naming the key, the value (in
 //! [`num`]'s notation) and the allowed range.
 
 use std::fmt;
@@ -186,7 +187,7 @@ impl fmt::Display for Count {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The bounds, section by section (config/README.md gives the same reasons).
+// The bounds, section by section (docs/configuration.md gives the same reasons).
 
 /// Every size of a primitive object (radius, semi-axis, half-extent, height).
 pub const SIZE: Range = Range::closed(
@@ -530,6 +531,115 @@ pub const FRICTION_MARGIN: Range = Range::below(
     "the fraction of mu the force targets leave unused at every contact",
 );
 
+/// A bound of the table [`KEYS`]: an interval or a count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bound {
+    /// An interval of numbers.
+    Range(Range),
+    /// A range of counts.
+    Count(Count),
+}
+
+impl Bound {
+    /// The allowed values as the configuration reference writes them, without the reason:
+    /// `[10, 2000] Hz`, `3 to 360`.
+    pub fn allowed(&self) -> String {
+        match self {
+            Self::Range(r) => Range { why: "", ..*r }.to_string(),
+            Self::Count(c) => Count { why: "", ..*c }.to_string(),
+        }
+    }
+}
+
+/// Every bounded key with its bound, in the order of the sections: what the configuration
+/// reference (`docs/configuration.md`) lists, each on its row (a test of this crate checks
+/// it does). A key of an array of tables is written with `[i]`
+/// (`grasp.contacts[i].angle_deg`); a vector key's bound is each component's unless it says
+/// otherwise (`pipeline.push_n`: its magnitude).
+pub const KEYS: &[(&str, Bound)] = &[
+    ("object.radius", Bound::Range(SIZE)),
+    ("object.semi_axes", Bound::Range(SIZE)),
+    ("object.half_extents", Bound::Range(SIZE)),
+    ("object.height", Bound::Range(SIZE)),
+    ("object.segments", Bound::Count(LONGITUDE)),
+    ("object.segments", Bound::Count(LATITUDE)),
+    ("object.segments", Bound::Count(CUBOID_SEGMENTS)),
+    ("object.segments", Bound::Count(CYLINDER_AROUND)),
+    ("object.segments", Bound::Count(CYLINDER_ALONG)),
+    ("grasp.friction", Bound::Range(FRICTION)),
+    ("grasp.alpha", Bound::Range(ALPHA)),
+    ("grasp.rho", Bound::Range(RHO)),
+    ("grasp.contacts[i].angle_deg", Bound::Range(CONTACT_ANGLE)),
+    ("grasp.contacts[i].point", Bound::Range(CONTACT_POINT)),
+    ("grasp.contacts[i].cap_angle_deg", Bound::Range(CAP_ANGLE)),
+    ("hand.fingertip_radius", Bound::Range(FINGERTIP_RADIUS)),
+    ("hand.cap_half_angle_deg", Bound::Range(CAP_HALF_ANGLE)),
+    ("hand.urdf_origin", Bound::Range(HAND_POSITION)),
+    ("hand.urdf_rpy_deg", Bound::Range(HAND_ANGLE)),
+    ("hand.fingers", Bound::Count(FINGERS)),
+    ("hand.fingers[i].base", Bound::Range(HAND_POSITION)),
+    ("hand.fingers[i].base_yaw_deg", Bound::Range(HAND_ANGLE)),
+    ("hand.fingers[i].links", Bound::Count(JOINTS)),
+    ("hand.fingers[i].links", Bound::Range(LINK)),
+    ("hand.fingers[i].limits_deg", Bound::Range(HAND_ANGLE)),
+    ("hand.fingers[i].home_deg", Bound::Count(JOINTS)),
+    ("hand.fingers[i].home_deg", Bound::Range(HAND_ANGLE)),
+    (
+        "hand.fingers[i].fingertip_radius",
+        Bound::Range(FINGERTIP_RADIUS),
+    ),
+    ("plan.rotation_deg", Bound::Range(ROTATION)),
+    ("plan.step_deg", Bound::Range(STEP)),
+    ("plan.cap_margin_deg", Bound::Range(CAP_MARGIN)),
+    ("plan.min_manipulability", Bound::Range(MANIPULABILITY)),
+    ("plan.min_mobility_mm", Bound::Range(MOBILITY)),
+    ("plan.max_steps", Bound::Count(MAX_STEPS)),
+    (
+        "plan.attach_resolution_deg",
+        Bound::Range(ATTACH_RESOLUTION),
+    ),
+    ("plan.squeeze_reserve_mm", Bound::Range(SQUEEZE_RESERVE)),
+    ("plan.alpha", Bound::Range(ALPHA)),
+    ("plan.neighbour_alpha", Bound::Range(ALPHA)),
+    ("plan.neighbour_rings", Bound::Count(NEIGHBOUR_RINGS)),
+    ("plan.region_erosion", Bound::Count(REGION_EROSION)),
+    ("pipeline.rate_hz", Bound::Range(RATE)),
+    ("pipeline.joint_speed_deg_s", Bound::Range(JOINT_SPEED)),
+    ("pipeline.joint_noise_deg", Bound::Range(JOINT_NOISE)),
+    ("pipeline.pose_rate_hz", Bound::Range(POSE_RATE)),
+    ("pipeline.pose_noise_deg", Bound::Range(POSE_NOISE)),
+    ("pipeline.pose_latency_ms", Bound::Range(POSE_LATENCY)),
+    (
+        "pipeline.max_pose_innovation_deg",
+        Bound::Range(POSE_INNOVATION),
+    ),
+    (
+        "pipeline.max_contact_residual_mm",
+        Bound::Range(CONTACT_RESIDUAL),
+    ),
+    ("pipeline.hung_restart_s", Bound::Range(HUNG_RESTART)),
+    ("pipeline.max_input_age_ms", Bound::Range(INPUT_AGE)),
+    ("pipeline.min_normal_force", Bound::Range(NORMAL_FORCE)),
+    ("pipeline.max_hold_s", Bound::Range(MAX_HOLD)),
+    ("pipeline.slip_deg", Bound::Range(SLIP)),
+    ("pipeline.slip_at_s", Bound::Range(SLIP_AT)),
+    ("pipeline.push_n", Bound::Range(PUSH_FORCE)),
+    ("pipeline.push_nm", Bound::Range(PUSH_TORQUE)),
+    ("pipeline.push_at_s", Bound::Range(PUSH_AT)),
+    ("pipeline.push_ms", Bound::Range(PUSH_DURATION)),
+    ("plant.timestep_ms", Bound::Range(TIMESTEP)),
+    ("plant.gravity", Bound::Range(GRAVITY)),
+    ("plant.density", Bound::Range(DENSITY)),
+    ("plant.link_radius_mm", Bound::Range(LINK_RADIUS)),
+    ("plant.kp", Bound::Range(KP)),
+    ("plant.kv", Bound::Range(KV)),
+    ("plant.noslip_iterations", Bound::Count(NOSLIP)),
+    ("plant.squeeze_mm", Bound::Range(SQUEEZE)),
+    ("plant.friction_margin", Bound::Range(FRICTION_MARGIN)),
+    ("visualizer.rate_hz", Bound::Range(VISUALIZER_RATE)),
+    ("visualizer.queue", Bound::Count(VISUALIZER_QUEUE)),
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -576,5 +686,27 @@ mod tests {
             e.starts_with("object.segments[0]: 2 is not in the allowed range 3 to 360"),
             "{e}"
         );
+    }
+
+    /// Every bound of this file is some key's in [`KEYS`] (the table the configuration
+    /// reference is checked against).
+    #[test]
+    fn every_bound_is_a_key_s() {
+        let source = include_str!("bounds.rs");
+        let table = &source[source.find("pub const KEYS").unwrap()..];
+        let names: Vec<&str> = source
+            .lines()
+            .filter_map(|l| l.strip_prefix("pub const "))
+            .filter(|l| l.contains(": Range") || l.contains(": Count"))
+            .filter_map(|l| l.split(':').next())
+            .collect();
+        assert!(names.len() > 50, "{names:?}");
+        for name in names {
+            assert!(
+                table.contains(&format!("Bound::Range({name})"))
+                    || table.contains(&format!("Bound::Count({name})")),
+                "{name} is no key's bound in KEYS"
+            );
+        }
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! The config file, read in two steps (raw serde structs rejecting unknown keys; then
 //! the validated [`Config`], whose [`Config::load`] is the only way in; every error names the
-//! offending key; the keys are documented in `config/README.md`), and [`Setup`]: the object,
+//! offending key; the keys are documented in `docs/configuration.md`), and [`Setup`]: the object,
 //! grasp problem, hand and initial contacts a config describes. Shared by the CLI and the
 //! pipeline's nodes.
 

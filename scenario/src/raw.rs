@@ -1,4 +1,8 @@
 //! The config file as written: serde structs that reject unknown keys.
+//!
+//! Vector keys are lists (`Vec`), their length checked by validation naming the key
+//! (`config::components`): TOML's deserializer fills a fixed-size array from the first
+//! components of a longer list and drops the rest without a word.
 
 use std::path::PathBuf;
 
@@ -53,7 +57,7 @@ pub struct RawZenoh {
 pub struct RawPlant {
     pub kind: Option<String>,
     pub timestep_ms: Option<f64>,
-    pub gravity: Option<[f64; 3]>,
+    pub gravity: Option<Vec<f64>>,
     pub density: Option<f64>,
     pub link_radius_mm: Option<f64>,
     pub kp: Option<f64>,
@@ -80,8 +84,8 @@ pub struct RawPipeline {
     pub max_hold_s: Option<f64>,
     pub slip_deg: Option<f64>,
     pub slip_at_s: Option<f64>,
-    pub push_n: Option<[f64; 3]>,
-    pub push_nm: Option<[f64; 3]>,
+    pub push_n: Option<Vec<f64>>,
+    pub push_nm: Option<Vec<f64>>,
     pub push_at_s: Option<f64>,
     pub push_ms: Option<f64>,
     pub seed: Option<u64>,
@@ -140,7 +144,7 @@ pub struct RawGrasp {
 pub struct RawContact {
     pub finger: u32,
     pub angle_deg: Option<f64>,
-    pub point: Option<[f64; 3]>,
+    pub point: Option<Vec<f64>>,
     pub cap_angle_deg: Option<f64>,
 }
 
@@ -150,9 +154,9 @@ pub struct RawContact {
 pub struct RawHand {
     pub urdf: Option<PathBuf>,
     /// URDF root placement in the hand frame: `[x, y, z]` (m).
-    pub urdf_origin: Option<[f64; 3]>,
+    pub urdf_origin: Option<Vec<f64>>,
     /// URDF root orientation: `[roll, pitch, yaw]` (deg).
-    pub urdf_rpy_deg: Option<[f64; 3]>,
+    pub urdf_rpy_deg: Option<Vec<f64>>,
     pub fingertip_radius: Option<f64>,
     pub cap_half_angle_deg: Option<f64>,
     pub fingers: Vec<RawFinger>,
@@ -164,10 +168,10 @@ pub struct RawHand {
 pub struct RawFinger {
     pub finger: u32,
     /// Link-length fingers: base position `[x, y]` (m) in the hand's plane.
-    pub base: Option<[f64; 2]>,
+    pub base: Option<Vec<f64>>,
     pub base_yaw_deg: Option<f64>,
     pub links: Option<Vec<f64>>,
-    pub limits_deg: Option<Vec<[f64; 2]>>,
+    pub limits_deg: Option<Vec<Vec<f64>>>,
     /// URDF fingers: the fingertip link.
     pub tip_link: Option<String>,
     pub home_deg: Option<Vec<f64>>,
@@ -189,6 +193,6 @@ pub struct RawPlan {
     pub neighbour_alpha: Option<f64>,
     pub neighbour_rings: Option<usize>,
     pub alpha: Option<f64>,
-    pub axis: Option<[f64; 3]>,
+    pub axis: Option<Vec<f64>>,
     pub min_mobility_mm: Option<f64>,
 }

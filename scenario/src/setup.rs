@@ -82,6 +82,11 @@ impl Setup {
         if !hand.fingers.iter().all(|f| f.in_hand_plane()) {
             return Self::spatial(config, object, frame, hand, progress);
         }
+        if let Some((key, what)) = config.hand_keys.spatial.first() {
+            bail!(
+                "{key}: {what}; this hand is planar (every finger a three-joint chain in the hand's plane z = 0), planned by the planar planner, so it has no effect: leave it out"
+            );
+        }
         let axis = config.turn.axis;
         if (axis - Vec3::z()).norm() > 1e-9 {
             bail!(
@@ -135,6 +140,11 @@ impl Setup {
         hand: Hand,
         progress: &mut dyn Progress,
     ) -> Result<Self> {
+        if let Some((key, what)) = config.hand_keys.planar.first() {
+            bail!(
+                "{key}: {what}; this hand is spatial (a finger that is not a three-joint chain in the hand's plane z = 0), planned by the spatial planner, so it has no effect: leave it out"
+            );
+        }
         let g = &config.grasp;
         let planar: Vec<u32> = hand
             .fingers
