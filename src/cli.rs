@@ -69,7 +69,7 @@ pub enum Command {
     /// independent contact region for the margin alpha. Exit status 2: not force closure, or
     /// alpha* below alpha (no regions).
     Analyze {
-        /// Config file (TOML; see config/README.md).
+        /// Config file (TOML; see docs/configuration.md).
         config: PathBuf,
         /// Print one JSON object instead of text.
         #[arg(long)]
@@ -83,7 +83,7 @@ pub enum Command {
     /// grasp is not force closure or below alpha, or the goal was not reached (a --live run
     /// stopped by Ctrl-C exits 0).
     Run {
-        /// Config file (TOML; see config/README.md).
+        /// Config file (TOML; see docs/configuration.md).
         config: PathBuf,
         /// Keep running after the goal, until Ctrl-C.
         #[arg(long)]
@@ -135,7 +135,7 @@ pub enum Command {
     /// contact). Exit status 1 with the first problem named, 2 when the grasp is not force
     /// closure or below alpha; nothing is started or written.
     Validate {
-        /// Config file (TOML; see config/README.md).
+        /// Config file (TOML; see docs/configuration.md).
         config: PathBuf,
         #[command(flatten)]
         progress: Progress,
@@ -147,7 +147,7 @@ pub enum Command {
     /// initial grasp is not force closure or below alpha (nothing written), or the planner
     /// stopped before the goal (the files say why).
     Plan {
-        /// Config file (TOML; see config/README.md).
+        /// Config file (TOML; see docs/configuration.md).
         config: PathBuf,
         /// Output directory [default: out/<config file stem>].
         #[arg(long)]
