@@ -2,6 +2,12 @@
 //! by every verb it names, with a non-zero exit status, no panic, and the expected text in
 //! stderr.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::path::{Path, PathBuf};

@@ -5,6 +5,12 @@
 //! validates and that a test runs, with flags a test uses; and every relative link of the
 //! project's Markdown pages points at a file, and a heading, that exist.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::collections::{BTreeMap, BTreeSet};

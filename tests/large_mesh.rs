@@ -2,6 +2,12 @@
 //! the size guidance as soon as its size is known, and show the progress of loading it and
 //! building the grasp problem (`--progress-after`, checked like any flag).
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::path::{Path, PathBuf};

@@ -2,6 +2,12 @@
 //! no), the same alpha* for the same grasp (or each says which grasp it evaluates), clap's
 //! suggestions for a mistyped verb or flag, Zenoh's errors in our words.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use common::{icrflow, scratch};

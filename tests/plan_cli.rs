@@ -1,5 +1,11 @@
 //! `icrflow plan` end to end: the real binary on the shipped scenarios and on bad ones.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::path::Path;

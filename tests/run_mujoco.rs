@@ -1,6 +1,12 @@
 //! `icrflow run` with MuJoCo as the plant (`[plant] kind = "mujoco"`): the real node processes
 //! over a private iceoryx2 bus, closed on the hand and object stepped in MuJoCo 3.17.0.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::sync::Mutex;

@@ -1,6 +1,12 @@
 //! `icrflow run` end to end: the real node processes over a private iceoryx2 bus, closed loop
 //! on the simulated hand, compared with the offline plan.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::sync::Mutex;

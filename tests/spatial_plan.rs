@@ -5,6 +5,12 @@
 //! their fingertip caps, the links' capsules off the object; then `plan`, `validate` and `run`
 //! through the real binary, and the configs a spatial hand refuses.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use common::{icrflow, root, scratch};

@@ -16,6 +16,12 @@
 //!
 //! Asked for where they cannot run, they fail, naming what is missing.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::path::{Path, PathBuf};

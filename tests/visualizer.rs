@@ -2,6 +2,12 @@
 //! records to an `.rrd`, which the Python Rerun SDK of the same version reads back
 //! (tests/read_rrd.py) and the `rerun` viewer of the same version renders headless.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::net::TcpListener;

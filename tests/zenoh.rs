@@ -2,6 +2,12 @@
 //! listening on a loopback port of its own, read by an external Python `eclipse-zenoh` client
 //! (tests/zenoh_client.py) and by `icrflow monitor`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::process::{Command, Stdio};

@@ -4,6 +4,12 @@
 //! format of `bench/reference_qhull.py`, so `bench/compare.sh` can time the Python/Qhull
 //! reference on identical data in the same run.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -4,6 +4,12 @@
 //! `scripts/setup-python.sh` (a venv outside the repo) unless `ICRFLOW_PYTHON` names an
 //! interpreter that has it.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::path::{Path, PathBuf};

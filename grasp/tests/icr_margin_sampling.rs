@@ -4,6 +4,12 @@
 //! prints the fraction that keep the margin and fails on any pick below alpha beyond the
 //! numerical tolerance.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use common::Rng;

@@ -4,6 +4,12 @@
 //! - alpha* is unchanged by a rigid motion of the object with its contacts;
 //! - epsilon > 0 exactly when the grasp is force closure.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 mod common;
 
 use std::sync::OnceLock;

@@ -4,6 +4,12 @@
 //! (`wrench::tangent_basis_about`), for the rolling axis and for the default `+z` alike, the
 //! grasp's alpha* changes smoothly along the path; with the old rule it jumps at the seam.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::Object;
 use icrflow_grasp::quality::GraspProblem;

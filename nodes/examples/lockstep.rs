@@ -16,6 +16,12 @@
 //! and per phase the largest slip speed and friction use at contacts planned to roll, and
 //! contacts lost while planned.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 

@@ -3,6 +3,12 @@
 //! allocates once, inside iceoryx2 0.10 (`Publisher::loan_uninit` creates a reference-counted
 //! `ChunkMutSharedState` per sample), which no use of its API avoids.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_interfaces::{Header, JointState, Kind, topics};
 use icrflow_runtime::bus::{Bus, BusConfig};
 use icrflow_runtime::health::allocations;

@@ -3,6 +3,12 @@
 //! the paper's plan as the estimate reaches each target, settles, and plans again from an
 //! estimate off the plan.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_nodes::estimator::RELEASE;
 use icrflow_nodes::planner::CLEARANCE;
 use icrflow_plan::follow::{

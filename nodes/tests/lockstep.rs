@@ -2,6 +2,12 @@
 //! simulated time, no processes. The paper's sphere turned toward 45 degrees; both MuJoCo
 //! scenarios pushed at ten times of their whole turn; the ellipsoid with re-plans that take time.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_interfaces::PlanPhase;
 use icrflow_nodes::lockstep;
 use icrflow_nodes::plant::Event;

@@ -3,6 +3,12 @@
 //! back on the surface, the switches' approach and retreat way points), each commanded until
 //! the plant's joints reach it, the fingers in contact pressing.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_interfaces::{CommandMode, HandCommand, Header, Kind, MAX_JOINTS};
 use icrflow_nodes::plant::{Event, Plant};
 use icrflow_plan::planner::Phase;

@@ -3,6 +3,12 @@
 //!
 //! `cargo bench -p icrflow-plan --bench plan`
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::f64::consts::PI;
 use std::hint::black_box;
 

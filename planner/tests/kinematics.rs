@@ -1,6 +1,12 @@
 //! Forward and inverse kinematics: FK(IK(x)) = x, and the same hand from URDF and from link
 //! lengths.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::path::PathBuf;
 
 use icrflow_grasp::math::{Isometry3, Real, Vec3};

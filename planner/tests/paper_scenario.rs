@@ -1,5 +1,11 @@
 //! The paper's scenario planned end to end, every step checked from scratch.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::f64::consts::PI;
 
 use icrflow_grasp::math::{Real, Vec3};

@@ -2,6 +2,12 @@
 //! a candidate the brute force rejects; how much of the exact region each recovers is
 //! printed.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::Object;
 use icrflow_grasp::quality::GraspProblem;

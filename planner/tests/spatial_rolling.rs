@@ -4,6 +4,12 @@
 //! surface's closest point to the centre), travels equal arc lengths on the object and on the
 //! fingertip; the contact's velocity from Montana's equations matches its finite differences.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
 use icrflow_plan::spatial::rolling::{centre_velocity, contact_velocity};
 use icrflow_plan::spatial::surface::Convex;

@@ -163,11 +163,12 @@ pub fn index_str(index: &[usize]) -> String {
 /// Row `i` of an `(n, 3)` view as a point.
 pub fn point(a: &ArrayViewD<'_, f64>, index: &[usize]) -> Vec3 {
     let mut at = index.to_vec();
+    let axis = at.len();
     at.push(0);
     let x = a[IxDyn(&at)];
-    *at.last_mut().expect("the index has the axis just pushed") = 1;
+    at[axis] = 1;
     let y = a[IxDyn(&at)];
-    *at.last_mut().expect("the index has the axis just pushed") = 2;
+    at[axis] = 2;
     Vec3::new(x, y, a[IxDyn(&at)])
 }
 
@@ -190,6 +191,10 @@ pub fn array_out<'py, T: numpy::Element>(
     flat: Vec<T>,
     shape: &[usize],
 ) -> Bound<'py, PyArrayDyn<T>> {
+    #[expect(
+        clippy::expect_used,
+        reason = "every caller builds `flat` with the shape's size"
+    )]
     let a = Array::from_shape_vec(IxDyn(shape), flat)
         .expect("callers pass a vector of the shape's size");
     a.into_pyarray(py)

@@ -34,6 +34,12 @@
 //! percentiles of single hops, not a mean with confidence intervals. Run without `--bench`
 //! (`cargo test --benches`), every cell runs briefly as a smoke test.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::collections::VecDeque;
 use std::fmt;
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};

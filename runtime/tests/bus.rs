@@ -1,6 +1,12 @@
 //! The bus over real iceoryx2 services, in an isolated prefix and root: delivery with a
 //! WaitSet wake-up, refusal of a mismatched message type, and no resources left behind.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::time::Duration;
 
 use iceoryx2::prelude::*;

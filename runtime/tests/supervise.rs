@@ -1,6 +1,12 @@
 //! The supervisor with real child processes: restarts with backoff until the policy gives up,
 //! SIGKILLed nodes restarted, SIGTERM then SIGKILL on shutdown.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 

@@ -5,6 +5,12 @@
 //!
 //! `cargo bench -p icrflow-scenario --bench spatial`
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::hint::black_box;
 use std::path::Path;
 

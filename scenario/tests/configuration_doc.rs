@@ -2,6 +2,12 @@
 //! `bounds::KEYS` on a row that gives its allowed values, and every key of the raw serde
 //! structs (`src/raw.rs`, the keys a config file may have).
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    reason = "a test, bench or example: a panic is its failure, with the message it gives"
+)]
+
 use std::path::{Path, PathBuf};
 
 use icrflow_scenario::bounds::KEYS;
