@@ -16,8 +16,11 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::{Object, SurfaceSamples};
 use icrflow_grasp::quality::{Evaluation, EvaluationScratch, GraspProblem};
-use icrflow_grasp::reference::{Case, cases_json};
 use icrflow_grasp::wrench::{ContactModel, Space, WrenchFrame};
+use reference::{Case, cases_json};
+
+#[path = "../tests/common/reference.rs"]
+mod reference;
 
 const MU: Real = 0.5;
 const EDGES: usize = 8;

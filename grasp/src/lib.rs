@@ -15,7 +15,6 @@
 //! | [`lp`] | alpha* by ray-shooting linear programs (clarabel): the independent check |
 //! | [`icr`] | independent contact regions with margin alpha (search zones + region growing) |
 //! | [`progress`] | progress reports of the long operations on large meshes (loading, validation, problem building), for the caller to show |
-//! | [`reference`](mod@reference) | case export for the Python/Qhull reference `bench/reference_qhull.py` |
 //!
 //! ## Conventions
 //! - Units are SI. Everything is expressed in the object's body frame unless stated.
@@ -46,6 +45,5 @@ pub mod math;
 pub mod object;
 pub mod progress;
 pub mod quality;
-pub mod reference;
 pub mod support;
 pub mod wrench;

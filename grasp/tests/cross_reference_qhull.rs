@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::Rng;
+use common::reference::{Case, cases_json};
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::object::Object;
-use icrflow_grasp::reference::{Case, cases_json};
 use icrflow_grasp::wrench::{ContactModel, Space};
 
 /// The package's directory, as cargo gives it when running the test (a test binary cached from

@@ -1,6 +1,8 @@
 //! Shared fixtures for the grasp integration tests.
 #![allow(dead_code)]
 
+pub mod reference;
+
 use std::path::PathBuf;
 
 use icrflow_grasp::math::{Real, UnitQuaternion};

@@ -1,0 +1,425 @@
+//! The [`Follower`]: leads a hand through a plan's targets from the estimated grasp, and plans
+//! again from the estimate where the object stops off the plan.
+
+use std::fmt;
+
+use icrflow_grasp::math::Real;
+
+use super::{Estimate, ReplanError, Target, replan, targets};
+use crate::planner::{Plan, PlanError, Scenario};
+use crate::rolling::Surface;
+
+/// How close the estimated rotation must come to a step's target (rad).
+pub const ROTATION_TOLERANCE: Real = 0.3 * std::f64::consts::PI / 180.0;
+
+/// How close a free finger's joints must come to a way point (rad), beyond the encoder noise
+/// (five standard deviations of `pipeline.joint_noise_deg` are added: [`Tolerances::new`]).
+pub const WAY_POINT_TOLERANCE: Real = 1.0 * std::f64::consts::PI / 180.0;
+/// How far from a sub-target inside a rolling step the object may be for the target to count as
+/// passed (rad): the hand goes on to the next while the object follows. With a physical plant the
+/// object lags the hand's sub-target by about a degree at rest (the contacts give under the squeeze
+/// and the tangential loads), and waiting for it to settle at each sub-target ([`SETTLED_NS`])
+/// crawled at 1 deg/s. The command then leads the object by at most `LEAD` plus a
+/// [`SUBSTEP`](super::SUBSTEP); an object that stops (a slip) stops the hand there, and one that
+/// slipped ahead of it by more is held there too, to be planned again from.
+pub const LEAD: Real = 1.5 * std::f64::consts::PI / 180.0;
+/// How far short of a rolling step the object may settle and the step still count as reached
+/// (rad); a hand held still farther away waits.
+pub const SETTLED_TOLERANCE: Real = 2.0 * std::f64::consts::PI / 180.0;
+/// How close the joints of the fingers in contact must come to a rolling target's for the
+/// hand to count as there (rad), beyond the encoder noise (five standard deviations of
+/// `pipeline.joint_noise_deg` are added: [`Tolerances::new`]): the rolling hand moves them on
+/// by more between the sub-targets of a step.
+pub const HAND_AT_TARGET: Real = 0.1 * std::f64::consts::PI / 180.0;
+/// How close to the goal a run must turn the object (rad): the last target, stopped farther
+/// short of it, is planned again from the estimate; `icrflow run` counts a run completed within
+/// it.
+pub const GOAL_TOLERANCE: Real = 0.5 * std::f64::consts::PI / 180.0;
+/// How long the estimated rotation must stay within [`STOPPED`] for the object to count as
+/// settled (ns).
+pub const SETTLED_NS: u64 = 500_000_000;
+/// How long the object must stand still short of a rolling step's target before the follower
+/// plans again from the estimate (ns): longer than [`SETTLED_NS`], so that a step that settles
+/// within [`SETTLED_TOLERANCE`] counts as reached first.
+pub const REPLAN_NS: u64 = 1_000_000_000;
+/// Band the estimated rotation must stay in for the object to count as stopped, for a settled
+/// step and for a re-plan (rad): wider than the estimate's noise (the pose measurements' 0.2
+/// deg, corrected with the estimator's gain), far narrower than a rolling hand turns it in
+/// [`SETTLED_NS`] (~14 deg in the paper's run). A band of 0.05 deg, used for settling until
+/// session 11, was never met through that noise: an object that stopped 0.3 to 2 deg short of
+/// a step was neither reached nor re-planned, and the run waited for its timeout.
+pub const STOPPED: Real = 0.5 * std::f64::consts::PI / 180.0;
+
+/// How close the estimate must come to a target's joints (rad): the constants plus five
+/// standard deviations of the joint encoders' noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// A free finger to a way point ([`WAY_POINT_TOLERANCE`] plus the noise).
+    pub joint: Real,
+    /// The fingers in contact to a rolling target ([`HAND_AT_TARGET`] plus the noise).
+    pub hand: Real,
+}
+
+impl Tolerances {
+    /// The tolerances under joint-encoder noise of standard deviation `joint_noise` (rad).
+    pub fn new(joint_noise: Real) -> Self {
+        Self {
+            joint: WAY_POINT_TOLERANCE + 5.0 * joint_noise,
+            hand: HAND_AT_TARGET + 5.0 * joint_noise,
+        }
+    }
+}
+
+/// Since when, at which rotation and on which target the object has been stopped (within
+/// [`STOPPED`]).
+#[derive(Debug, Clone, Copy)]
+struct Stopped {
+    /// Since when (ns); `None`: from the next estimate on (after a failed re-plan, whose
+    /// planning took a while).
+    since: Option<u64>,
+    rotation: Real,
+    target: usize,
+}
+
+/// What one estimate made a [`Follower`] do.
+#[derive(Debug, Clone, Default)]
+pub struct Followed {
+    /// The first estimate: the follower starts (or resumes) at this target.
+    pub resumed: Option<usize>,
+    /// What followed from the estimate, if anything.
+    pub event: Option<Event>,
+}
+
+impl Followed {
+    /// The targets to command now, in order (an index equal to the number of targets: the
+    /// plan is done).
+    pub fn commands(&self) -> impl Iterator<Item = usize> + '_ {
+        let then = match &self.event {
+            Some(Event::Advanced(k)) => Some(*k),
+            Some(Event::Replanned(_)) => Some(0),
+            _ => None,
+        };
+        self.resumed.into_iter().chain(then)
+    }
+}
+
+/// What an estimate changed.
+#[derive(Debug, Clone)]
+pub enum Event {
+    /// The estimate reached its target; this one is next (the number of targets: done).
+    Advanced(usize),
+    /// The object stood still off the plan: it was planned again from the estimate, and its
+    /// first target is commanded.
+    Replanned(Box<Replanned>),
+    /// The object stood still off the plan and planning again failed: the target is held, and
+    /// planning is tried again after another [`REPLAN_NS`].
+    ReplanFailed {
+        /// The estimated rotation (rad).
+        rotation: Real,
+        /// The target's rotation (rad).
+        target: Real,
+        /// Why planning failed.
+        error: ReplanError,
+    },
+}
+
+/// A re-plan ([`Event::Replanned`]), for the record.
+#[derive(Debug, Clone)]
+pub struct Replanned {
+    /// The estimated rotation it was planned from (rad).
+    pub rotation: Real,
+    /// The rotation of the target the object stopped short of (rad).
+    pub target: Real,
+    /// Re-plans so far, this one included.
+    pub count: u32,
+    /// The number of the new plan's first step.
+    pub first: usize,
+    /// The new plan's summary and steps.
+    pub plan: Plan,
+    /// The rotation offset it was planned with (rad).
+    pub delta: Real,
+    /// What [`targets`] noted.
+    pub notes: Vec<String>,
+}
+
+impl fmt::Display for Replanned {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = &self.plan;
+        let (rotation, target) = (self.rotation.to_degrees(), self.target.to_degrees());
+        write!(
+            f,
+            "the object stopped at {rotation:.1} deg, {:+.1} deg off the target {target:.1} deg: \
+             planned again from the estimate (re-plan {}: {} steps from step {}, {} switches, \
+             {:.1} deg to go; the plan's candidates {:+.2} deg from the contacts)",
+            rotation - target,
+            self.count,
+            p.steps.len(),
+            self.first,
+            p.summary.switches,
+            (p.summary.goal - p.steps.first().map_or(0.0, |s| s.rotation) - self.delta)
+                .to_degrees(),
+            self.delta.to_degrees(),
+        )
+    }
+}
+
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Event::Advanced(k) => write!(f, "on to target {k}"),
+            Event::Replanned(r) => r.fmt(f),
+            Event::ReplanFailed {
+                rotation,
+                target,
+                error,
+            } => write!(
+                f,
+                "the object stopped at {:.1} deg, off the target {:.1} deg, and planning again \
+                 from the estimate failed: {error}",
+                rotation.to_degrees(),
+                target.to_degrees()
+            ),
+        }
+    }
+}
+
+/// What a [`Follower`] plans with: a planar hand's scenario and the section its fingertips
+/// roll on, or a spatial hand's scenario.
+#[derive(Clone)]
+pub enum Planning<'a> {
+    /// The planar planner ([`Scenario`]) on the object's section.
+    Planar(Scenario<'a>, &'a Surface),
+    /// The spatial planner ([`crate::spatial`]).
+    Spatial(crate::spatial::SpatialScenario<'a>),
+}
+
+impl Planning<'_> {
+    /// The plan and its targets ([`targets`], [`crate::spatial::follow::targets`]).
+    fn plan(
+        &self,
+        clearance: Real,
+        note: &mut dyn FnMut(String),
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<(Plan, Vec<Target>), PlanError> {
+        Ok(match self {
+            Self::Planar(scenario, surface) => {
+                let plan = scenario.plan(progress)?;
+                let targets = targets(&plan.steps, scenario.hand, surface, clearance, note);
+                (plan, targets)
+            }
+            Self::Spatial(scenario) => {
+                let plan = scenario.plan(progress)?;
+                let targets = crate::spatial::follow::targets(&plan.steps, scenario);
+                (plan, targets)
+            }
+        })
+    }
+}
+
+/// Leads a hand through a plan from the estimated grasp: a pure step ([`Follower::on_estimate`]:
+/// an estimate and the time in, the target to command out), with no I/O or clock inside.
+pub struct Follower<'a> {
+    /// The scenario planned, which re-plans start from.
+    planning: Planning<'a>,
+    clearance: Real,
+    tolerances: Tolerances,
+    targets: Vec<Target>,
+    /// Whether the plan's last step is the goal (a plan made again may end short of it).
+    ends_at_goal: bool,
+    /// Plans made again from the estimate; 0 while the first plan is followed.
+    replans: u32,
+    /// The target being commanded; chosen from the first estimate (a restart resumes).
+    current: Option<usize>,
+    stopped: Stopped,
+}
+
+impl<'a> Follower<'a> {
+    /// Whether the estimated object has turned past the last target's rotation, in the
+    /// direction the plan turns it.
+    fn past_goal(&self, e: &Estimate) -> bool {
+        let (Some(first), Some(last)) = (self.targets.first(), self.targets.last()) else {
+            return false;
+        };
+        let goal = last.step.rotation;
+        let direction = (goal - first.step.rotation).signum();
+        direction != 0.0 && (e.rotation - goal) * direction > 0.0
+    }
+
+    /// Plans `planning`'s scenario and follows the plan's targets ([`targets`], `clearance`
+    /// and `note` as there; a spatial plan's, [`crate::spatial::follow::targets`]).
+    pub fn new(
+        planning: Planning<'a>,
+        clearance: Real,
+        tolerances: Tolerances,
+        note: &mut dyn FnMut(String),
+    ) -> Result<Self, PlanError> {
+        Self::new_with(planning, clearance, tolerances, note, &mut |_| {})
+    }
+
+    /// [`Follower::new`], reporting the planning's progress to `progress` (the rotation
+    /// planned so far, rad, as [`Scenario::plan`] does).
+    pub fn new_with(
+        planning: Planning<'a>,
+        clearance: Real,
+        tolerances: Tolerances,
+        note: &mut dyn FnMut(String),
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<Self, PlanError> {
+        let (plan, targets) = planning.plan(clearance, note, progress)?;
+        Ok(Self {
+            planning,
+            clearance,
+            tolerances,
+            targets,
+            ends_at_goal: plan.summary.completed,
+            replans: 0,
+            current: None,
+            stopped: Stopped {
+                since: Some(0),
+                rotation: f64::NAN,
+                target: usize::MAX,
+            },
+        })
+    }
+
+    /// The targets being followed.
+    pub fn targets(&self) -> &[Target] {
+        &self.targets
+    }
+
+    /// The target being commanded (the number of targets: done); `None` before the first
+    /// estimate.
+    pub fn current(&self) -> Option<usize> {
+        self.current
+    }
+
+    /// Plans made again from the estimate so far.
+    pub fn replans(&self) -> u32 {
+        self.replans
+    }
+
+    /// The target nearest to `e`: the same fingers in contact, the closest rotation, then the
+    /// free fingers' nearest way point (a fresh run is at the start), so that a restarted
+    /// follower never sends the hand back, and a free finger between two way points goes on
+    /// to one of them, along the move checked between them.
+    fn nearest(&self, e: &Estimate) -> usize {
+        let steps = &self.targets;
+        (0..steps.len())
+            .filter(|&k| e.same_contacts(&steps[k].step))
+            .min_by(|&a, &b| {
+                let d = |k: usize| (e.rotation - steps[k].step.rotation).abs();
+                let j = |k: usize| e.joint_error(&steps[k].step, false);
+                d(a).total_cmp(&d(b))
+                    .then(j(a).total_cmp(&j(b)))
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(0)
+    }
+
+    /// Takes the estimate `e` at `now_ns` (ns, any monotonic clock): starts at the target
+    /// nearest to the first one, moves on as it reaches a target, and plans again when the
+    /// object has stopped off the plan for good (`beat` is called as that planning goes on).
+    pub fn on_estimate(&mut self, e: &Estimate, now_ns: u64, beat: &mut dyn FnMut()) -> Followed {
+        let mut out = Followed::default();
+        let k = match self.current {
+            Some(k) => k,
+            None => {
+                let k = self.nearest(e);
+                self.current = Some(k);
+                out.resumed = Some(k);
+                k
+            }
+        };
+        // Settled: the rotation has stayed within STOPPED for SETTLED_NS on this target. (The
+        // first estimate restarts this, so it never re-plans: `resumed` and a re-plan never
+        // come together.)
+        if (e.rotation - self.stopped.rotation).abs() > STOPPED || self.stopped.target != k {
+            self.stopped = Stopped {
+                since: Some(now_ns),
+                rotation: e.rotation,
+                target: k,
+            };
+        }
+        let since = *self.stopped.since.get_or_insert(now_ns);
+        let stopped_ns = now_ns.saturating_sub(since);
+        let n = self.targets.len();
+        let tol = self.tolerances;
+        // Or the hand is at the target's joints: the object, rolled by them, is where the
+        // hand put it and goes no farther. After a re-plan it can stay about a degree off the
+        // plan's rotation (the contacts are not where the plan has them); waiting SETTLED_NS
+        // for each sub-target then crawled at 1 deg/s.
+        let hand_there = k < n && self.targets[k].hand_at(e, tol.hand);
+        // The last target, when it is the goal, is reached within ROTATION_TOLERANCE, or,
+        // settled, anywhere past it (the hand cannot turn the object back; after a re-plan the
+        // object can end a degree beyond the plan's rotation); stopped farther than
+        // GOAL_TOLERANCE short of it, the object is turned on by a plan made again (a physical
+        // hand's rolling turns the object a little less than the plan's, and the hand at the
+        // goal turns it no farther). A plan that ends short of the goal ends as it settles.
+        let settling = stopped_ns >= SETTLED_NS || hand_there;
+        let goal = k + 1 == n && self.ends_at_goal;
+        let settled = settling && !goal;
+        let at_target = k < n
+            && (self.targets[k].reached(e, settled, tol.joint)
+                || (goal
+                    && settling
+                    && self.past_goal(e)
+                    && e.same_contacts(&self.targets[k].step)));
+        let short = if goal {
+            GOAL_TOLERANCE
+        } else {
+            SETTLED_TOLERANCE
+        };
+        if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint, short) {
+            // Stuck short of the target: plan again from the estimate.
+            let target = self.targets[k].step.rotation;
+            let first = self.targets[k].step.step + 1;
+            let again = match &self.planning {
+                Planning::Planar(scenario, surface) => {
+                    replan(scenario, e, surface, first, self.clearance, beat)
+                }
+                Planning::Spatial(scenario) => {
+                    let held = &self.targets[k].step;
+                    crate::spatial::follow::replan(scenario, e, Some(held), first, beat)
+                }
+            };
+            match again {
+                Ok(again) => {
+                    self.replans += 1;
+                    self.targets = again.targets;
+                    self.ends_at_goal = again.plan.summary.completed;
+                    self.current = Some(0);
+                    self.stopped = Stopped {
+                        since: Some(now_ns),
+                        rotation: e.rotation,
+                        target: usize::MAX,
+                    };
+                    out.event = Some(Event::Replanned(Box::new(Replanned {
+                        rotation: e.rotation,
+                        target,
+                        count: self.replans,
+                        first,
+                        plan: again.plan,
+                        delta: again.delta,
+                        notes: again.notes,
+                    })));
+                    return out;
+                }
+                Err(error) => {
+                    // Tried again after another REPLAN_NS from the next estimate on (the
+                    // planning took a while); the target is held.
+                    self.stopped.since = None;
+                    out.event = Some(Event::ReplanFailed {
+                        rotation: e.rotation,
+                        target,
+                        error,
+                    });
+                }
+            }
+        }
+        if at_target {
+            self.current = Some(k + 1);
+            out.event = Some(Event::Advanced(k + 1));
+        }
+        out
+    }
+}

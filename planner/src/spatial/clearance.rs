@@ -1,0 +1,335 @@
+//! How close the fingers come to the object and to each other: links and fingertips as
+//! capsules, segment distances, and a plan's smallest link clearance and squeeze reserve.
+
+use icrflow_grasp::math::{Real, Vec3};
+
+use super::surface::Convex;
+use super::{SpatialScenario, Touch};
+use crate::hand::Finger;
+use crate::planner::{Phase, SQUEEZE_PROBE, Step};
+
+/// A finger's links and fingertip as capsules: (from, to, radius); the fingertip a capsule
+/// of zero length.
+type Capsules = Vec<(Vec3, Vec3, Real)>;
+
+impl SpatialScenario<'_> {
+    /// How close finger `f`'s links (as lines) come to the object's surface at `q` with the
+    /// object at `theta` (m; negative inside), and which link.
+    pub fn link_clearance(&self, f: &Finger, q: &[Real], theta: Real) -> (Real, usize) {
+        let mut closest = (Real::INFINITY, 0);
+        f.link_segments(q, |link, a, b| {
+            let (a, b) = (self.to_body(theta, &a), self.to_body(theta, &b));
+            let d = segment_surface_distance(self.surface, &a, &b);
+            if d < closest.0 {
+                closest = (d, link);
+            }
+        });
+        closest
+    }
+
+    /// Which two fingers of `touches` (the others at their home poses) come closer than their
+    /// fingertips' radii or their link capsules allow, if any, with the object at `theta`;
+    /// and any free finger at home in the object.
+    pub(super) fn clash(&self, touches: &[Touch], theta: Real) -> Option<(String, [u32; 2])> {
+        let poses: Vec<(u32, &Finger, Vec<Real>)> = self
+            .hand
+            .fingers
+            .iter()
+            .map(|f| {
+                let q = touches
+                    .iter()
+                    .find(|t| t.finger == f.id)
+                    .map_or_else(|| f.home.clone(), |t| t.q.clone());
+                (f.id, f, q)
+            })
+            .collect();
+        let parts: Vec<(u32, Capsules)> = poses
+            .iter()
+            .map(|(id, f, q)| {
+                let mut segs = Vec::new();
+                f.link_segments(q, |_, a, b| segs.push((a, b, self.spatial.link_radius)));
+                let tip = f.tip_centre(q);
+                segs.push((tip, tip, f.tip_radius));
+                (*id, segs)
+            })
+            .collect();
+        for (i, (a, sa)) in parts.iter().enumerate() {
+            for (b, sb) in &parts[i + 1..] {
+                for x in sa {
+                    for y in sb {
+                        let d = segment_segment_distance(&x.0, &x.1, &y.0, &y.1);
+                        if d < x.2 + y.2 {
+                            return Some((
+                                format!(
+                                    "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed)",
+                                    d * 1e3,
+                                    (x.2 + y.2) * 1e3
+                                ),
+                                [*a, *b],
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        for (id, f, q) in &poses {
+            if touches.iter().any(|t| t.finger == *id) {
+                continue;
+            }
+            let tip = self.to_body(theta, &f.tip_centre(q));
+            let (clear, _) = self.link_clearance(f, q, theta);
+            let tip_clear = self.surface.closest(&tip).distance - f.tip_radius;
+            if clear < self.spatial.link_radius || tip_clear < 0.0 {
+                return Some((
+                    format!("free finger {id} at its home pose would be in the object"),
+                    [*id, *id],
+                ));
+            }
+        }
+        None
+    }
+
+    /// The smallest squeeze reserve (m, up to [`SQUEEZE_PROBE`]) of any finger in contact at
+    /// any of `steps`.
+    pub(super) fn min_squeeze_reserve(&self, steps: &[Step]) -> Real {
+        let mut least = SQUEEZE_PROBE;
+        for step in steps {
+            for fs in &step.fingers {
+                let Some(n) = fs.normal else { continue };
+                let f = self.finger(fs.finger);
+                let n_w = self.rotation(step.rotation) * Vec3::from(n);
+                least = least.min(f.reach_along(&fs.joints, &-n_w, SQUEEZE_PROBE));
+            }
+        }
+        least
+    }
+
+    /// How close any finger's links (as lines) come to the object, at every step and along the
+    /// moves between them ([`crate::route::SAMPLES`] poses per straight joint-space move, the
+    /// object's rotation interpolated alike): a finger in contact in both steps, or free in both,
+    /// straight; an attaching finger along its approach and a released finger along its retreat
+    /// ([`Switch::approach`](crate::planner::Switch::approach),
+    /// [`Switch::retreat`](crate::planner::Switch::retreat)): (distance m, finger, link, step).
+    pub fn plan_link_clearance(&self, steps: &[Step]) -> (Real, u32, usize, usize) {
+        let mut closest = (Real::INFINITY, 0, 0, 0);
+        for (k, step) in steps.iter().enumerate() {
+            let previous = if k > 0 { &steps[k - 1] } else { step };
+            let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
+            // The switch this move belongs to: attaching at `step`, or detaching after it.
+            let switch = match step.phase {
+                Phase::Attach => step.switch.as_ref(),
+                Phase::Detach => previous.switch.as_ref(),
+                _ => None,
+            };
+            for (a, b) in previous.fingers.iter().zip(&step.fingers) {
+                let f = self.finger(b.finger);
+                let vias: &[Vec<Real>] = match (switch, step.phase) {
+                    (Some(w), Phase::Attach) if w.attached == b.finger => {
+                        w.approach.as_deref().unwrap_or_default()
+                    }
+                    (Some(w), Phase::Detach) if w.released == b.finger => {
+                        w.retreat.as_deref().unwrap_or_default()
+                    }
+                    _ => &[],
+                };
+                // The way from a's joints to b's: an approach runs home -> vias -> contact, a
+                // retreat the same way back (its vias listed from home).
+                let mut way: Vec<&[Real]> = vec![&a.joints];
+                if step.phase == Phase::Detach {
+                    way.extend(vias.iter().rev().map(Vec::as_slice));
+                } else {
+                    way.extend(vias.iter().map(Vec::as_slice));
+                }
+                way.push(&b.joints);
+                for pair in way.windows(2) {
+                    for i in 0..samples {
+                        let s = if samples > 1 {
+                            i as Real / (samples - 1) as Real
+                        } else {
+                            1.0
+                        };
+                        let q: Vec<Real> = pair[0]
+                            .iter()
+                            .zip(pair[1])
+                            .map(|(x, y)| x + s * (y - x))
+                            .collect();
+                        let theta = previous.rotation + s * (step.rotation - previous.rotation);
+                        let (d, link) = self.link_clearance(f, &q, theta);
+                        if d < closest.0 {
+                            closest = (d, b.finger, link, step.step);
+                        }
+                    }
+                }
+            }
+        }
+        closest
+    }
+}
+
+/// The distance of the segment `ab` (body frame) from the surface (m; negative: a point of it
+/// inside, by how deep). Exact for a sphere; for the other surfaces the smallest signed
+/// distance of the points along it found by a golden-section search, to within
+/// [`TRACE_TOLERANCE`]: the signed distance from a convex body is a convex function of the
+/// point (the largest of the affine `n . x - h(n)` over its supporting planes), so along the
+/// segment it has one minimum, and it changes by at most the length moved. About 15 closest
+/// points for a 50 mm link, where tracing it at 0.5 mm steps took up to a hundred.
+pub fn segment_surface_distance(surface: &Convex, a: &Vec3, b: &Vec3) -> Real {
+    match surface {
+        Convex::Sphere { centre, radius } => point_segment_distance(centre, a, b) - radius,
+        _ => {
+            let at = |s: Real| surface.closest(&(a + (b - a) * s)).distance;
+            let length = (b - a).norm();
+            let (da, db) = (at(0.0), at(1.0));
+            if length <= TRACE_TOLERANCE {
+                return da.min(db);
+            }
+            // Golden section on [lo, hi] (fractions of the segment), the bracket of the
+            // minimum, until it is shorter than the tolerance.
+            const G: Real = 0.618_033_988_749_894_9;
+            let (mut lo, mut hi) = (0.0, 1.0);
+            let (mut x1, mut x2) = (hi - G * (hi - lo), lo + G * (hi - lo));
+            let (mut f1, mut f2) = (at(x1), at(x2));
+            let mut least = da.min(db).min(f1).min(f2);
+            while (hi - lo) * length > TRACE_TOLERANCE {
+                if f1 <= f2 {
+                    hi = x2;
+                    (x2, f2) = (x1, f1);
+                    x1 = hi - G * (hi - lo);
+                    f1 = at(x1);
+                    least = least.min(f1);
+                } else {
+                    lo = x1;
+                    (x1, f1) = (x2, f2);
+                    x2 = lo + G * (hi - lo);
+                    f2 = at(x2);
+                    least = least.min(f2);
+                }
+            }
+            least
+        }
+    }
+}
+
+/// How close (m) to the smallest distance of a link from an ellipsoid or a polyhedron
+/// [`segment_surface_distance`] comes.
+pub const TRACE_TOLERANCE: Real = 0.05e-3;
+
+/// Distance from point `p` to segment `ab`.
+fn point_segment_distance(p: &Vec3, a: &Vec3, b: &Vec3) -> Real {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * t - p).norm()
+}
+
+/// Distance between segments `p0 p1` and `q0 q1` (Ericson, Real-Time Collision Detection,
+/// 5.1.9); either may be a point.
+pub fn segment_segment_distance(p0: &Vec3, p1: &Vec3, q0: &Vec3, q1: &Vec3) -> Real {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.norm_squared(), d2.norm_squared(), d2.dot(&r));
+    let eps = 1e-18;
+    let (s, t);
+    if a <= eps && e <= eps {
+        return r.norm();
+    }
+    if a <= eps {
+        s = 0.0;
+        t = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = d1.dot(&r);
+        if e <= eps {
+            t = 0.0;
+            s = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = d1.dot(&d2);
+            let denom = a * e - b * b;
+            let mut s0 = if denom > eps {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let mut t0 = (b * s0 + f) / e;
+            if t0 < 0.0 {
+                t0 = 0.0;
+                s0 = (-c / a).clamp(0.0, 1.0);
+            } else if t0 > 1.0 {
+                t0 = 1.0;
+                s0 = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            s = s0;
+            t = t0;
+        }
+    }
+    ((p0 + d1 * s) - (q0 + d2 * t)).norm()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spatial::surface;
+
+    #[test]
+    fn segment_distances() {
+        let z = Vec3::zeros();
+        let d = segment_segment_distance(
+            &z,
+            &Vec3::x(),
+            &Vec3::new(0.5, 1.0, -1.0),
+            &Vec3::new(0.5, 1.0, 1.0),
+        );
+        assert!((d - 1.0).abs() < 1e-15);
+        let d = segment_segment_distance(
+            &z,
+            &Vec3::x(),
+            &Vec3::new(2.0, 0.0, 0.0),
+            &Vec3::new(3.0, 0.0, 0.0),
+        );
+        assert!((d - 1.0).abs() < 1e-15);
+        let d =
+            segment_segment_distance(&z, &z, &Vec3::new(0.0, 2.0, 0.0), &Vec3::new(0.0, 2.0, 0.0));
+        assert!((d - 2.0).abs() < 1e-15);
+        let s = Convex::Sphere {
+            centre: z,
+            radius: 1.0,
+        };
+        let d = segment_surface_distance(&s, &Vec3::new(-2.0, 1.5, 0.0), &Vec3::new(2.0, 1.5, 0.0));
+        assert!((d - 0.5).abs() < 1e-15);
+    }
+
+    /// On an ellipsoid and a cube as a polyhedron, a segment's distance from the surface is
+    /// the smallest of its points' to within TRACE_TOLERANCE (sampled every 0.01 mm): segments
+    /// outside, grazing, and through the object.
+    #[test]
+    fn a_segment_s_distance_from_a_convex_surface_is_its_nearest_point_s() {
+        let surfaces = [
+            Convex::Ellipsoid {
+                centre: Vec3::new(0.002, -0.001, 0.003),
+                semi_axes: Vec3::new(0.055, 0.045, 0.04),
+            },
+            Convex::polyhedron(
+                &icrflow_grasp::object::Object::cuboid(Vec3::new(0.03, 0.03, 0.03), 4).unwrap(),
+            )
+            .unwrap(),
+        ];
+        let mut next = surface::uniform(3);
+        for s in &surfaces {
+            for _ in 0..200 {
+                let a = Vec3::new(next(), next(), next()) * 0.09;
+                let b = a + Vec3::new(next(), next(), next()) * 0.06;
+                let d = segment_surface_distance(s, &a, &b);
+                let n = ((b - a).norm() / 1e-5).ceil() as usize;
+                let sampled = (0..=n)
+                    .map(|i| s.closest(&(a + (b - a) * (i as Real / n as Real))).distance)
+                    .fold(Real::INFINITY, Real::min);
+                assert!(
+                    (d - sampled).abs() <= TRACE_TOLERANCE,
+                    "{a} {b}: {d} vs {sampled}"
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,530 @@
+//! The spatial finger switch: the rendezvous region, the free fingers' placements in it (seeded
+//! by their reach maps), their rolling room, the approach and retreat routes, and the checks
+//! of the chosen one.
+
+use std::f64::consts::PI;
+
+use icrflow_grasp::math::{Real, Vec3};
+
+use super::reach::REACH_MAP_GAP;
+use super::{LIFTS, ReachMap, Roll, STEERS, SpatialScenario, Touch, segment_surface_distance};
+use crate::hand::Finger;
+use crate::planner::{NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
+
+/// A switch that passed its checks ([`SpatialScenario::try_switch`]).
+struct Chosen {
+    t: Touch,
+    attach: Vec<Touch>,
+    detach: Vec<Touch>,
+    q_attach: Real,
+    q_detach: Real,
+    approach: Vec<Vec<Real>>,
+    retreat: Vec<Vec<Real>>,
+}
+
+/// What trying one rendezvous placement found.
+enum Attempt {
+    /// It passed.
+    Chosen(Box<Chosen>),
+    /// It did not (said in the rejections).
+    Rejected,
+    /// Its grasps fell below the margin: a defect, which stops the plan.
+    Defect(String),
+}
+
+/// The largest spacing (m) of the fingertip's travel between two poses at which an approach or
+/// a retreat is checked.
+const ROUTE_SPACING: Real = 0.1e-3;
+
+/// How many of a switch's reachable options (best limit margin first) get their rolling room
+/// simulated.
+const ROOM_OPTIONS: usize = 12;
+
+/// Most rolling steps simulated for a rendezvous option's rolling room.
+const ROOM_LIMIT: usize = 36;
+
+impl SpatialScenario<'_> {
+    /// The way of finger `t.finger` between its home pose and its contact `t` (`what`: its
+    /// approach or its retreat), the fingers of `others` holding still, the object at `theta`:
+    /// straight joint-space moves from home (through a pose turned at the finger's base but
+    /// not yet curled, if the straight way is not clear) through poses with the fingertip
+    /// lifted off the contact along its normal ([`LIFTS`], the farthest first) to the
+    /// contact, each checked
+    /// at [`crate::route::SAMPLES`] poses: the fingertip off the object (touching only at the
+    /// contact), the link capsules off it, no two fingers touching. The first of [`LIFTS`]
+    /// whose way is clear: its poses; or why the way straight from home was not.
+    fn route(
+        &self,
+        t: &Touch,
+        others: &[Touch],
+        theta: Real,
+        what: &str,
+    ) -> Result<Vec<Vec<Real>>, String> {
+        let f = self.finger(t.finger);
+        let n_w = self.rotation(theta) * t.normal;
+        let contact = self.to_world(theta, &t.point);
+        let mut why: Option<String> = None;
+        'ways: for heights in LIFTS {
+            let mut vias = Vec::with_capacity(heights.len());
+            for h in heights {
+                let lifted = contact + n_w * (f.tip_radius + h);
+                match f.ik_position_centred(&lifted, &t.q) {
+                    Ok(q) => vias.push(q),
+                    Err(e) => {
+                        why.get_or_insert(format!(
+                            "on its {what} its fingertip cannot lift {:.0} mm off the contact: {e}",
+                            h * 1e3
+                        ));
+                        continue 'ways;
+                    }
+                }
+            }
+            // From home straight to the first lifted pose, or first to that pose with its
+            // distal joints (from the second, or the third, on) still at home (the finger
+            // turns at its base before it curls: a thumb swinging home past a fingertip), or
+            // with its base joints still at home (it curls first).
+            let first = vias.first().unwrap_or(&t.q);
+            let split = |from: usize, base_first: bool| -> Vec<Real> {
+                first
+                    .iter()
+                    .zip(&f.home)
+                    .enumerate()
+                    .map(|(j, (q, h))| if (j < from) == base_first { *q } else { *h })
+                    .collect()
+            };
+            let uncurled: Vec<Vec<Real>> = (1..f.dof().saturating_sub(1))
+                .flat_map(|from| [split(from, true), split(from, false)])
+                .collect();
+            'turns: for turn in std::iter::once(None).chain(uncurled.iter().map(Some)) {
+                let mut way: Vec<&[Real]> = vec![&f.home];
+                way.extend(turn.map(Vec::as_slice));
+                way.extend(vias.iter().map(Vec::as_slice));
+                way.push(&t.q);
+                let legs = way.len() - 1;
+                for (leg, pair) in way.windows(2).enumerate() {
+                    // The last leg ends touching: it may not press in.
+                    let floor = if leg + 1 == legs {
+                        f.tip_radius - 1e-9
+                    } else {
+                        f.tip_radius
+                    };
+                    if let Err(e) = self.clear_move(f, pair[0], pair[1], floor, t, others, theta) {
+                        why.get_or_insert(format!("on its {what} {e}"));
+                        continue 'turns;
+                    }
+                }
+                let mut poses: Vec<Vec<Real>> = turn.into_iter().cloned().collect();
+                poses.extend(vias);
+                return Ok(poses);
+            }
+        }
+        Err(why.unwrap_or_default())
+    }
+
+    /// Whether finger `f` moving straight in joint space from `from` to `to` (checked at
+    /// [`crate::route::SAMPLES`] poses, its fingertip also every [`ROUTE_SPACING`]) keeps its fingertip centre at least `floor` from the
+    /// object, its link capsules off it, and off the fingers of `others` (`t`: the finger's
+    /// contact, for its identity).
+    #[allow(clippy::too_many_arguments)]
+    fn clear_move(
+        &self,
+        f: &Finger,
+        from: &[Real],
+        to: &[Real],
+        floor: Real,
+        t: &Touch,
+        others: &[Touch],
+        theta: Real,
+    ) -> Result<(), String> {
+        let at =
+            |s: Real| -> Vec<Real> { from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect() };
+        // The fingertip at least every ROUTE_SPACING of its straight-line travel: a fingertip
+        // grazing the object between two checked poses dips in by about the square of their
+        // spacing times the path's curvature. The distance from the object changes by at most
+        // the distance moved, so a pose whose fingertip is nearer the last one measured than
+        // that one's distance less the floor is clear without measuring it.
+        let travel = (f.tip_centre(to) - f.tip_centre(from)).norm();
+        let fine = crate::route::SAMPLES.max((travel / ROUTE_SPACING).ceil() as usize + 1);
+        let mut measured: Option<(Vec3, Real)> = None;
+        for i in 0..fine {
+            let tip = self.to_body(theta, &f.tip_centre(&at(i as Real / (fine - 1) as Real)));
+            if measured.is_some_and(|(p, d)| (tip - p).norm() < d - floor) {
+                continue;
+            }
+            let d = self.surface.closest(&tip).distance;
+            if d < floor {
+                return Err("its fingertip would hit the object".into());
+            }
+            measured = Some((tip, d));
+        }
+        // The links and the other fingers at the route's samples; a link whose ends both
+        // moved less than its last measured clearance beyond the capsule's radius is clear
+        // (every point of it moved less).
+        let samples = crate::route::SAMPLES;
+        let mut links: Vec<Option<(Vec3, Vec3, Real)>> = Vec::new();
+        for i in 0..samples {
+            let q = at(i as Real / (samples - 1) as Real);
+            let mut hit: Option<(Real, usize)> = None;
+            f.link_segments(&q, |link, a, b| {
+                if hit.is_some() {
+                    return;
+                }
+                let (a, b) = (self.to_body(theta, &a), self.to_body(theta, &b));
+                if links.len() <= link {
+                    links.resize(link + 1, None);
+                }
+                if let Some((a0, b0, d0)) = links[link] {
+                    let moved = (a - a0).norm().max((b - b0).norm());
+                    if moved < d0 - self.spatial.link_radius {
+                        return;
+                    }
+                }
+                let d = segment_surface_distance(self.surface, &a, &b);
+                if d < self.spatial.link_radius {
+                    hit = Some((d, link));
+                }
+                links[link] = Some((a, b, d));
+            });
+            if let Some((clear, link)) = hit {
+                return Err(format!(
+                    "its link {link} would come {:.2} mm from the object",
+                    clear * 1e3
+                ));
+            }
+            let mut trial = others.to_vec();
+            trial.push(Touch { q, ..t.clone() });
+            if let Some((why, _)) = self.clash(&trial, theta) {
+                return Err(why);
+            }
+        }
+        Ok(())
+    }
+
+    /// Steps finger `t.finger` could roll alone from `t` (no ICR), up to `limit`.
+    fn room(&self, t: &Touch, mut theta: Real, limit: usize) -> usize {
+        let mut t = t.clone();
+        for k in 0..limit {
+            match STEERS.iter().find_map(|&w| {
+                self.roll_finger(&t, theta, self.settings.step, None, false, w)
+                    .ok()
+            }) {
+                Some(next) => t = next,
+                None => return k,
+            }
+            theta += self.settings.step;
+        }
+        limit
+    }
+
+    /// The signed angle (rad, in [0, 2 pi)) about the axis from body point `a` to `b`, or
+    /// `None` where either is within a millimetre of the axis.
+    fn ahead(&self, a: &Vec3, b: &Vec3) -> Option<Real> {
+        let axis = self.spatial.axis;
+        let flat = |p: &Vec3| {
+            let v = p - self.centre;
+            v - axis * axis.dot(&v)
+        };
+        let (u, v) = (flat(a), flat(b));
+        if u.norm() < 1e-3 || v.norm() < 1e-3 {
+            return None;
+        }
+        let angle = axis.dot(&u.cross(&v)).atan2(u.dot(&v));
+        Some(angle.rem_euclid(2.0 * PI))
+    }
+
+    /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
+    /// the search goes on (per candidate placed, per placement tried: a search that takes a
+    /// second still reports).
+    pub(super) fn switch(
+        &self,
+        touches: &[Touch],
+        k: usize,
+        theta: Real,
+        why: &str,
+        maps: &[ReachMap],
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
+        let released = touches[k].finger;
+        let free: Vec<&Finger> = self
+            .hand
+            .fingers
+            .iter()
+            .filter(|f| touches.iter().all(|t| t.finger != f.id))
+            .collect();
+        if free.is_empty() {
+            return Ok(Err(NoSwitch::none(format!(
+                "finger {released} cannot roll on ({why}) and no free finger can take over"
+            ))));
+        }
+        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
+        let regions = crate::rendezvous::regions(self.problem, &idx, k, self.settings.alpha)?;
+        let chosen_from: Vec<usize> = if self.settings.region_erosion == 0 {
+            regions.exact.clone()
+        } else {
+            let exact: Vec<u32> = regions.exact.iter().map(|&c| c as u32).collect();
+            self.problem
+                .candidates()
+                .adjacency
+                .erode(&exact, self.settings.region_erosion)
+                .into_iter()
+                .map(|c| c as usize)
+                .collect()
+        };
+        let cands = self.problem.candidates();
+        let here = touches[k].point;
+        let is_ahead = |a: Option<Real>| a.is_some_and(|a| a > 0.0 && a < PI);
+        // The candidates ahead first; those behind only when none ahead serves.
+        let (ahead, behind): (Vec<usize>, Vec<usize>) = chosen_from
+            .iter()
+            .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
+        // Every reachable placement of a tier: (limit margin, touch).
+        let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
+            let mut options: Vec<(Real, Touch)> = Vec::new();
+            for f in &free {
+                let map = maps.iter().find(|m| m.finger == f.id);
+                for &c in tier {
+                    progress(theta);
+                    // Far from every sampled pose of the finger: out of its reach (or
+                    // nearly), not worth an inverse kinematics; else the nearest sample seeds
+                    // it.
+                    let p = self.surface.closest(&cands.points[c]);
+                    let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
+                    let seed = match map.map(|m| m.nearest(&tip)) {
+                        Some(Some((d, _))) if d > REACH_MAP_GAP => continue,
+                        Some(Some((_, q))) => q,
+                        _ => &f.home,
+                    };
+                    let Ok(t) = self.place(f, &cands.points[c], theta, seed, false, false) else {
+                        continue;
+                    };
+                    if t.candidate != c {
+                        continue;
+                    }
+                    let mut trial = touches.to_vec();
+                    trial.push(t.clone());
+                    if self.clash(&trial, theta).is_some() {
+                        continue;
+                    }
+                    options.push((f.limit_margin(&t.q), t));
+                }
+            }
+            // The best centred joints first; of the first ROOM_OPTIONS, the most rolling
+            // room first; then the rest (their room measured if one is chosen).
+            options.sort_by(|x, y| {
+                y.0.total_cmp(&x.0)
+                    .then(x.1.finger.cmp(&y.1.finger))
+                    .then(x.1.candidate.cmp(&y.1.candidate))
+            });
+            let limit = ((self.settings.goal - theta) / self.settings.step)
+                .ceil()
+                .clamp(1.0, ROOM_LIMIT as Real) as usize;
+            let rest = options.split_off(options.len().min(ROOM_OPTIONS));
+            let mut ranked: Vec<(Option<usize>, Touch)> = options
+                .into_iter()
+                .map(|(_, t)| (Some(self.room(&t, theta, limit)), t))
+                .collect();
+            ranked.sort_by(|x, y| {
+                y.0.cmp(&x.0)
+                    .then(x.1.finger.cmp(&y.1.finger))
+                    .then(x.1.candidate.cmp(&y.1.candidate))
+            });
+            ranked.extend(rest.into_iter().map(|(_, t)| (None, t)));
+            (ranked, limit)
+        };
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        let mut rejected = Vec::new();
+        let mut chosen = None;
+        let mut tried = 0;
+        'tiers: for tier in [&ahead, &behind] {
+            let (ranked, limit) = placements(tier, progress);
+            tried += ranked.len();
+            for (room, t) in ranked {
+                progress(theta);
+                let room = room.unwrap_or_else(|| self.room(&t, theta, limit));
+                let ahead = self.ahead(&here, &t.point);
+                match self.try_switch(touches, k, theta, t, floor, &mut rejected)? {
+                    Attempt::Chosen(c) => {
+                        chosen = Some((room, ahead, *c));
+                        break 'tiers;
+                    }
+                    Attempt::Rejected => {}
+                    Attempt::Defect(why) => return Ok(Err(NoSwitch::defect(why))),
+                }
+            }
+        }
+        let Some((
+            room,
+            ahead,
+            Chosen {
+                t,
+                attach,
+                detach,
+                q_attach,
+                q_detach,
+                approach,
+                retreat,
+            },
+        )) = chosen
+        else {
+            return Ok(Err(NoSwitch::none(format!(
+                "finger {released} cannot roll on ({why}); of the {} candidates that keep the margin with the remaining contacts, none is reachable by a free finger ({:?}) with a rolling step after it ({tried} placements tried){}",
+                chosen_from.len(),
+                free.iter().map(|f| f.id).collect::<Vec<_>>(),
+                rejections(&rejected)
+            ))));
+        };
+        let info = Switch {
+            released,
+            attached: t.finger,
+            reason: why.to_string(),
+            icr_region: regions.icr.clone(),
+            lp_region: regions.lp.clone(),
+            brute_force: regions.exact.clone(),
+            chosen_from: chosen_from.len(),
+            rendezvous: t.candidate,
+            rendezvous_angle: None,
+            room_steps: room,
+            ahead: ahead.unwrap_or(0.0),
+            approach: Some(approach),
+            retreat: Some(retreat),
+        };
+        Ok(Ok((attach, detach, info, q_attach, q_detach)))
+    }
+
+    /// Finger `t.finger` attaching at `t` in place of `touches[k]` with the object at
+    /// `theta`, checked: its squeeze reserve, its approach and the released finger's retreat,
+    /// the attach and detach grasps' quality (against `floor`: below is a defect, the region
+    /// being exact), and one rolling step after it. Why not goes to `rejected`.
+    fn try_switch(
+        &self,
+        touches: &[Touch],
+        k: usize,
+        theta: Real,
+        t: Touch,
+        floor: Real,
+        rejected: &mut Vec<String>,
+    ) -> Result<Attempt, PlanError> {
+        let mut reject = |why: String| {
+            rejected.push(format!(
+                "{} by finger {}: {why}",
+                self.describe(&t.point),
+                t.finger
+            ));
+            Ok(Attempt::Rejected)
+        };
+        let f = self.finger(t.finger);
+        let touch = self.touch_of(f, &t.q, theta);
+        if let Some(why) = self.pose_check(f, &t.q, theta, &touch, true) {
+            return reject(why);
+        }
+        // The approach from home and the released finger's retreat to it.
+        let mut detach_set = touches.to_vec();
+        detach_set.push(t.clone());
+        let gone = detach_set.remove(k);
+        let routes = self
+            .route(&t, touches, theta, "approach")
+            .and_then(|approach| {
+                self.route(&gone, &detach_set, theta, "retreat")
+                    .map(|retreat| (approach, retreat))
+            });
+        let (approach, retreat) = match routes {
+            Ok(r) => r,
+            Err(why) => return reject(why),
+        };
+        let mut attach = touches.to_vec();
+        attach.push(t.clone());
+        let q_attach = self.quality(&attach)?;
+        let mut detach = attach.clone();
+        detach.remove(k);
+        let q_detach = self.quality(&detach)?;
+        if q_attach < floor || q_detach < floor {
+            return Ok(Attempt::Defect(format!(
+                "switch of finger {} to finger {} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                touches[k].finger,
+                t.finger,
+                self.describe(&t.point),
+                self.settings.alpha
+            )));
+        }
+        for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
+            if let Some((_, why)) = self.one_off(grasp)? {
+                return reject(format!("{name}: {why}"));
+            }
+        }
+        let step = self.settings.step.min(self.settings.goal - theta);
+        if step > 1e-12 {
+            let new = detach.len() - 1;
+            match self.roll(&detach, theta, step)? {
+                Roll::Blocked(j, why) if j == new => return reject(why),
+                Roll::Stuck(why) => return reject(why),
+                _ => {}
+            }
+        }
+        Ok(Attempt::Chosen(Box::new(Chosen {
+            t,
+            attach,
+            detach,
+            q_attach,
+            q_detach,
+            approach,
+            retreat,
+        })))
+    }
+}
+
+/// What the placements of a switch that failed ran into, for its message: each reason (the
+/// text after the placement's `point by finger N: `) with how many placements it stopped,
+/// the most frequent first, and the first three placements as examples; empty for none.
+fn rejections(rejected: &[String]) -> String {
+    if rejected.is_empty() {
+        return String::new();
+    }
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for r in rejected {
+        let why = r.split_once(": ").map_or(r.as_str(), |(_, why)| why);
+        match counts.iter_mut().find(|(w, _)| *w == why) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((why, 1)),
+        }
+    }
+    counts.sort_by_key(|c| std::cmp::Reverse(c.1));
+    let reasons: Vec<String> = counts.iter().map(|(w, n)| format!("{n} x {w}")).collect();
+    let examples = rejected
+        .iter()
+        .take(3)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join("; ");
+    format!(" (stopped by: {}; e.g. {examples})", reasons.join(", "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A failed switch's message counts the placements per reason, the most frequent first,
+    /// with three examples, however many were tried (it once listed all 804).
+    #[test]
+    fn a_failed_switch_says_what_stopped_its_placements_in_a_line() {
+        assert_eq!(rejections(&[]), "");
+        let rejected: Vec<String> = (0..800)
+            .map(|i| {
+                let why = if i % 100 == 7 {
+                    "on its approach its fingertip would hit the object"
+                } else {
+                    "on its retreat its fingertip would hit the object"
+                };
+                format!("[{i}.0, 0.0, 0.0] mm by finger 2: {why}")
+            })
+            .collect();
+        let said = rejections(&rejected);
+        assert_eq!(
+            said,
+            " (stopped by: 792 x on its retreat its fingertip would hit the object, 8 x on its \
+             approach its fingertip would hit the object; e.g. [0.0, 0.0, 0.0] mm by finger 2: on \
+             its retreat its fingertip would hit the object; [1.0, 0.0, 0.0] mm by finger 2: on \
+             its retreat its fingertip would hit the object; [2.0, 0.0, 0.0] mm by finger 2: on \
+             its retreat its fingertip would hit the object)"
+        );
+    }
+}
