@@ -212,8 +212,9 @@ impl ForceSolver {
             }
             None => {
                 let solver = self.build(n)?;
+                let k = self.solvers.len();
                 self.solvers.push((n, solver));
-                &mut self.solvers.last_mut().expect("pushed above").1
+                &mut self.solvers[k].1
             }
         };
         solver.solve();

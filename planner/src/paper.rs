@@ -53,6 +53,10 @@ pub fn finger(id: u32, base_angle_deg: Real) -> Result<Finger, HandError> {
 }
 
 /// The paper's hand.
+#[expect(
+    clippy::expect_used,
+    reason = "constants: the paper's hand is checked by its tests"
+)]
 pub fn hand() -> Hand {
     let fingers = (1..=4)
         .zip(BASE_ANGLES_DEG)

@@ -133,6 +133,7 @@ pub fn regions(
                     .unwrap_or_else(|| parallel.clone())
                 });
             }
+            #[expect(clippy::expect_used, reason = "pivots[f] is computed above")]
             piv.push(pivots[f].clone().expect("computed above"));
             zone.push(parallel);
         }
@@ -177,6 +178,7 @@ fn pivot(
     let d = problem.dim();
     let a = hull.normal(f);
     let m = problem.ows_count();
+    #[expect(clippy::expect_used, reason = "a grasp problem has object wrenches")]
     let scan = |h: &[Real]| {
         (0..m)
             .map(|i| (i, alpha * dot(h, problem.ows_wrench(i))))

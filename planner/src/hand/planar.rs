@@ -111,7 +111,7 @@ impl Finger {
                             let (ka, kb) = (key(a), key(b));
                             ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
                         })
-                        .expect("three candidates")
+                        .unwrap_or(target) // never: three candidates
                 })
                 .collect();
             match self.limit_violation(&q, 1e-12) {
@@ -132,6 +132,10 @@ impl Finger {
                 .zip(&self.joints)
                 .map(|(a, j)| a.clamp(j.lower, j.upper))
                 .collect()),
+            #[expect(
+                clippy::expect_used,
+                reason = "no candidate within the limits: each recorded its violation"
+            )]
             None => Err(first_violation.expect("a violation was recorded")),
         }
     }

@@ -106,6 +106,10 @@ impl Stepper for Scenario<'_> {
 }
 
 impl Scenario<'_> {
+    #[expect(
+        clippy::expect_used,
+        reason = "the scenario's fingers are checked against the hand when it is made"
+    )]
     pub(super) fn finger(&self, id: u32) -> &Finger {
         self.hand.finger(id).expect("fingers are checked up front")
     }

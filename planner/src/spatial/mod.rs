@@ -173,6 +173,10 @@ pub const LIFTS: [&[Real]; 5] = [
 ];
 
 impl SpatialScenario<'_> {
+    #[expect(
+        clippy::expect_used,
+        reason = "the scenario's fingers are checked against the hand when it is made"
+    )]
     fn finger(&self, id: u32) -> &Finger {
         self.hand.finger(id).expect("fingers are checked up front")
     }
