@@ -8,11 +8,7 @@
 # speed changes from minute to minute) does not fall on one side only; the table's minimums
 # are over all rounds.
 set -euo pipefail
-root="$(cd "$(dirname "$0")/.." && pwd)"
-cd "$root"
-export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
-scripts/setup.sh
+source "$(dirname "$0")/../scripts/env.sh"
 py="$(scripts/setup-python.sh | tail -n 1)"
 cases="$CARGO_TARGET_DIR/bench-cases.json"
 python_out="$CARGO_TARGET_DIR/bench-python.jsonl"

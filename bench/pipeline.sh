@@ -8,11 +8,7 @@
 # Usage: bench/pipeline.sh [seconds per hop cell, default 3]
 # Writes the run's summary to $CARGO_TARGET_DIR/bench-pipeline.json and prints a table.
 set -euo pipefail
-root="$(cd "$(dirname "$0")/.." && pwd)"
-cd "$root"
-export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
-scripts/setup.sh
+source "$(dirname "$0")/../scripts/env.sh"
 cargo build --release --workspace
 echo "== load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "== one hop between two processes (512 bytes)"

@@ -5,11 +5,7 @@
 # bench/reference_qhull.py (numpy + scipy Qhull, one thread). Usage: bench/python.sh [args of
 # python_bench.py]. Figures: BENCHMARKS.md.
 set -euo pipefail
-root="$(cd "$(dirname "$0")/.." && pwd)"
-cd "$root"
-export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
-scripts/setup.sh
+source "$(dirname "$0")/../scripts/env.sh"
 py="$(scripts/setup-python.sh | tail -n 1)"
 echo "== load average $(cut -d' ' -f1-3 /proc/loadavg); Rust (criterion, single thread)" >&2
 cargo bench -p icrflow-grasp --bench quality -- --warm-up-time 1 --measurement-time 3 \

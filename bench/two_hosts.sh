@@ -10,11 +10,7 @@
 # Needs root (ip netns, mount). Usage: sudo bench/two_hosts.sh
 # Writes the summaries to $CARGO_TARGET_DIR/bench-two-hosts-{robot,workstation}.json.
 set -euo pipefail
-root="$(cd "$(dirname "$0")/.." && pwd)"
-cd "$root"
-export ICRFLOW_CACHE="${ICRFLOW_CACHE:-$HOME/.cache/icrflow}"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ICRFLOW_CACHE/target}"
-scripts/setup.sh
+source "$(dirname "$0")/../scripts/env.sh"
 cargo build --release --workspace
 py="$(scripts/setup-python.sh | tail -n 1)"
 icrflow="$CARGO_TARGET_DIR/release/icrflow"

@@ -257,9 +257,9 @@ const NEEDS_ROOT: &str = "needs root, iproute2 and util-linux (network and mount
 
 /// Fresh namespaces with the robot's run started, then the workstation's (children 0 and 1),
 /// in a scratch directory named after `tag`; fails `test`, naming what is missing, where the
-/// namespaces cannot be made. Returns the hosts, the directory, and the robot's and the
-/// workstation's summary paths.
-fn start_pair(test: &str, tag: &str) -> (Hosts, PathBuf, PathBuf, PathBuf) {
+/// namespaces cannot be made.
+fn start_pair(test: &str, tag: &str) -> Pair {
+    let one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let mut hosts = Hosts::create(tag).unwrap_or_else(|why| {
         panic!("{test}: cannot make the two hosts here: {why} ({NEEDS_ROOT})")
     });
@@ -267,7 +267,37 @@ fn start_pair(test: &str, tag: &str) -> (Hosts, PathBuf, PathBuf, PathBuf) {
     let (robot_config, ws_config) = configs(&dir);
     let robot_summary = hosts.run(&hosts.robot.clone(), &robot_config, &[]);
     let ws_summary = hosts.run(&hosts.workstation.clone(), &ws_config, &[PASSWORD]);
-    (hosts, dir, robot_summary, ws_summary)
+    (one, hosts, dir, robot_summary, ws_summary)
+}
+
+/// A pair of hosts with their runs started: the one pipeline pair's lock (held while the
+/// pair runs), the hosts, the scratch directory, the robot's and the workstation's summaries.
+type Pair = (
+    std::sync::MutexGuard<'static, ()>,
+    Hosts,
+    PathBuf,
+    PathBuf,
+    PathBuf,
+);
+
+/// Waits for both runs (the robot's, then the workstation's) and asserts both ended well,
+/// showing each host's words on either's failure (what one did explains the other's).
+/// Returns the robot's and the workstation's stderr, and their summaries.
+fn both_ended(
+    hosts: &mut Hosts,
+    robot_summary: &Path,
+    ws_summary: &Path,
+) -> (String, String, serde_json::Value, serde_json::Value) {
+    let (robot_ok, robot_err) = hosts.wait(0);
+    let (ws_ok, ws_err) = hosts.wait(0);
+    assert!(
+        robot_ok && ws_ok,
+        "robot ({}): {robot_err}\nworkstation ({}): {ws_err}",
+        if robot_ok { "ok" } else { "failed" },
+        if ws_ok { "ok" } else { "failed" }
+    );
+    let (robot_s, ws_s) = (summary(robot_summary), summary(ws_summary));
+    (robot_err, ws_err, robot_s, ws_s)
 }
 
 fn summary(path: &Path) -> serde_json::Value {
@@ -341,9 +371,8 @@ fn assert_completed_together(robot: &serde_json::Value, workstation: &serde_json
 #[test]
 #[ignore = "needs root and network namespaces: see the module's docs (NEEDS_ROOT)"]
 fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_hosts() {
-    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let test = "the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_hosts";
-    let (mut hosts, dir, robot_summary, ws_summary) = start_pair(test, "run");
+    let (_one, mut hosts, dir, robot_summary, ws_summary) = start_pair(test, "run");
     let (robot_pid, ws_pid) = (hosts.children[0].id(), hosts.children[1].id());
     // While both run: their buses live in their private /dev/shm, none in this machine's.
     std::thread::sleep(Duration::from_secs(5));
@@ -381,17 +410,7 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    let (robot_ok, robot_err) = hosts.wait(0);
-    let (ws_ok, ws_err) = hosts.wait(0);
-    // Each host's words on either's failure: what one did explains the other's.
-    assert!(
-        robot_ok && ws_ok,
-        "robot ({}): {robot_err}\nworkstation ({}): {ws_err}",
-        if robot_ok { "ok" } else { "failed" },
-        if ws_ok { "ok" } else { "failed" }
-    );
-    let robot_s = summary(&robot_summary);
-    let ws_s = summary(&ws_summary);
+    let (robot_err, ws_err, robot_s, ws_s) = both_ended(&mut hosts, &robot_summary, &ws_summary);
     assert_eq!(robot_s["bus_prefix"], format!("icr{robot_pid}_"));
     assert_completed_together(&robot_s, &ws_s);
     let refused: Vec<&str> = robot_err
@@ -421,9 +440,8 @@ fn the_paper_scenario_completes_with_the_loop_closed_over_zenoh_between_two_host
 #[test]
 #[ignore = "needs root and network namespaces: see the module's docs (NEEDS_ROOT)"]
 fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
-    let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let test = "cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes";
-    let (mut hosts, dir, robot_summary, ws_summary) = start_pair(test, "cut");
+    let (_one, mut hosts, dir, robot_summary, ws_summary) = start_pair(test, "cut");
     // Mid-run, the link goes down for 4 s: 2 s after the robot's hand has started to follow
     // the plan (the pair takes ~15 s uncut; how long the workstation takes to plan depends on
     // the machine's load, so the cut is timed from the run, not from the start).
@@ -436,17 +454,7 @@ fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     hosts.link(false);
     std::thread::sleep(Duration::from_secs(4));
     hosts.link(true);
-    let (robot_ok, robot_err) = hosts.wait(0);
-    let (ws_ok, ws_err) = hosts.wait(0);
-    // Each host's words on either's failure: what one did explains the other's.
-    assert!(
-        robot_ok && ws_ok,
-        "robot ({}): {robot_err}\nworkstation ({}): {ws_err}",
-        if robot_ok { "ok" } else { "failed" },
-        if ws_ok { "ok" } else { "failed" }
-    );
-    let robot_s = summary(&robot_summary);
-    let ws_s = summary(&ws_summary);
+    let (robot_err, ws_err, robot_s, ws_s) = both_ended(&mut hosts, &robot_summary, &ws_summary);
     assert_completed_together(&robot_s, &ws_s);
     // The robot's loop went on without the link: its hand command node kept commanding holds
     // (the run reports a long hold again each second it lasts, from the hold commands that
