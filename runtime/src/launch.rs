@@ -168,7 +168,11 @@ impl TryFrom<LaunchArgs> for Launch {
 
 /// A node's whole command line: its [`LaunchArgs`].
 #[derive(Debug, clap::Parser)]
-#[command(no_binary_name = true, disable_help_flag = true)]
+#[command(
+    name = "icrflow-<node>",
+    no_binary_name = true,
+    disable_help_flag = true
+)]
 struct NodeCommandLine {
     #[command(flatten)]
     launch: LaunchArgs,
@@ -202,18 +206,15 @@ impl Launch {
     }
 
     /// The arguments that hand this description to a node ([`Launch::parse`] reads them).
+    /// Each value joined to its flag (`--rig=VALUE`), so that a value starting with `-` (a rig
+    /// named `-lab`) is not read as a flag.
     pub fn to_args(&self) -> Vec<String> {
-        let mut args: Vec<String> = [
-            "--config".into(),
-            self.config.display().to_string(),
-            "--rig".into(),
-            self.bus.rig.clone(),
-            "--bus-prefix".into(),
-            self.bus.prefix.clone(),
-            "--bus-root".into(),
-            self.bus.root.display().to_string(),
-        ]
-        .into();
+        let mut args: Vec<String> = vec![
+            format!("--config={}", self.config.display()),
+            format!("--rig={}", self.bus.rig),
+            format!("--bus-prefix={}", self.bus.prefix),
+            format!("--bus-root={}", self.bus.root.display()),
+        ];
         if let Some(pid) = self.supervisor {
             args.extend(["--supervisor".into(), pid.to_string()]);
         }
@@ -234,10 +235,8 @@ impl RecordingLaunch {
     /// Its arguments ([`RecordingArgs`] reads them).
     pub fn to_args(&self) -> Vec<String> {
         let mut args = vec![
-            "--recording".into(),
-            self.target.clone(),
-            "--recording-id".into(),
-            self.id.clone(),
+            format!("--recording={}", self.target),
+            format!("--recording-id={}", self.id),
         ];
         if !self.footer {
             args.push("--no-footer".into());
@@ -261,6 +260,10 @@ mod tests {
     #[test]
     fn a_launch_reads_back_what_it_writes() {
         let plain = Launch::supervised(PathBuf::from("/c/paper sphere.toml"), bus());
+        let hyphens = Launch::new(
+            PathBuf::from("/-c.toml"),
+            BusConfig::new("-lab", "p_", PathBuf::from("/tmp/-b")).unwrap(),
+        );
         let full = Launch {
             supervisor: Some(7),
             realtime: Some(50),
@@ -273,7 +276,7 @@ mod tests {
             ..plain.clone()
         };
         let by_hand = Launch::new(PathBuf::from("c.toml"), bus());
-        for l in [plain, full, by_hand] {
+        for l in [plain, full, by_hand, hyphens] {
             assert_eq!(Launch::parse(&l.to_args()).unwrap(), l);
         }
     }

@@ -62,6 +62,11 @@ fn exit(result: anyhow::Result<()>) -> ExitCode {
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
+        // A malformed command line as every node says it: exit status 1, named.
+        Err(e) if e.use_stderr() => {
+            eprintln!("icrflow-visualizer: error: {}", e.render());
+            return ExitCode::FAILURE;
+        }
         Err(e) => e.exit(),
     };
     match (cli.mode, cli.node) {
