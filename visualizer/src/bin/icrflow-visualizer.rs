@@ -64,7 +64,11 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         // A malformed command line as every node says it: exit status 1, named.
         Err(e) if e.use_stderr() => {
-            eprintln!("icrflow-visualizer: error: {}", e.render());
+            let said = e.render().to_string();
+            eprintln!(
+                "icrflow-visualizer: error: {}",
+                said.trim_start_matches("error: ").trim_end()
+            );
             return ExitCode::FAILURE;
         }
         Err(e) => e.exit(),
