@@ -454,7 +454,7 @@ fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     hosts.link(false);
     std::thread::sleep(Duration::from_secs(4));
     hosts.link(true);
-    let (robot_err, ws_err, robot_s, ws_s) = both_ended(&mut hosts, &robot_summary, &ws_summary);
+    let (robot_err, _, robot_s, ws_s) = both_ended(&mut hosts, &robot_summary, &ws_summary);
     assert_completed_together(&robot_s, &ws_s);
     // The robot's loop went on without the link: its hand command node kept commanding holds
     // (the run reports a long hold again each second it lasts, from the hold commands that
