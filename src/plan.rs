@@ -281,7 +281,7 @@ fn print_text(
     if spatial {
         writeln!(
             o,
-            "           the contacts' nearest facets, 6D analysis, the cones' tangents about the axis (as analyze)"
+            "           where the fingertips touch (each step's exact contact points and normals; their candidates' grasp keeps alpha too), 6D analysis, the cones' tangents about the axis (as analyze)"
         )?;
         writeln!(
             o,
@@ -309,10 +309,19 @@ fn print_text(
         )?;
     }
     if let Some(mm) = s.min_link_clearance_mm {
-        writeln!(
-            o,
-            "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
-        )?;
+        if spatial {
+            let r = config.plant.link_radius * 1e3;
+            writeln!(
+                o,
+                "links      closest {mm:.1} mm to the object: their capsules (radius {r:.1} mm, plant.link_radius_mm) clear of it by {:.1} mm, and of each other",
+                mm - r
+            )?;
+        } else {
+            writeln!(
+                o,
+                "links      closest {mm:.1} mm to the object (links as lines: their thickness is the hand's margin)"
+            )?;
+        }
     }
     if let Some(mm) = s.min_squeeze_reserve_mm {
         writeln!(

@@ -15,6 +15,7 @@ mod common;
 
 use common::{icrflow, root, scratch};
 use icrflow_grasp::math::{Real, Vec3};
+use icrflow_grasp::object::closest_on_triangle;
 use icrflow_grasp::quality::GraspProblem;
 use icrflow_grasp::wrench::{Space, WrenchFrame};
 use icrflow_plan::planner::Phase;
@@ -44,6 +45,12 @@ fn allegro_ellipsoid_mesh_for_mujoco_keeps_the_gate_s_margin_a_facet_off_checked
     check_from_scratch(name, Vec3::new(0.2, 1.0, 0.2).normalize());
 }
 
+/// The sphere as MuJoCo turns it.
+#[test]
+fn allegro_sphere_for_mujoco_turns_a_whole_turn_keeping_the_margin_checked_from_scratch() {
+    check_from_scratch("config/allegro_sphere_mujoco.toml", Vec3::y());
+}
+
 /// A smaller ellipsoid, rolled on exactly.
 #[test]
 fn allegro_exact_ellipsoid_turns_a_whole_turn_about_a_tilted_axis_checked_from_scratch() {
@@ -54,8 +61,10 @@ fn allegro_exact_ellipsoid_turns_a_whole_turn_about_a_tilted_axis_checked_from_s
 }
 
 /// Plans `name` and checks the plan from scratch: the goal, switches, the axis, every step's
-/// quality recomputed, every contact on the surface where the planned joints put the
-/// fingertip, inside the fingertip cap, on its nearest facet, the joints inside their limits,
+/// quality recomputed where the fingertips touch (>= alpha there, and at the contacts'
+/// candidates), every contact on the surface where the planned joints put the fingertip,
+/// inside the fingertip cap, its candidate the facet it lies on (a polyhedron) or the nearest
+/// (a smooth surface), the joints inside their limits,
 /// the links' capsules off the object.
 fn check_from_scratch(name: &str, axis: Vec3) {
     let config = Config::load(&root().join(name)).unwrap();
@@ -111,14 +120,37 @@ fn check_from_scratch(name: &str, axis: Vec3) {
             step.quality
         );
         let contacts: Vec<usize> = step.fingers.iter().filter_map(|f| f.contact).collect();
-        let e = fresh.evaluate(&contacts).unwrap();
+        // The margin where the fingertips touch: the grasp at the recorded points with the
+        // normals the surface has there (checked below against the fingertips' poses), not
+        // at their candidates.
+        let touching: Vec<(Vec3, Vec3)> = step
+            .fingers
+            .iter()
+            .filter(|f| f.contact.is_some())
+            .map(|f| (Vec3::from(f.point.unwrap()), Vec3::from(f.normal.unwrap())))
+            .collect();
+        let e = fresh.evaluate_at(&touching).unwrap();
         assert!(e.force_closure(), "step {}", step.step);
+        assert!(
+            e.quality >= alpha * (1.0 - 1e-9),
+            "step {}: alpha* {} where the fingertips touch < alpha = {alpha}",
+            step.step,
+            e.quality,
+        );
         assert!(
             (e.quality - step.quality).abs() <= 1e-12,
             "step {}: {} recomputed, {} planned",
             step.step,
             e.quality,
             step.quality
+        );
+        // And at their candidates, what their ICRs guarantee.
+        let e = fresh.evaluate(&contacts).unwrap();
+        assert!(
+            e.force_closure() && e.quality >= alpha * (1.0 - 1e-9),
+            "step {}: alpha* {} at the candidates",
+            step.step,
+            e.quality
         );
         // With any one contact moved to a facet within plan.neighbour_rings of its own, the
         // grasp keeps plan.neighbour_alpha (at every step but the start, the config's).
@@ -191,15 +223,34 @@ fn check_from_scratch(name: &str, axis: Vec3) {
             let cap = cap_axis.dot(&-normal).clamp(-1.0, 1.0).acos();
             assert!(cap <= f.cap_half_angle - config.plan.cap_margin + 1e-9);
             assert!((fs.cap_angle.unwrap() - cap).abs() < 1e-9);
-            // The contact's candidate is the facet nearest the point.
-            let nearest = (0..object.facets.points.len())
-                .min_by(|&a, &b| {
-                    (object.facets.points[a] - body)
-                        .norm()
-                        .total_cmp(&(object.facets.points[b] - body).norm())
-                })
-                .unwrap();
-            assert_eq!(c, nearest, "step {}", step.step);
+            // The contact's candidate: on a smooth surface the facet whose centre is nearest
+            // the point; on the polyhedron the facet the point lies on (its face's
+            // triangles within 1 nm of it).
+            if smooth {
+                let nearest = (0..object.facets.points.len())
+                    .min_by(|&a, &b| {
+                        (object.facets.points[a] - body)
+                            .norm()
+                            .total_cmp(&(object.facets.points[b] - body).norm())
+                    })
+                    .unwrap();
+                assert_eq!(c, nearest, "step {}", step.step);
+            } else {
+                let v = &object.vertices;
+                let face = object.faces.face(object.facet_faces[c] as usize);
+                let off = face[1..]
+                    .windows(2)
+                    .map(|w| {
+                        let [a, b, d] = [face[0], w[0], w[1]].map(|i| v[i as usize]);
+                        (closest_on_triangle(&body, &a, &b, &d) - body).norm()
+                    })
+                    .fold(Real::INFINITY, Real::min);
+                assert!(
+                    off < 1e-9,
+                    "step {}: the contact is {off} m off its facet {c}",
+                    step.step
+                );
+            }
         }
     }
     // Every switch's approach (home -> its poses -> the rendezvous point) and retreat (the
@@ -369,7 +420,7 @@ fn plan_json_gains_the_axis_and_run_refuses_a_slip_off_a_sphere_by_its_key() {
     let mujoco = dir.join("mujoco.toml");
     std::fs::write(
         &mujoco,
-        allegro().replace("[plan]", "[plant]\nkind = \"mujoco\"\n\n[plan]"),
+        allegro().replace("[plant]\n", "[plant]\nkind = \"mujoco\"\n"),
     )
     .unwrap();
     let o = icrflow(&["validate", mujoco.to_str().unwrap()]);

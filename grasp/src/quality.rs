@@ -362,6 +362,22 @@ impl GraspProblem {
         self.grade(e, scratch)
     }
 
+    /// Evaluates the grasp with one contact at each of the given points (body frame) with
+    /// the outward unit normal given beside it: the contacts where they are, not at a
+    /// candidate (the cones built by the problem's frame and contact model, as a candidate's
+    /// are). Errors as [`Self::evaluate_wrenches`], and [`GraspError::NoContacts`].
+    pub fn evaluate_at(&self, contacts: &[(Vec3, Vec3)]) -> Result<Evaluation, GraspError> {
+        if contacts.is_empty() {
+            return Err(GraspError::NoContacts);
+        }
+        let w = self.model.edges() * self.dim();
+        let mut wrenches = vec![0.0; contacts.len() * w];
+        for ((p, n), out) in contacts.iter().zip(wrenches.chunks_exact_mut(w)) {
+            self.frame.primitive_wrenches(p, n, &self.model, out);
+        }
+        self.evaluate_wrenches(wrenches)
+    }
+
     /// Evaluates the grasp whose primitive wrenches are given (row-major, `dim` per wrench).
     ///
     /// Errors: only when no hull can be built for a reason other than degeneracy (both hull
@@ -563,6 +579,35 @@ pub(crate) mod tests {
             "alpha* = {}",
             high.quality
         );
+    }
+
+    #[test]
+    fn a_grasp_evaluated_at_its_candidates_points_is_the_candidates_grasp() {
+        let p = planar_sphere_problem(0.3);
+        let c = p.candidates();
+        for contacts in [[6, 66, 28], [0, 24, 48], [1, 2, 3]] {
+            let at: Vec<(Vec3, Vec3)> = contacts
+                .iter()
+                .map(|&i| (c.points[i], c.normals[i]))
+                .collect();
+            let (grid, exact) = (p.evaluate(&contacts).unwrap(), p.evaluate_at(&at).unwrap());
+            assert_eq!(grid.closure, exact.closure, "{contacts:?}");
+            assert_eq!(grid.quality, exact.quality, "{contacts:?}");
+        }
+        // Off the candidates: the first contact turned 2.3 deg along the equator.
+        let turned = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), 0.04);
+        let at = [
+            (turned * c.points[6], turned * c.normals[6]),
+            (c.points[66], c.normals[66]),
+            (c.points[28], c.normals[28]),
+        ];
+        let (grid, exact) = (
+            p.evaluate(&[6, 66, 28]).unwrap(),
+            p.evaluate_at(&at).unwrap(),
+        );
+        assert!(exact.force_closure());
+        assert_ne!(grid.quality, exact.quality);
+        assert!(matches!(p.evaluate_at(&[]), Err(GraspError::NoContacts)));
     }
 
     #[test]

@@ -209,10 +209,7 @@ impl SpatialScenario<'_> {
         format!("[{:.1}, {:.1}, {:.1}] mm", 1e3 * p.x, 1e3 * p.y, 1e3 * p.z)
     }
 
-    /// The candidate of contact point `p`: the nearest, all compared (a walk over the
-    /// candidates' adjacency to ever nearer neighbours, the planar planner's `walk_candidates`, stops at a local
-    /// minimum on a mesh of thin triangles: a contact on the STL ellipsoid was given a facet
-    /// 2 away), checked to be in `region` if given: `Err` with it when it is not. Called at
+    /// The candidate of contact point `p` ([`Self::nearest`]), checked to be in `region` if given: `Err` with it when it is not. Called at
     /// every part of a rolling step (at most 1 degree), so a contact leaving its ICR is caught
     /// within a facet or two.
     fn candidate_of(&self, p: &Vec3, region: Option<&[u32]>) -> Result<usize, usize> {
@@ -223,8 +220,13 @@ impl SpatialScenario<'_> {
         }
     }
 
-    /// The candidate nearest `p`.
+    /// The candidate of surface point `p`: on a polyhedron the facet it lies on (the facet
+    /// whose centre is nearest is often another: a contact near a thin facet's edge lies
+    /// closer to its neighbour's centre), else the candidate nearest it.
     fn nearest(&self, p: &Vec3) -> usize {
-        self.problem.nearest_candidate(p).map_or(0, |(i, _)| i)
+        self.surface
+            .facet_at(p)
+            .filter(|&f| f < self.problem.candidates().len())
+            .unwrap_or_else(|| self.problem.nearest_candidate(p).map_or(0, |(i, _)| i))
     }
 }

@@ -1,7 +1,7 @@
 //! The spatial scenario's checks, its initial grasp, the quality of its grasps, and its plan
 //! through the planning loop ([`drive`]).
 
-use icrflow_grasp::math::Real;
+use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::quality::GraspError;
 
 use super::{ReachMap, Roll, SpatialScenario, Touch};
@@ -79,7 +79,18 @@ impl Stepper for Mapped<'_, '_> {
 }
 
 impl SpatialScenario<'_> {
+    /// The quality of `touches`' grasp where they touch: at their exact points and normals on
+    /// the surface (0: not in force closure). What the plan keeps >= alpha at every step,
+    /// attach and detach: their candidates' grasp (the ICRs' guarantee) may keep more than
+    /// the contacts between the candidates do.
     pub(super) fn quality(&self, touches: &[Touch]) -> Result<Real, GraspError> {
+        let at: Vec<(Vec3, Vec3)> = touches.iter().map(|t| (t.point, t.normal)).collect();
+        let e = self.problem.evaluate_at(&at)?;
+        Ok(if e.force_closure() { e.quality } else { 0.0 })
+    }
+
+    /// The quality of `touches`' grasp at their candidates: what their ICRs guarantee.
+    pub(super) fn grid_quality(&self, touches: &[Touch]) -> Result<Real, GraspError> {
         let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
         self.quality_at(&idx)
     }
@@ -221,8 +232,8 @@ impl SpatialScenario<'_> {
                 })?;
             touches.push(t);
         }
-        let idx: Vec<usize> = touches.iter().map(|t| t.candidate).collect();
-        let e = self.problem.evaluate(&idx)?;
+        let at: Vec<(Vec3, Vec3)> = touches.iter().map(|t| (t.point, t.normal)).collect();
+        let e = self.problem.evaluate_at(&at)?;
         if !e.force_closure() {
             return Err(PlanError::NotForceClosure { epsilon: e.epsilon });
         }

@@ -321,17 +321,53 @@ impl SpatialScenario<'_> {
                 },
             );
         }
-        let quality = self.quality(&next)?;
-        if quality < self.settings.alpha * (1.0 - QUALITY_SLACK) {
+        let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
+        let grid = self.grid_quality(&next)?;
+        if grid < floor {
             return Ok(Roll::Stuck(format!(
-                "the next grasp would have quality {quality:.6} < alpha = {} (a defect: the ICRs guarantee the margin)",
+                "the next grasp's candidates would have quality {grid:.6} < alpha = {} (a defect: the ICRs guarantee the margin)",
                 self.settings.alpha
             )));
+        }
+        let quality = self.quality(&next)?;
+        if quality < floor {
+            return Ok(match self.lost_by(touches, &next)? {
+                Some(i) => Roll::Blocked(
+                    i,
+                    format!(
+                        "rolling on, its contact would take the grasp to alpha* {quality:.4} < alpha = {} where the fingertips touch (its candidates' grasp keeps {grid:.4}: the contacts lie between the candidates)",
+                        self.settings.alpha
+                    ),
+                ),
+                None => Roll::Stuck(format!(
+                    "the next grasp would keep alpha* {quality:.4} < alpha = {} where the fingertips touch",
+                    self.settings.alpha
+                )),
+            });
         }
         if let Some((i, why)) = self.one_off(&next)? {
             return Ok(Roll::Blocked(i, why));
         }
         Ok(Roll::Moved(next, quality))
+    }
+}
+
+impl SpatialScenario<'_> {
+    /// Which contact's roll from `before` to `after` lost the margin where the fingertips
+    /// touch: the one whose contact put back where it was restores the most quality (`None`
+    /// without contacts).
+    fn lost_by(&self, before: &[Touch], after: &[Touch]) -> Result<Option<usize>, PlanError> {
+        let mut best: Option<(usize, Real)> = None;
+        let mut trial = after.to_vec();
+        for (i, t) in before.iter().enumerate() {
+            trial[i] = t.clone();
+            let q = self.quality(&trial)?;
+            trial[i] = after[i].clone();
+            if best.is_none_or(|(_, b)| q > b) {
+                best = Some((i, q));
+            }
+        }
+        Ok(best.map(|(i, _)| i))
     }
 }
 

@@ -47,6 +47,9 @@ pub enum Convex {
         triangles: Vec<[Vec3; 3]>,
         /// Each triangle's outward unit normal and its plane's offset (`n . x = offset` on it).
         planes: Vec<(Vec3, Real)>,
+        /// Each triangle's facet: the object's candidate of the face it was fanned from
+        /// (`None` for a face too small to be one).
+        facets: Vec<Option<u32>>,
         /// The boxes over the triangles that closest points are searched through.
         tree: Tree,
     },
@@ -282,6 +285,11 @@ impl Convex {
                 face_of.push(f);
             }
         }
+        let mut facet_of_face = vec![None; object.faces.len()];
+        for (k, &f) in object.facet_faces.iter().enumerate() {
+            facet_of_face[f as usize] = Some(k as u32);
+        }
+        let facets = face_of.iter().map(|&f| facet_of_face[f]).collect();
         let size = object.max_radius().max(Real::MIN_POSITIVE);
         let tolerance = 1e-7 * size;
         for (i, (n, offset)) in planes.iter().enumerate() {
@@ -301,8 +309,28 @@ impl Convex {
             centre: object.centre_of_mass,
             triangles,
             planes,
+            facets,
             tree,
         })
+    }
+
+    /// The facet (the object's candidate) that surface point `p` lies on, for a polyhedron:
+    /// the face of its nearest triangle (on an edge, one of the two). `None` for the smooth
+    /// surfaces, whose candidates are samples of the surface, not pieces of it.
+    pub fn facet_at(&self, p: &Vec3) -> Option<usize> {
+        match self {
+            Convex::Polyhedron {
+                triangles,
+                planes,
+                facets,
+                tree,
+                ..
+            } => tree
+                .nearest(p, triangles, planes)
+                .and_then(|(t, ..)| facets[t])
+                .map(|f| f as usize),
+            Convex::Sphere { .. } | Convex::Ellipsoid { .. } => None,
+        }
     }
 
     /// The surface's centre.

@@ -433,18 +433,24 @@ impl SpatialScenario<'_> {
         };
         let mut attach = touches.to_vec();
         attach.push(t.clone());
-        let q_attach = self.quality(&attach)?;
         let mut detach = attach.clone();
         detach.remove(k);
-        let q_detach = self.quality(&detach)?;
-        if q_attach < floor || q_detach < floor {
+        let (g_attach, g_detach) = (self.grid_quality(&attach)?, self.grid_quality(&detach)?);
+        if g_attach < floor || g_detach < floor {
             return Ok(Attempt::Defect(format!(
-                "switch of finger {} to finger {} at {} fails verification: quality {q_attach:.6} attached, {q_detach:.6} detached, alpha = {} (a defect: the region is exact)",
+                "switch of finger {} to finger {} at {} fails verification: quality {g_attach:.6} attached, {g_detach:.6} detached at the candidates, alpha = {} (a defect: the region is exact)",
                 touches[k].finger,
                 t.finger,
                 self.describe(&t.point),
                 self.settings.alpha
             )));
+        }
+        let (q_attach, q_detach) = (self.quality(&attach)?, self.quality(&detach)?);
+        if q_attach < floor || q_detach < floor {
+            return reject(format!(
+                "where the fingertips touch the grasp would keep alpha* {q_attach:.4} attached, {q_detach:.4} detached < alpha = {} (at the candidates {g_attach:.4}, {g_detach:.4})",
+                self.settings.alpha
+            ));
         }
         for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
             if let Some((_, why)) = self.one_off(grasp)? {

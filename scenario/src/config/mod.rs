@@ -705,10 +705,9 @@ contacts = [ { finger = 1, angle_deg = 30.0 }, { finger = 2, angle_deg = -30.0 }
                 "{key}: {e}"
             );
         }
-        let text = spatial.replace(
-            "[plan]\n",
-            "[plant]\nlink_radius_mm = 4.0\n\n[plan]\nmin_mobility_mm = 5.0\n",
-        );
+        // (The Allegro config gives plant.link_radius_mm itself.)
+        assert!(spatial.contains("[plant]\nlink_radius_mm = 9.8"));
+        let text = spatial.replace("[plan]\n", "[plan]\nmin_mobility_mm = 5.0\n");
         setup(&text).unwrap();
     }
 }
