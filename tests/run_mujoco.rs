@@ -109,6 +109,23 @@ fn assert_turn(s: &serde_json::Value, goal: f64, switches: u64, alpha: f64, not_
     assert_eq!(p["dropped"], false, "{s}");
 }
 
+/// The true margin held at every truth (100 Hz, where MuJoCo's fingertips touch, on the exact
+/// surface, a lifted finger out of the grasp, from the first grasp the hand made): alpha* >=
+/// `alpha` at each of more than 1,000 truths, none out of force closure, and the object tilted
+/// less than `tilt_deg` off the plan's axis. (The paper sphere and the Allegro's ellipsoid mesh
+/// do not meet it yet: their runs of 2026-12-05 had one truth out of force closure, and 2.6 s
+/// below alpha with six truths out of it, issue 37; they keep the plan-step checks of
+/// [`assert_turn`].)
+fn assert_true_margin_at_every_truth(s: &serde_json::Value, alpha: f64, tilt_deg: f64) {
+    let p = &s["physics"];
+    assert_eq!(p["alpha"].as_f64().unwrap(), alpha, "{s}");
+    assert!(p["true_quality_samples"].as_u64().unwrap() > 1000, "{s}");
+    assert_eq!(p["samples_not_closed"], 0, "{s}");
+    assert!(p["true_quality_min"].as_f64().unwrap() >= alpha, "{s}");
+    assert_eq!(p["time_below_alpha_s"].as_f64().unwrap(), 0.0, "{s}");
+    assert!(p["max_tilt_deg"].as_f64().unwrap() < tilt_deg, "{s}");
+}
+
 /// The loop closes on real physics: the fingertips roll the sphere in MuJoCo a whole turn
 /// through the plan's 13 finger switches (`plan.region_erosion = 1`), the estimate follows
 /// MuJoCo's true rotation, the object stays in the hand with the margin kept at its true
@@ -166,6 +183,13 @@ fn the_ellipsoid_turns_a_whole_turn_under_gravity_in_mujoco() {
     let dir = scratch("mujoco-ellipsoid");
     let (_, s, _) = run(&dir, "ellipsoid_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 13, 0.15);
+    // 0.9 deg of tilt on 2026-12-05 (the planar hand's object free in space).
+    assert_true_margin_at_every_truth(&s, 0.15, 3.0);
+    assert_eq!(
+        s["physics"]["gravity"],
+        serde_json::json!([0.0, 0.0, -9.81]),
+        "{s}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -180,6 +204,8 @@ fn the_allegro_turns_the_sphere_a_whole_turn_in_mujoco() {
     let dir = scratch("mujoco-allegro");
     let (out, s, _) = run(&dir, "allegro_sphere_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 3, 0.1);
+    // 1.3 deg of tilt on 2026-12-05, the links' capsules 9.8 mm thick.
+    assert_true_margin_at_every_truth(&s, 0.1, 3.0);
     let truth = s["physics"]["rotation_deg"].as_f64().unwrap();
     let estimated = s["rotation_deg"].as_f64().unwrap();
     assert!(

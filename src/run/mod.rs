@@ -22,6 +22,7 @@ pub(crate) mod status;
 pub(crate) mod stop;
 pub(crate) mod summary;
 pub(crate) mod track;
+pub(crate) mod true_margin;
 pub(crate) mod watch;
 
 use std::path::{Path, PathBuf};

@@ -11,12 +11,16 @@
 //! it (each point taken into the object's frame and snapped to the nearest candidate of the
 //! section; a contact planned that flickered off for fewer than [`LOST_AFTER`] truths counts at
 //! its last point); whether the object was dropped (its centre further than [`DROP_FRACTION`] of
-//! its size from the start).
+//! its size from the start); and the true margin at every truth ([`TrueMargin`]: alpha* where
+//! the fingertips really touch, on the exact surface, a lifted finger out of the grasp) with
+//! the object's tilt off the plan's axis.
 
 use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
 use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlanStepHeader, PlantEngine, PlantTruth};
 use icrflow_scenario::{Config, Setup};
 use serde::Serialize;
+
+use super::true_margin::{Below, Planned, TrueMargin};
 
 /// Truths in a row without contact after which a finger planned in contact is lost (30 ms at
 /// the truth's 100 Hz: MuJoCo's contacts flicker on a rolling fingertip for a step or two).
@@ -90,6 +94,30 @@ pub struct PhysicsSummary {
     pub not_closed: Vec<NotClosed>,
     /// Whether the object left the hand.
     pub dropped: bool,
+    /// The margin the true grasp is held to (`grasp.alpha`).
+    pub alpha: Real,
+    /// The smallest alpha* of the true grasp at every truth since the hand made its first
+    /// grasp: where MuJoCo's fingertips touch, on the exact surface, a finger off the object
+    /// out of the grasp (0: a truth not in force closure; `None`: no truth came after it).
+    pub true_quality_min: Option<Real>,
+    /// Its 1st percentile (nearest rank).
+    pub true_quality_p01: Option<Real>,
+    /// Truths sampled, and those whose true grasp was not in force closure.
+    pub true_quality_samples: u32,
+    /// See `true_quality_samples`.
+    pub samples_not_closed: u32,
+    /// Plan steps with a truth sampled, and those with a truth not in force closure.
+    pub true_quality_steps: u32,
+    /// See `true_quality_steps`.
+    pub true_quality_steps_not_closed: u32,
+    /// Seconds with the true alpha* below `alpha`.
+    pub time_below_alpha_s: Real,
+    /// When (the first intervals).
+    pub below_alpha: Vec<Below>,
+    /// The largest angle the object turned off the plan's axis since the first truth (deg).
+    pub max_tilt_deg: Real,
+    /// Gravity in the hand frame (m/s^2), as the plant simulates it.
+    pub gravity: [Real; 3],
 }
 
 /// The physics of a run so far.
@@ -132,6 +160,8 @@ pub struct PhysicsTrack {
     pending_at: (Real, Real),
     pending_due: bool,
     last_step: Option<u64>,
+    gravity: [Real; 3],
+    margin: TrueMargin,
 }
 
 impl PhysicsTrack {
@@ -140,7 +170,10 @@ impl PhysicsTrack {
     pub fn new(config: &Config, version: &str) -> anyhow::Result<Self> {
         let setup = Setup::new(config)?;
         let drop_distance = DROP_FRACTION * setup.object.max_radius();
+        let margin = TrueMargin::new(&setup, &config.object, config.grasp.alpha, config.turn.axis);
         Ok(Self {
+            gravity: config.plant.gravity,
+            margin,
             mu: config.grasp.model.mu(),
             engine: format!("MuJoCo {version}"),
             drop_distance,
@@ -265,6 +298,15 @@ impl PhysicsTrack {
             self.contacts(t);
             self.pending_due = true;
         }
+        let first = self.first_stamp.unwrap_or(t.header.source_time_ns);
+        let at_s = t.header.source_time_ns.saturating_sub(first) as Real * 1e-9;
+        let plan = self.last_step.map(|step| Planned {
+            step,
+            phase: self.phase,
+            fingers: &self.planned,
+        });
+        self.margin
+            .truth(&self.setup.problem, t, at_s, plan.as_ref());
     }
 
     /// The candidates of the grasp at truth `t`'s contacts, in the object's frame, into
@@ -323,6 +365,7 @@ impl PhysicsTrack {
                 not_closed.push(self.open_step());
             }
         }
+        let m = self.margin.margin();
         PhysicsSummary {
             engine: self.engine.clone(),
             rotation_deg: self.rotation.to_degrees(),
@@ -337,6 +380,17 @@ impl PhysicsTrack {
             steps_not_closed: steps.not_closed,
             not_closed,
             dropped: self.dropped,
+            alpha: self.margin.alpha(),
+            true_quality_min: m.min,
+            true_quality_p01: m.p01,
+            true_quality_samples: m.samples,
+            samples_not_closed: m.samples_not_closed,
+            true_quality_steps: m.steps,
+            true_quality_steps_not_closed: m.steps_not_closed,
+            time_below_alpha_s: m.below_s,
+            below_alpha: m.below,
+            max_tilt_deg: m.max_tilt.to_degrees(),
+            gravity: self.gravity,
         }
     }
 }
@@ -490,5 +544,79 @@ mod tests {
         assert_eq!(s.not_closed[0].fingers, vec![1, 4]);
         // The step in force closure keeps its quality apart.
         assert_eq!(s.min_true_quality_closed, Some(alpha));
+    }
+
+    /// The true grasp at every truth once the hand has made it: before every planned finger
+    /// first touches (the hand closing) nothing is sampled; then a finger that lifts for one
+    /// truth is out of the grasp at that truth (two contacts: no force closure), the time
+    /// below the margin and the step counted.
+    #[test]
+    fn the_true_grasp_is_taken_at_every_truth_once_made() {
+        let (config, c) = paper();
+        let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        let mut sent = 0u64;
+        let mut feed = |track: &mut PhysicsTrack, t: &PlantTruth| {
+            let mut t = *t;
+            t.header.source_time_ns = 5_000_000_000 + sent * 10_000_000;
+            sent += 1;
+            track.truth(&t);
+        };
+        track.plan_step(&step(1, [true, true, false, true]));
+        feed(
+            &mut track,
+            &truth(&config, [Some(c[0]), Some(c[1]), None, None]),
+        );
+        let s = track.summary();
+        assert_eq!(
+            (s.true_quality_samples, s.true_quality_min),
+            (0, None),
+            "{s:?}"
+        );
+        let made = truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]);
+        feed(&mut track, &made);
+        feed(&mut track, &made);
+        let s = track.summary();
+        assert_eq!(
+            (s.true_quality_samples, s.samples_not_closed),
+            (2, 0),
+            "{s:?}"
+        );
+        let alpha = s.true_quality_min.unwrap();
+        assert!(alpha >= config.grasp.alpha, "{alpha}");
+        assert_eq!(s.time_below_alpha_s, 0.0);
+        // The contacts at the candidates' points, on the exact sphere: the candidates' grasp.
+        let setup = Setup::new(&config).unwrap();
+        let grid = setup.problem.evaluate(&c).unwrap().quality;
+        assert!((alpha - grid).abs() < 1e-9, "{alpha} {grid}");
+        // Finger 2 lifts for one truth in step 2.
+        track.plan_step(&step(2, [true, true, false, true]));
+        let flicker = truth(&config, [Some(c[0]), None, None, Some(c[2])]);
+        feed(&mut track, &flicker);
+        feed(&mut track, &made);
+        let s = track.summary();
+        assert_eq!(
+            (s.true_quality_samples, s.samples_not_closed),
+            (4, 1),
+            "{s:?}"
+        );
+        assert_eq!(s.true_quality_min, Some(0.0));
+        assert!((s.time_below_alpha_s - 0.01).abs() < 1e-9, "{s:?}");
+        assert_eq!(s.below_alpha.len(), 1, "{s:?}");
+        let b = &s.below_alpha[0];
+        assert_eq!(
+            (b.step, b.min_quality, b.fingers.clone()),
+            (2, 0.0, vec![1, 4])
+        );
+        assert!(
+            (b.from_s - 0.03).abs() < 1e-9 && (b.to_s - 0.03).abs() < 1e-9,
+            "{b:?}"
+        );
+        assert_eq!(
+            (s.true_quality_steps, s.true_quality_steps_not_closed),
+            (2, 1)
+        );
+        assert_eq!(s.true_quality_p01, Some(0.0));
+        assert_eq!(s.max_tilt_deg, 0.0);
+        assert_eq!(s.gravity, config.plant.gravity);
     }
 }

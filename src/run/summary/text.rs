@@ -175,6 +175,29 @@ impl RunSummary {
                     "           the steps in force closure: true grasp quality >= {q:.3}"
                 )?;
             }
+            match (p.true_quality_min, p.true_quality_p01) {
+                (Some(q), Some(p01)) => writeln!(
+                    o,
+                    "           at every truth (where the fingertips touch, a lifted finger out): alpha* >= {q:.3}, p01 {p01:.3} over {} truths, {} not in force closure; {:.2} s below alpha",
+                    p.true_quality_samples, p.samples_not_closed, p.time_below_alpha_s
+                )?,
+                _ => writeln!(
+                    o,
+                    "           the hand never made its grasp: no truth sampled"
+                )?,
+            }
+            for b in &p.below_alpha {
+                writeln!(
+                    o,
+                    "           below alpha: {:.2}-{:.2} s (step {}, {}; the object at {:.1} deg), alpha* down to {:.3} with fingers {:?} touching",
+                    b.from_s, b.to_s, b.step, b.phase, b.rotation_deg, b.min_quality, b.fingers
+                )?;
+            }
+            writeln!(
+                o,
+                "           the object tilted up to {:.1} deg off the plan's axis; gravity [{}, {}, {}] m/s^2",
+                p.max_tilt_deg, p.gravity[0], p.gravity[1], p.gravity[2]
+            )?;
         }
         if verbose {
             writeln!(
