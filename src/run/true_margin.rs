@@ -215,10 +215,10 @@ impl TrueMargin {
                 open.min_quality = quality;
                 open.fingers.clone_from(&self.fingers);
             }
-        } else if let Some(done) = self.open.take() {
-            if o.below.len() < KEPT {
-                o.below.push(done);
-            }
+        } else if let Some(done) = self.open.take()
+            && o.below.len() < KEPT
+        {
+            o.below.push(done);
         }
     }
 
