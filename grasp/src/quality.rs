@@ -367,15 +367,36 @@ impl GraspProblem {
     /// candidate (the cones built by the problem's frame and contact model, as a candidate's
     /// are). Errors as [`Self::evaluate_wrenches`], and [`GraspError::NoContacts`].
     pub fn evaluate_at(&self, contacts: &[(Vec3, Vec3)]) -> Result<Evaluation, GraspError> {
+        let mut e = Evaluation::default();
+        self.evaluate_at_in(contacts, &mut e, &mut EvaluationScratch::default())?;
+        Ok(e)
+    }
+
+    /// [`Self::evaluate_at`] into `e` (replaced; unspecified after an error), reusing its
+    /// buffers and `scratch`'s, as [`Self::evaluate_in`]: once they have met a grasp of the
+    /// size, an evaluation allocates nothing (unless its hull falls back to Qhull).
+    pub fn evaluate_at_in(
+        &self,
+        contacts: &[(Vec3, Vec3)],
+        e: &mut Evaluation,
+        scratch: &mut EvaluationScratch,
+    ) -> Result<(), GraspError> {
         if contacts.is_empty() {
             return Err(GraspError::NoContacts);
         }
         let w = self.model.edges() * self.dim();
-        let mut wrenches = vec![0.0; contacts.len() * w];
-        for ((p, n), out) in contacts.iter().zip(wrenches.chunks_exact_mut(w)) {
+        e.wrenches.clear();
+        e.wrenches.resize(contacts.len() * w, 0.0);
+        for ((p, n), out) in contacts.iter().zip(e.wrenches.chunks_exact_mut(w)) {
             self.frame.primitive_wrenches(p, n, &self.model, out);
         }
-        self.evaluate_wrenches(wrenches)
+        if let Some(k) = e.wrenches.iter().position(|x| !x.is_finite()) {
+            return Err(GraspError::NonFinite {
+                what: "contact",
+                index: k / w,
+            });
+        }
+        self.grade(e, scratch)
     }
 
     /// Evaluates the grasp whose primitive wrenches are given (row-major, `dim` per wrench).

@@ -28,7 +28,9 @@
 //! **Contacts.** A finger touches when its fingertip centre (from the encoders) is within
 //! [`TOUCH`] of the object's surface offset by the fingertip radius, for [`SETTLE`] samples;
 //! it leaves beyond [`RELEASE`]. Its contact point is the surface's point nearest to the
-//! fingertip centre (along the normal), snapped to the nearest candidate.
+//! fingertip centre (along the normal): a planar hand's snapped to the nearest section
+//! sample, a spatial hand's where it is, with its candidate (the facet it lies on, or the
+//! nearest).
 //!
 //! **Planar and spatial hands.** What the fingertips roll on is the plant's
 //! ([`icrflow_plan::rolling::Roller`]): a planar hand's section of the object, turning about
@@ -185,21 +187,29 @@ impl<'a> Estimator<'a> {
         }
     }
 
-    /// Where fingertip `t` of finger `f` touches the object at the estimated rotation: the
-    /// candidate nearest its contact point, and the fingertip's gap (m).
-    fn touch(&self, f: &Finger, t: &Fingertip) -> (usize, f64) {
+    /// Where fingertip `t` of finger `f` touches the object at the estimated rotation: its
+    /// candidate, the contact's point and normal (body frame), and the fingertip's gap (m). A
+    /// planar hand's contact is its section sample (the planar plan's margin holds there); a
+    /// spatial hand's is where the fingertip touches the surface, its candidate the facet it
+    /// lies on (a mesh) or the nearest (the spatial plan keeps its margin at the exact
+    /// contacts).
+    fn touch(&self, f: &Finger, t: &Fingertip) -> (usize, Vec3, Vec3, f64) {
+        let candidates = self.problem.candidates();
         match (self.roller, t) {
             (Roller::Section(s), Fingertip::Planar(t)) => {
                 let c = s.contact_of(t, f, self.theta);
-                (c.sample, c.gap)
+                let i = c.sample;
+                (i, candidates.points[i], candidates.normals[i], c.gap)
             }
             (Roller::Space(s), Fingertip::Space(q)) => {
                 let c = s.contact_of(f, &q[..f.dof()], self.theta);
-                let nearest = self
-                    .problem
-                    .nearest_candidate(&c.point)
-                    .map_or(0, |(i, _)| i);
-                (nearest, c.gap)
+                let candidate = s
+                    .surface
+                    .facet_at(&c.point)
+                    .filter(|&i| i < candidates.len())
+                    .or_else(|| self.problem.nearest_candidate(&c.point).map(|(i, _)| i))
+                    .unwrap_or(0);
+                (candidate, c.point, c.normal, c.gap)
             }
             _ => unreachable!("a fingertip is of its roller's kind"),
         }
@@ -346,9 +356,7 @@ impl<'a> Estimator<'a> {
             let Some((t, true)) = self.tips[slot] else {
                 continue;
             };
-            let (index, gap) = self.touch(f, &t);
-            let candidates = self.problem.candidates();
-            let (p, n) = (candidates.points[index], candidates.normals[index]);
+            let (index, p, n, gap) = self.touch(f, &t);
             *c = FingerContact {
                 finger: f.id,
                 in_contact: 1,

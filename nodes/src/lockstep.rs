@@ -173,7 +173,7 @@ impl<'s> Loop<'s> {
             replan_ns: (replan_s.max(0.0) * 1e9) as u64,
             plant: Physical::new(config, setup, &joints, t0)?,
             estimator: Estimator::new(&setup.hand, setup.roller(config)?, &setup.problem, 0.0),
-            wrench: WrenchSpace::new(&setup.problem, config.grasp.alpha),
+            wrench: WrenchSpace::new(&setup.problem, config.grasp.alpha, crate::wrench::at(setup)),
             follower: Follower::new_with(
                 setup.planning(config)?,
                 CLEARANCE,

@@ -2,17 +2,22 @@
 //! the fingers in contact, its hull, force closure, alpha* and epsilon, published with the
 //! hull's facets as an iceoryx2 dynamic slice.
 //!
-//! These depend only on which candidate points are in contact (body frame), which stays the
-//! same over many grasp states while a contact rolls across one facet: the node evaluates a
-//! contact set once and answers the following grasp states with the same set from that
-//! evaluation, so that the critical path (measurement to hand command) pays the hull only
-//! when a contact moves to another candidate. The evaluations are made in buffers kept for the
-//! next (`GraspProblem::evaluate_in`), so a new contact set allocates nothing either.
+//! Where a contact is evaluated ([`At`]) is where the plan's margin holds: a spatial hand's
+//! plan keeps alpha at its contacts' exact points and normals, so the grasp state's contacts
+//! are evaluated where the estimate has them ([`At::Contacts`]); a planar hand's plan keeps it
+//! at its contacts' candidates, so there each contact is its candidate ([`At::Candidates`]).
+//! A contact set is evaluated once and the following grasp states with the same set (the
+//! same candidates, or the same points and normals: a hand holding still) are answered from
+//! that evaluation, so that the critical path (measurement to hand command) pays the hull
+//! only when the grasp changes. The evaluations are made in buffers kept for the next
+//! (`GraspProblem::evaluate_in`, `evaluate_at_in`), so a new contact set allocates nothing
+//! either.
 //!
 //! [`WrenchSpace`] is the pure step (a grasp state in, the wrench space out); [`run`] is the
 //! node around it (the bus, health).
 
 use anyhow::Result;
+use icrflow_grasp::math::Vec3;
 use icrflow_grasp::quality::{Evaluation, EvaluationScratch, GraspError, GraspProblem};
 use icrflow_interfaces::{
     Facet, GraspState, Header, Kind, MAX_FACETS, MAX_FINGERS, WrenchSpaceHeader, topics,
@@ -22,13 +27,28 @@ use crate::Context;
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence};
 
+/// Where a grasp state's contacts are evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum At {
+    /// At each contact's candidate (a planar hand's plan keeps its margin there).
+    Candidates,
+    /// At each contact's point and normal, as the grasp state has them (a spatial hand's plan
+    /// keeps its margin where the fingertips touch).
+    Contacts,
+}
+
 /// The wrench-space step's state: the last contact set's evaluation and its buffers; no I/O,
 /// no clock.
 pub struct WrenchSpace<'a> {
     problem: &'a GraspProblem,
     alpha: f64,
+    at: At,
     /// The candidates in contact of the last grasp state.
     contacts: Vec<usize>,
+    /// Their points and normals (body frame).
+    touching: Vec<(Vec3, Vec3)>,
+    /// The points and normals of the evaluation `evaluated` holds (with [`At::Contacts`]).
+    touched: Vec<(Vec3, Vec3)>,
     /// The hull's facets of the contact set `evaluated` holds.
     facets: Vec<Facet>,
     /// The contact set of `facets` and the header fields evaluated for it.
@@ -52,12 +72,16 @@ pub struct Output<'s> {
 }
 
 impl<'a> WrenchSpace<'a> {
-    /// The wrench-space step of `problem`, with margin `alpha` (carried in every summary).
-    pub fn new(problem: &'a GraspProblem, alpha: f64) -> Self {
+    /// The wrench-space step of `problem`, with margin `alpha` (carried in every summary),
+    /// evaluating its contacts `at` their candidates or where they touch.
+    pub fn new(problem: &'a GraspProblem, alpha: f64, at: At) -> Self {
         Self {
             problem,
             alpha,
+            at,
             contacts: Vec::with_capacity(MAX_FINGERS),
+            touching: Vec::with_capacity(MAX_FINGERS),
+            touched: Vec::with_capacity(MAX_FINGERS),
             facets: Vec::with_capacity(MAX_FACETS),
             evaluated: None,
             e: Evaluation::default(),
@@ -72,6 +96,7 @@ impl<'a> WrenchSpace<'a> {
     pub fn on_grasp(&mut self, g: &GraspState, header: Header) -> Result<Output<'_>, GraspError> {
         let n = self.problem.candidates().points.len();
         self.contacts.clear();
+        self.touching.clear();
         for f in g
             .fingers
             .iter()
@@ -79,12 +104,18 @@ impl<'a> WrenchSpace<'a> {
         {
             if f.in_contact == 1 && (f.candidate as usize) < n {
                 self.contacts.push(f.candidate as usize);
+                self.touching
+                    .push((Vec3::from(f.point), Vec3::from(f.normal)));
             }
         }
+        let same = match self.at {
+            At::Candidates => true,
+            At::Contacts => self.touched == self.touching,
+        };
         let cached = self
             .evaluated
             .as_ref()
-            .filter(|(set, _)| *set == self.contacts);
+            .filter(|(set, _)| same && *set == self.contacts);
         let (mut summary, evaluated) = match cached {
             Some((_, h)) => (*h, false),
             None => (self.evaluate()?, true),
@@ -109,8 +140,16 @@ impl<'a> WrenchSpace<'a> {
         self.facets.clear();
         if !self.contacts.is_empty() {
             let e = &mut self.e;
-            self.problem
-                .evaluate_in(&self.contacts, e, &mut self.scratch)?;
+            match self.at {
+                At::Candidates => {
+                    self.problem
+                        .evaluate_in(&self.contacts, e, &mut self.scratch)?;
+                }
+                At::Contacts => {
+                    self.problem
+                        .evaluate_at_in(&self.touching, e, &mut self.scratch)?;
+                }
+            }
             h.force_closure = u32::from(e.force_closure());
             h.quality = if e.force_closure() { e.quality } else { 0.0 };
             h.epsilon = e.epsilon;
@@ -122,6 +161,7 @@ impl<'a> WrenchSpace<'a> {
                 }
             }
         }
+        self.touched.clone_from(&self.touching);
         match &mut self.evaluated {
             Some((set, old)) => {
                 set.clone_from(&self.contacts);
@@ -140,7 +180,8 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut health = Health::new(ctx)?;
     let mut seq = Sequence::default();
     let mut last = 0;
-    let mut step = WrenchSpace::new(&ctx.scenario.setup.problem, ctx.scenario.config.grasp.alpha);
+    let setup = &ctx.scenario.setup;
+    let mut step = WrenchSpace::new(&setup.problem, ctx.scenario.config.grasp.alpha, at(setup));
     let log_contacts = ctx.launch.log.contacts;
 
     serve(ctx, &[grasps.listener()], None, |_| {
@@ -164,6 +205,16 @@ pub fn run(ctx: &Context) -> Result<()> {
         health.processed += 1;
         Ok(())
     })
+}
+
+/// Where `setup`'s grasp states are evaluated: where the fingertips touch for a spatial hand,
+/// at the candidates for a planar one (see the module's docs).
+pub fn at(setup: &icrflow_scenario::Setup) -> At {
+    if setup.spatial.is_some() {
+        At::Contacts
+    } else {
+        At::Candidates
+    }
 }
 
 #[cfg(test)]
@@ -194,6 +245,49 @@ mod tests {
         g
     }
 
+    /// Evaluated where the fingertips touch: at the grasp state's points and normals (not at
+    /// their candidates), a state with the same points answered from the last evaluation, one
+    /// with a contact moved within its candidate evaluated anew.
+    #[test]
+    fn where_the_fingertips_touch_the_wrench_space_is_that_of_the_contacts() {
+        let (config, setup) = paper();
+        let problem = &setup.problem;
+        let (start, _) = setup.scenario(&config).start().unwrap();
+        let initial: Vec<usize> = start.iter().map(|c| c.candidate).collect();
+        let cands = problem.candidates();
+        let mut g = grasp(&initial, 1);
+        let turned = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), 0.02);
+        let mut at: Vec<(Vec3, Vec3)> = initial
+            .iter()
+            .map(|&c| (cands.points[c], cands.normals[c]))
+            .collect();
+        for c in &mut at {
+            *c = (turned * c.0, turned * c.1);
+        }
+        for (slot, (p, n)) in at.iter().enumerate() {
+            g.fingers[slot].point = [p.x, p.y, p.z];
+            g.fingers[slot].normal = [n.x, n.y, n.z];
+        }
+        let mut step = WrenchSpace::new(problem, config.grasp.alpha, At::Contacts);
+        let header = Header::new(Kind::WrenchSpace, 1, 1, 0);
+        let exact = problem.evaluate_at(&at).unwrap().quality;
+        let grid = problem.evaluate(&initial).unwrap().quality;
+        assert_ne!(exact, grid);
+        let w = step.on_grasp(&g, header).unwrap();
+        assert!(w.evaluated);
+        assert_eq!(w.header.quality, exact);
+        assert!(!step.on_grasp(&g, header).unwrap().evaluated);
+        // The contacts moved back onto their candidates: the same candidates, evaluated anew.
+        for (slot, &c) in initial.iter().enumerate() {
+            let (p, n) = (cands.points[c], cands.normals[c]);
+            g.fingers[slot].point = [p.x, p.y, p.z];
+            g.fingers[slot].normal = [n.x, n.y, n.z];
+        }
+        let w = step.on_grasp(&g, header).unwrap();
+        assert!(w.evaluated);
+        assert_eq!(w.header.quality, grid);
+    }
+
     #[test]
     fn the_wrench_space_is_that_of_grasp_problem_evaluate() {
         let (config, setup) = paper();
@@ -202,7 +296,7 @@ mod tests {
         let (start, _) = setup.scenario(&config).start().unwrap();
         let initial: Vec<usize> = start.iter().map(|c| c.candidate).collect();
         let n = problem.candidates().points.len();
-        let mut step = WrenchSpace::new(problem, alpha);
+        let mut step = WrenchSpace::new(problem, alpha, At::Candidates);
         // The paper's initial grasp (force closure), a set of two contacts (not force
         // closure), the initial grasp again after another set, and three contacts elsewhere.
         let two = vec![initial[0], initial[1]];
@@ -241,7 +335,7 @@ mod tests {
         let (config, setup) = paper();
         let (start, _) = setup.scenario(&config).start().unwrap();
         let initial: Vec<usize> = start.iter().map(|c| c.candidate).collect();
-        let mut step = WrenchSpace::new(&setup.problem, config.grasp.alpha);
+        let mut step = WrenchSpace::new(&setup.problem, config.grasp.alpha, At::Candidates);
         let first = step
             .on_grasp(&grasp(&initial, 0), Header::new(Kind::WrenchSpace, 1, 1, 0))
             .unwrap();

@@ -485,9 +485,10 @@ fn rejections(rejected: &[String]) -> String {
     if rejected.is_empty() {
         return String::new();
     }
-    let mut counts: Vec<(&str, usize)> = Vec::new();
+    // Counted by reason, its figures left out (each placement's own are in the examples).
+    let mut counts: Vec<(String, usize)> = Vec::new();
     for r in rejected {
-        let why = r.split_once(": ").map_or(r.as_str(), |(_, why)| why);
+        let why = without_figures(r.split_once(": ").map_or(r.as_str(), |(_, why)| why));
         match counts.iter_mut().find(|(w, _)| *w == why) {
             Some((_, n)) => *n += 1,
             None => counts.push((why, 1)),
@@ -504,9 +505,49 @@ fn rejections(rejected: &[String]) -> String {
     format!(" (stopped by: {}; e.g. {examples})", reasons.join(", "))
 }
 
+/// `text` with each number in it (digits, with a sign or decimal point) written `N`.
+fn without_figures(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        let starts = c.is_ascii_digit()
+            || ((c == '-' || c == '.') && chars.peek().is_some_and(char::is_ascii_digit));
+        if starts {
+            while chars
+                .peek()
+                .is_some_and(|d| d.is_ascii_digit() || *d == '.' || *d == 'e')
+            {
+                chars.next();
+            }
+            out.push('N');
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_reason_is_counted_without_its_figures() {
+        assert_eq!(
+            without_figures("alpha* 0.4361 attached, -0.1033 detached < alpha = 0.12 (at 12)"),
+            "alpha* N attached, N detached < alpha = N (at N)"
+        );
+        let rejected = [
+            "[1.0, 0.0, 0.0] mm by finger 2: alpha* 0.1033 detached",
+            "[2.0, 0.0, 0.0] mm by finger 2: alpha* 0.1024 detached",
+        ]
+        .map(String::from);
+        assert!(
+            rejections(&rejected).starts_with(" (stopped by: 2 x alpha* N detached; e.g. [1.0"),
+            "{}",
+            rejections(&rejected)
+        );
+    }
 
     /// A failed switch's message counts the placements per reason, the most frequent first,
     /// with three examples, however many were tried (it once listed all 804).
