@@ -473,20 +473,24 @@ mod tests {
         t
     }
 
+    /// Feeds a truth to a track, the truths 10 ms apart as the plant publishes them.
+    fn feeder() -> impl FnMut(&mut PhysicsTrack, &PlantTruth) {
+        let mut sent = 0u64;
+        move |track: &mut PhysicsTrack, t: &PlantTruth| {
+            let mut t = *t;
+            t.header.source_time_ns = 5_000_000_000 + sent * 10_000_000;
+            sent += 1;
+            track.truth(&t);
+        }
+    }
+
     /// A finger planned in contact that has not touched yet (an attach on its way) has lost
     /// nothing; once it touched, LOST_AFTER truths off it while still planned are one loss.
     #[test]
     fn a_contact_is_lost_only_once_it_was_made() {
         let (config, c) = paper();
         let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
-        // Truths 10 ms apart, as the plant publishes them.
-        let mut sent = 0u64;
-        let mut feed = |track: &mut PhysicsTrack, t: &PlantTruth| {
-            let mut t = *t;
-            t.header.source_time_ns = 5_000_000_000 + sent * 10_000_000;
-            sent += 1;
-            track.truth(&t);
-        };
+        let mut feed = feeder();
         // Finger 3 (slot 2) attaches at a candidate between fingers 2's and 4's.
         let attach = (c[1] + c[2]) / 2;
         let mut attaching = step(5, [true, true, true, true]);
@@ -554,13 +558,7 @@ mod tests {
     fn the_true_grasp_is_taken_at_every_truth_once_made() {
         let (config, c) = paper();
         let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
-        let mut sent = 0u64;
-        let mut feed = |track: &mut PhysicsTrack, t: &PlantTruth| {
-            let mut t = *t;
-            t.header.source_time_ns = 5_000_000_000 + sent * 10_000_000;
-            sent += 1;
-            track.truth(&t);
-        };
+        let mut feed = feeder();
         track.plan_step(&step(1, [true, true, false, true]));
         feed(
             &mut track,
