@@ -203,12 +203,8 @@ impl<'a> Estimator<'a> {
             }
             (Roller::Space(s), Fingertip::Space(q)) => {
                 let c = s.contact_of(f, &q[..f.dof()], self.theta);
-                let candidate = s
-                    .surface
-                    .facet_at(&c.point)
-                    .filter(|&i| i < candidates.len())
-                    .or_else(|| self.problem.nearest_candidate(&c.point).map(|(i, _)| i))
-                    .unwrap_or(0);
+                let candidate =
+                    icrflow_plan::spatial::candidate_at(s.surface, self.problem, &c.point);
                 (candidate, c.point, c.normal, c.gap)
             }
             _ => unreachable!("a fingertip is of its roller's kind"),

@@ -224,9 +224,17 @@ impl SpatialScenario<'_> {
     /// whose centre is nearest is often another: a contact near a thin facet's edge lies
     /// closer to its neighbour's centre), else the candidate nearest it.
     fn nearest(&self, p: &Vec3) -> usize {
-        self.surface
-            .facet_at(p)
-            .filter(|&f| f < self.problem.candidates().len())
-            .unwrap_or_else(|| self.problem.nearest_candidate(p).map_or(0, |(i, _)| i))
+        candidate_at(self.surface, self.problem, p)
     }
+}
+
+/// The candidate of `problem` (whose candidates are the facets of the object `surface` is
+/// made from) that surface point `p` belongs to: on a polyhedron the facet it lies on, else
+/// the candidate nearest it (0 for a point that is not finite). The planner's rule, and the
+/// estimator's for a spatial hand.
+pub fn candidate_at(surface: &Convex, problem: &GraspProblem, p: &Vec3) -> usize {
+    surface
+        .facet_at(p)
+        .filter(|&f| f < problem.candidates().len())
+        .unwrap_or_else(|| problem.nearest_candidate(p).map_or(0, |(i, _)| i))
 }
