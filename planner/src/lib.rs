@@ -24,6 +24,7 @@
 pub mod degrees;
 pub mod follow;
 pub mod forces;
+pub mod grid_route;
 pub mod hand;
 pub mod paper;
 pub mod planner;

@@ -17,7 +17,8 @@
 //! [`NEIGHBOURS`] nearest (in joint space), the start and goal to all; the shortest route (in
 //! joint motion, the time it takes at the joints' speed, plus [`LEG_COST`] per leg) is found
 //! by Dijkstra's algorithm, checking a leg only when it would shorten a route; finally way
-//! points that can be skipped along a clear leg are dropped.
+//! points that can be skipped along a clear leg are dropped. Where the roadmap has no route,
+//! the finger's joint space is searched on a grid ([`crate::grid_route`]).
 
 use std::f64::consts::TAU;
 
@@ -42,6 +43,11 @@ pub const SAMPLES: usize = 48;
 /// How far every link keeps from the object's surface on a move (m): room for the links'
 /// thickness, which the hand model does not give (they are line segments in it).
 pub const LINK_MARGIN: Real = 5e-3;
+
+/// How far a moving finger keeps from the other fingers' bodies (m; links as capsules of
+/// [`LINK_MARGIN`], fingertips as their spheres): the hand's links are not lines, and a finger
+/// crossing another's, as a planar hand's fingers in one plane would, collides.
+pub const FINGER_GAP: Real = 1e-3;
 
 /// What a move keeps clear of the object (whose centre is the hand frame's origin).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -119,6 +125,18 @@ pub fn route_with(
     if along(from, to, &holds) {
         return Some(Vec::new());
     }
+    roadmap(finger, from, to, distance, &holds)
+        .or_else(|| crate::grid_route::grid_route(finger, from, to, &holds))
+}
+
+/// The fingertip roadmap's route of [`route_with`] (`None`: none).
+fn roadmap(
+    finger: &Finger,
+    from: &[Real],
+    to: &[Real],
+    distance: Real,
+    holds: impl Fn(&[Real]) -> bool,
+) -> Option<Vec<Vec<Real>>> {
     // The roadmap: index 0 is the start, 1 the goal, then the poses.
     let mut poses: Vec<Vec<Real>> = vec![from.to_vec(), to.to_vec()];
     let around = (TAU / SPACING).round() as usize;

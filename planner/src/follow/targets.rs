@@ -5,7 +5,7 @@
 use icrflow_grasp::math::Real;
 
 use super::{Estimate, LEAD, REPLAN_NS, ROTATION_TOLERANCE, SETTLED_TOLERANCE};
-use crate::hand::{Finger, Hand, wrap};
+use crate::hand::{Capsule, Finger, Hand, gap, wrap};
 use crate::planner::{Phase, Step};
 use crate::rolling::{Surface, tip};
 use crate::route::{self, Keepout};
@@ -49,9 +49,11 @@ pub struct Target {
     /// The grasp to command.
     pub step: Step,
     /// A way point of a free finger (a stand-off pose, a pose on its route around the object,
-    /// or its free pose before it sets off): reached only when the estimated joints of every
-    /// free finger are at it, so that the finger goes from way point to way point along moves
-    /// checked to stay outside the object, and never cuts across.
+    /// or its free pose before it sets off), or a detach step (the released finger at its free
+    /// pose): reached only when the estimated joints of every free finger are at it, so that
+    /// the finger goes from way point to way point along moves checked to stay outside the
+    /// object and off the other fingers, and never cuts across; and the hand rolls on only
+    /// once the released finger is home, out of the others' way.
     pub way_point: bool,
     /// A sub-target inside a rolling step (not its last): passed as soon as the object is
     /// within [`LEAD`] of it ([`Target::reached`]), so that the hand rolls on without waiting
@@ -66,6 +68,15 @@ impl Target {
             step,
             way_point: false,
             passing: false,
+        }
+    }
+
+    /// `step` as a target of its own, not passed on the way; a way point if it is a detach
+    /// step (reached when the released finger is at its free pose).
+    pub fn released(step: Step) -> Self {
+        Self {
+            way_point: step.phase == Phase::Detach,
+            ..Self::at(step)
         }
     }
 
@@ -120,7 +131,13 @@ impl Target {
 /// the fingertip moved out along the line from the object's centre (the hand frame's origin),
 /// or swung from it by one of [`SWINGS`], by the first of `distances` and [`CAP_TURNS`] whose
 /// straight joint-space moves from every pose of `legs` stay outside the object
-/// (`surface`, turned as in `step`). `None` if there is none.
+/// (`surface`, turned as in `step`) and keep off the other fingers (`apart_by`: the gap to
+/// them, at least [`route::FINGER_GAP`], or no less than at the leg's start where that is
+/// less: two fingers of a switch touch the object side by side). `None` if there is none.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the stand-off's search: the step, the finger, where it starts and what it keeps off"
+)]
 fn standoff(
     step: &Step,
     slot: usize,
@@ -129,6 +146,7 @@ fn standoff(
     legs: &[&[Real]],
     hand: &Hand,
     surface: &Surface,
+    apart_by: &dyn Fn(&[Real]) -> Real,
 ) -> Option<Step> {
     let f = hand.finger(step.fingers[slot].finger)?;
     let (x, y, phi) = f.planar_pose(q)?;
@@ -141,8 +159,11 @@ fn standoff(
             CAP_TURNS.iter().find_map(|turn| {
                 let ik = f.ik_planar(x + d * ux, y + d * uy, phi + turn, q);
                 ik.ok().filter(|pose| {
-                    legs.iter()
-                        .all(|from| outside(f, from, pose, r, surface, step.rotation))
+                    legs.iter().all(|from| {
+                        let floor = apart_by(from).min(route::FINGER_GAP);
+                        outside(f, from, pose, r, surface, step.rotation)
+                            && route::along(from, pose, |q| apart_by(q) >= floor)
+                    })
                 })
             })
         })
@@ -178,7 +199,8 @@ fn outside(f: &Finger, a: &[Real], b: &[Real], r: Real, surface: &Surface, theta
 /// step is preceded by way points of the attaching finger (its free pose, its route around
 /// the object where needed ([`route`]), its stand-off pose), a detach step by those of the
 /// released finger (its stand-off pose, its route), so that a finger never crosses the object
-/// on its way. Between a stand-off and the free pose a fingertip stays `clearance` (m) beyond
+/// or another finger on its way (the others as they stand in the step it moves before); the
+/// detach step is reached with the released finger at its free pose. Between a stand-off and the free pose a fingertip stays `clearance` (m) beyond
 /// the contact distance: farther than the estimator's release distance, so that no passing
 /// finger is taken for a contact. Where a finger has no stand-off pose or no route, `note`
 /// is told, and it moves straight.
@@ -203,7 +225,7 @@ pub fn targets(
             );
         }
         if k == 0 || step.phase != Phase::Rolling {
-            out.push(Target::at(step.clone()));
+            out.push(Target::released(step.clone()));
             continue;
         }
         rolling(&steps[k - 1], step, hand, &mut out);
@@ -228,6 +250,25 @@ fn way_points(
             (Some(_), None, Phase::Detach) => (&b.joints, &a.joints, step),
             _ => continue,
         };
+        let Some(f) = hand.finger(a.finger) else {
+            continue;
+        };
+        // Off the other fingers, as they stand while it moves (the base step's poses).
+        let others: Vec<Capsule> = base
+            .fingers
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != slot)
+            .filter_map(|(_, o)| {
+                Some(
+                    hand.finger(o.finger)?
+                        .capsules(&o.joints, route::LINK_MARGIN),
+                )
+            })
+            .flatten()
+            .collect();
+        let apart_by = |q: &[Real]| gap(&f.capsules(q, route::LINK_MARGIN), &others);
+        let apart = |q: &[Real]| apart_by(q) >= route::FINGER_GAP;
         // Near the contact: the stand-off, reached straight from the contact pose.
         let Some(near) = standoff(
             base,
@@ -237,6 +278,7 @@ fn way_points(
             &[contact.as_slice()],
             hand,
             surface,
+            &apart_by,
         ) else {
             note(format!(
                 "step {}: no stand-off pose found for finger {}; it moves straight between the \
@@ -248,9 +290,6 @@ fn way_points(
         let near_q = near.fingers[slot].joints.clone();
         // Between it and the free pose, around the object where the straight move would come
         // close to it or cut through.
-        let Some(f) = hand.finger(a.finger) else {
-            continue;
-        };
         let (start, end) = match step.phase {
             Phase::Attach => (free.clone(), near_q),
             _ => (near_q, free.clone()),
@@ -260,7 +299,9 @@ fn way_points(
             Surface::Circle { .. } => {
                 let touch = f.fk(contact).tip_centre.xy().norm();
                 let reach = Keepout::new(touch + clearance, touch - f.tip_radius);
-                route::route(f, &start, &end, reach)
+                route::route_with(f, &start, &end, reach.tip, |q| {
+                    reach.holds(f, q) && apart(q)
+                })
             }
             // Another section: the fingertip's gap to it (turned as in the step) at least the
             // clearance, the links' at least the link margin, the roadmap beyond its farthest
@@ -275,6 +316,7 @@ fn way_points(
                     |q| {
                         surface.contact_of(&tip(f, q), f, theta).gap >= clearance
                             && surface.link_gap(f, q, theta).0 >= route::LINK_MARGIN
+                            && apart(q)
                     },
                 )
             }

@@ -22,8 +22,9 @@
 //! The planar fingers' kinematics (closed-form inverse kinematics, the planar shift, the
 //! planar description) are in `planar.rs`; that of any chain (damped least squares, joints
 //! centred by the redundancy, the shift of a fingertip point, the reach along a direction) in
-//! `spatial.rs`.
+//! `spatial.rs`; a finger's body as capsules, and the gap between two, in `capsules.rs`.
 
+mod capsules;
 mod planar;
 mod spatial;
 
@@ -31,6 +32,7 @@ use icrflow_grasp::math::{Isometry3, Real, UnitQuaternion, Vec3};
 use nalgebra::{DMatrix, DVector, Translation3, Unit};
 use std::f64::consts::PI;
 
+pub use capsules::{Capsule, gap, segment_segment_distance};
 pub use planar::{PlanarChain, planar_finger};
 pub use spatial::{CENTRING_STEP, CENTRING_STEPS, SHIFT_JOINTS, SHIFT_LEVER, SHIFT_STEPS};
 

@@ -8,9 +8,8 @@ use super::{SpatialScenario, Touch};
 use crate::hand::Finger;
 use crate::planner::{Phase, SQUEEZE_PROBE, Step};
 
-/// A finger's links and fingertip as capsules: (from, to, radius); the fingertip a capsule
-/// of zero length.
-type Capsules = Vec<(Vec3, Vec3, Real)>;
+use crate::hand::Capsule;
+pub use crate::hand::segment_segment_distance;
 
 impl SpatialScenario<'_> {
     /// How close finger `f`'s links (as lines) come to the object's surface at `q` with the
@@ -43,27 +42,21 @@ impl SpatialScenario<'_> {
                 (f.id, f, q)
             })
             .collect();
-        let parts: Vec<(u32, Capsules)> = poses
+        let parts: Vec<(u32, Vec<Capsule>)> = poses
             .iter()
-            .map(|(id, f, q)| {
-                let mut segs = Vec::new();
-                f.link_segments(q, |_, a, b| segs.push((a, b, self.spatial.link_radius)));
-                let tip = f.tip_centre(q);
-                segs.push((tip, tip, f.tip_radius));
-                (*id, segs)
-            })
+            .map(|(id, f, q)| (*id, f.capsules(q, self.spatial.link_radius)))
             .collect();
         for (i, (a, sa)) in parts.iter().enumerate() {
             for (b, sb) in &parts[i + 1..] {
                 for x in sa {
                     for y in sb {
-                        let d = segment_segment_distance(&x.0, &x.1, &y.0, &y.1);
-                        if d < x.2 + y.2 {
+                        let d = segment_segment_distance(&x.from, &x.to, &y.from, &y.to);
+                        if d < x.radius + y.radius {
                             return Some((
                                 format!(
                                     "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed)",
                                     d * 1e3,
-                                    (x.2 + y.2) * 1e3
+                                    (x.radius + y.radius) * 1e3
                                 ),
                                 [*a, *b],
                             ));
@@ -224,47 +217,6 @@ fn point_segment_distance(p: &Vec3, a: &Vec3, b: &Vec3) -> Real {
         0.0
     };
     (a + ab * t - p).norm()
-}
-
-/// Distance between segments `p0 p1` and `q0 q1` (Ericson, Real-Time Collision Detection,
-/// 5.1.9); either may be a point.
-pub fn segment_segment_distance(p0: &Vec3, p1: &Vec3, q0: &Vec3, q1: &Vec3) -> Real {
-    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
-    let (a, e, f) = (d1.norm_squared(), d2.norm_squared(), d2.dot(&r));
-    let eps = 1e-18;
-    let (s, t);
-    if a <= eps && e <= eps {
-        return r.norm();
-    }
-    if a <= eps {
-        s = 0.0;
-        t = (f / e).clamp(0.0, 1.0);
-    } else {
-        let c = d1.dot(&r);
-        if e <= eps {
-            t = 0.0;
-            s = (-c / a).clamp(0.0, 1.0);
-        } else {
-            let b = d1.dot(&d2);
-            let denom = a * e - b * b;
-            let mut s0 = if denom > eps {
-                ((b * f - c * e) / denom).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let mut t0 = (b * s0 + f) / e;
-            if t0 < 0.0 {
-                t0 = 0.0;
-                s0 = (-c / a).clamp(0.0, 1.0);
-            } else if t0 > 1.0 {
-                t0 = 1.0;
-                s0 = ((b - c) / a).clamp(0.0, 1.0);
-            }
-            s = s0;
-            t = t0;
-        }
-    }
-    ((p0 + d1 * s) - (q0 + d2 * t)).norm()
 }
 
 #[cfg(test)]

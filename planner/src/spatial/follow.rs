@@ -14,7 +14,9 @@
 //!   (it sets off only once there), then its approach ([`crate::planner::Switch::approach`]:
 //!   the lifted poses the planner checked clear of the object and of the other fingers); a
 //!   released finger's retreat through the same poses in reverse
-//!   ([`crate::planner::Switch::retreat`]) before its free pose. The planner's lifts are at
+//!   ([`crate::planner::Switch::retreat`]) before its free pose (unlike a planar hand's, the
+//!   detach step is reached once the finger is off the object: it goes home from its last
+//!   retreat pose as the others roll on). The planner's lifts are at
 //!   least 3 mm, beyond the estimator's release distance, so no way point is taken for a
 //!   contact.
 
