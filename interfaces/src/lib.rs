@@ -26,7 +26,7 @@ pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 6;
+pub const SCHEMA_VERSION: u32 = 7;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -44,7 +44,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v6`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v7`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -87,7 +87,7 @@ pub enum Kind {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Header.v6")]
+#[type_name("icrflow.Header.v7")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -131,7 +131,7 @@ pub const TRACE_STAMPS: usize = 7;
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Trace.v6")]
+#[type_name("icrflow.Trace.v7")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -326,7 +326,7 @@ messages!(
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.JointState.v6")]
+#[type_name("icrflow.JointState.v7")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -356,7 +356,7 @@ pub struct JointState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.ObjectPose.v6")]
+#[type_name("icrflow.ObjectPose.v7")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -384,7 +384,7 @@ pub struct ObjectPose {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlantTruth.v6")]
+#[type_name("icrflow.PlantTruth.v7")]
 #[repr(C)]
 pub struct PlantTruth {
     /// Header ([`Kind::PlantTruth`]); `source_time_ns` is the time of the state it gives.
@@ -413,6 +413,20 @@ pub struct PlantTruth {
     pub contact_forces: [[f64; 3]; MAX_FINGERS],
     /// Tangential slip speed at each contact (m/s; 0 rolling).
     pub slip_speeds: [f64; MAX_FINGERS],
+    /// The plant's integration steps since the previous truth (0 from a plant that counts
+    /// none: the kinematic plant).
+    pub physics_steps: u32,
+    /// Of them, the steps in which a link (not a fingertip) touched the object.
+    pub link_object_steps: u32,
+    /// Of them, the steps in which two fingers touched each other.
+    pub finger_touch_steps: u32,
+    /// Slots (bit `k`: the finger of slot `k`) a link of which touched the object in any of
+    /// them.
+    pub links_on_object: u32,
+    /// Slots of the fingers that touched another finger in any of them.
+    pub fingers_touching: u32,
+    /// Padding (zero).
+    pub reserved: u32,
 }
 
 /// Which plant a [`PlantTruth`] comes from.
@@ -438,7 +452,7 @@ pub enum PlantEngine {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerContact.v6")]
+#[type_name("icrflow.FingerContact.v7")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -470,7 +484,7 @@ pub struct FingerContact {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.GraspState.v6")]
+#[type_name("icrflow.GraspState.v7")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -517,7 +531,7 @@ pub struct GraspState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.WrenchSpaceHeader.v6")]
+#[type_name("icrflow.WrenchSpaceHeader.v7")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -547,7 +561,7 @@ pub struct WrenchSpaceHeader {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Facet.v6")]
+#[type_name("icrflow.Facet.v7")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -600,7 +614,7 @@ impl PlanPhase {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerTarget.v6")]
+#[type_name("icrflow.FingerTarget.v7")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -634,7 +648,7 @@ pub struct FingerTarget {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlanStepHeader.v6")]
+#[type_name("icrflow.PlanStepHeader.v7")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -675,7 +689,7 @@ pub enum CommandMode {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.HandCommand.v6")]
+#[type_name("icrflow.HandCommand.v7")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -730,7 +744,7 @@ pub enum NodeState {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.NodeHealth.v6")]
+#[type_name("icrflow.NodeHealth.v7")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -1147,12 +1161,12 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v6");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v6");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v6");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v6");
-        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v6");
-        assert_eq!(SCHEMA_VERSION, 6);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v7");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v7");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v7");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v7");
+        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v7");
+        assert_eq!(SCHEMA_VERSION, 7);
     }
 
     #[test]
@@ -1230,7 +1244,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<GraspState>(), 104 + 96 + 8 * 72 + 512);
         assert_eq!(
             std::mem::size_of::<PlantTruth>(),
-            104 + 64 + 8 + 64 + 3 * 192 + 64
+            104 + 64 + 8 + 64 + 3 * 192 + 64 + 24
         );
         assert_eq!(std::mem::size_of::<FingerTarget>(), 112);
         assert_eq!(

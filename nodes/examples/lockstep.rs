@@ -131,11 +131,23 @@ fn main() -> Result<()> {
     // as `run` counts them (off for 3 truths in a row once made, while still planned).
     let mut made: BTreeMap<u32, (bool, u32)> = BTreeMap::new();
     let mut losses: Vec<String> = Vec::new();
+    // Integration steps, and those with fingers touching each other / links on the object,
+    // with the first time of each.
+    let mut collisions = (0u64, 0u64, 0u64, None::<f64>, None::<f64>);
     let started = std::time::Instant::now();
     let ended = lockstep::run(&config, &setup, seconds, 0.5, replan_s, &mut |tick| {
         let Some(truth) = tick.truth else {
             return;
         };
+        collisions.0 += u64::from(truth.physics_steps);
+        collisions.1 += u64::from(truth.finger_touch_steps);
+        collisions.2 += u64::from(truth.link_object_steps);
+        if truth.finger_touch_steps > 0 {
+            collisions.3.get_or_insert(tick.time);
+        }
+        if truth.link_object_steps > 0 {
+            collisions.4.get_or_insert(tick.time);
+        }
         let plan = tick.plan;
         let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));
         let s = stats.entry(phase).or_default();
@@ -279,8 +291,9 @@ fn main() -> Result<()> {
                 }
             }
             forces += &format!(
-                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links {}",
-                tick.plant.sim().link_contacts()
+                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b}",
+                tick.plant.sim().collisions().links_on_object,
+                tick.plant.sim().collisions().fingers_touching
             );
             eprintln!(
                 "t {:5.2} s  true {:7.2} est {:7.2} plan {:7.2} deg  step {:4} {:8} fn/use/slip{forces}  centre [{:+.1} {:+.1} {:+.1}] mm{}",
@@ -325,6 +338,18 @@ fn main() -> Result<()> {
     for l in &losses {
         eprintln!("    lost: {l}");
     }
+    let first = |t: Option<f64>| {
+        t.map(|t| format!(" (first at {t:.2} s)"))
+            .unwrap_or_default()
+    };
+    eprintln!(
+        "  of {} integration steps: {} with fingers touching each other{}, {} with a link on the object{}",
+        collisions.0,
+        collisions.1,
+        first(collisions.3),
+        collisions.2,
+        first(collisions.4)
+    );
     for (phase, s) in &stats {
         eprintln!(
             "  {phase:8} {:6} truths  max slip {:7.1} mm/s  max friction use {:.2}  lost {}",

@@ -81,6 +81,29 @@ pub struct Physical<'a> {
     events: Vec<Event>,
     /// The configured push, until it is made.
     push: Option<Push>,
+    /// Since the last truth: integration steps, those with a link on the object or fingers
+    /// touching, and which fingers ([`PlantTruth`]'s fields of the same names).
+    window: Window,
+}
+
+/// What the plant's integration steps since the last truth saw of the hand's collisions.
+#[derive(Debug, Clone, Copy, Default)]
+struct Window {
+    steps: u32,
+    link_object_steps: u32,
+    finger_touch_steps: u32,
+    links_on_object: u32,
+    fingers_touching: u32,
+}
+
+impl Window {
+    fn add(&mut self, c: icrflow_physics::sim::Collisions) {
+        self.steps = self.steps.saturating_add(1);
+        self.link_object_steps += u32::from(c.links_on_object != 0);
+        self.finger_touch_steps += u32::from(c.fingers_touching != 0);
+        self.links_on_object |= c.links_on_object;
+        self.fingers_touching |= c.fingers_touching;
+    }
 }
 
 impl<'a> Physical<'a> {
@@ -122,6 +145,7 @@ impl<'a> Physical<'a> {
             command_time: 0,
             events: Vec::with_capacity(n + 1),
             push: p.push,
+            window: Window::default(),
         })
     }
 
@@ -224,6 +248,7 @@ impl<'a> Physical<'a> {
                     });
                 }
                 self.sim.step();
+                self.window.add(self.sim.collisions());
             }
         }
         let (_, q) = self.sim.object_pose();
@@ -284,12 +309,18 @@ impl<'a> Physical<'a> {
         let truth = self.ticks.is_multiple_of(TRUTH_EVERY).then(|| {
             let (_, orientation) = self.sim.object_pose();
             let o = orientation.quaternion();
+            let w = std::mem::take(&mut self.window);
             let mut truth = PlantTruth {
                 position: self.sim.object_centre().into(),
                 orientation: [o.w, o.i, o.j, o.k],
                 rotation: self.rotation,
                 finger_count: hand.fingers.len().min(MAX_FINGERS) as u32,
                 engine: PlantEngine::Mujoco as u32,
+                physics_steps: w.steps,
+                link_object_steps: w.link_object_steps,
+                finger_touch_steps: w.finger_touch_steps,
+                links_on_object: w.links_on_object,
+                fingers_touching: w.fingers_touching,
                 ..Default::default()
             };
             for (slot, f) in hand.fingers.iter().enumerate().take(MAX_FINGERS) {

@@ -14,9 +14,11 @@
 //!   triangles otherwise (MuJoCo collides with a mesh's convex hull: exact for the convex
 //!   objects the planner rolls on), its mass and inertia from the solid at
 //!   [`Params::density`].
-//! - **Contacts**: fingertips and links collide with the object only (`contype` 2 /
-//!   `conaffinity` 1 for the hand, the reverse for the object: the fingers do not collide with
-//!   each other); friction `mu` on both sides (MuJoCo takes the larger), three-dimensional
+//! - **Contacts**: fingertips and links collide with the object and with the other fingers'
+//!   fingertips and links, never with their own finger ([`collision_bits`]: a bit per finger
+//!   in `contype`, the object's bit and every other finger's in `conaffinity`), so that a plan
+//!   whose fingers touch each other or whose links touch the object shows it
+//!   ([`crate::sim::Collisions`]); friction `mu` on both sides (MuJoCo takes the larger), three-dimensional
 //!   (sliding friction, no torsional or rolling resistance: a fingertip rolls freely), elliptic
 //!   cones with `impratio` 10 (stiff friction) and [`Params::noslip_iterations`] of the
 //!   no-slip solver (without it, friction under a steady tangential load creeps), stiff
@@ -108,6 +110,25 @@ pub fn actuator_name(finger: u32, k: usize) -> String {
 /// The object's body and geom name.
 pub const OBJECT: &str = "object";
 
+/// The most fingers a model can have: a `contype` bit each, besides the object's.
+pub const MAX_FINGERS: usize = 31;
+
+/// `(contype, conaffinity)` of the geoms of the finger in `slot` of `fingers`, and of the
+/// object (`slot == fingers`): MuJoCo makes a contact between two geoms when either's
+/// `contype` shares a bit with the other's `conaffinity`. The object has bit 0, the finger in
+/// slot `k` bit `k + 1`; a finger's affinity is the object's bit and every other finger's, the
+/// object's every finger's: fingers touch the object and each other, never themselves (its
+/// adjacent links, which share a joint, would touch at every pose).
+pub fn collision_bits(slot: usize, fingers: usize) -> (u32, u32) {
+    let all = ((1u64 << (fingers + 1)) - 2) as u32;
+    if slot >= fingers {
+        (1, all)
+    } else {
+        let own = 1u32 << (slot + 1);
+        (own, 1 | (all & !own))
+    }
+}
+
 /// `x y z` with enough digits to round-trip.
 fn v3(out: &mut String, v: &Vec3) {
     let _ = write!(out, "{:e} {:e} {:e}", v.x, v.y, v.z);
@@ -155,6 +176,12 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
     if !(p.kv.is_finite() && p.kv >= 0.0 && p.gravity.iter().all(|g| g.is_finite())) {
         return bad("kv must be finite and >= 0, gravity finite".into());
     }
+    let n = hand.fingers.len();
+    if n > MAX_FINGERS {
+        return bad(format!(
+            "the hand has {n} fingers: the model takes at most {MAX_FINGERS} (a collision bit each)"
+        ));
+    }
     let mut x = String::with_capacity(4096 + 64 * object.vertices.len());
     x.push_str("<mujoco model=\"icrflow\">\n");
     x.push_str("  <compiler angle=\"radian\" autolimits=\"true\" boundmass=\"1e-6\" boundinertia=\"1e-12\"/>\n");
@@ -180,9 +207,10 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
         x,
         "    <body name=\"{OBJECT}\">\n      <freejoint name=\"{OBJECT}\"/>\n"
     );
+    let (object_type, object_affinity) = collision_bits(n, n);
     let _ = write!(
         x,
-        "      <geom name=\"{OBJECT}\" contype=\"1\" conaffinity=\"2\" density=\"{:e}\" rgba=\"0.85 0.55 0.25 1\" ",
+        "      <geom name=\"{OBJECT}\" contype=\"{object_type}\" conaffinity=\"{object_affinity}\" density=\"{:e}\" rgba=\"0.85 0.55 0.25 1\" ",
         p.density
     );
     match shape {
@@ -200,7 +228,8 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
     }
     x.push_str("/>\n    </body>\n");
     // The fingers.
-    for f in &hand.fingers {
+    for (slot, f) in hand.fingers.iter().enumerate() {
+        let (contype, conaffinity) = collision_bits(slot, n);
         let mut depth = 0;
         for (k, j) in f.joints.iter().enumerate() {
             let origin = if k == 0 { f.base * j.origin } else { j.origin };
@@ -235,7 +264,7 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
                 v3(&mut x, &to);
                 let _ = writeln!(
                     x,
-                    "\" contype=\"2\" conaffinity=\"1\" density=\"{HAND_DENSITY:e}\" rgba=\"0.55 0.6 0.7 1\"/>"
+                    "\" contype=\"{contype}\" conaffinity=\"{conaffinity}\" density=\"{HAND_DENSITY:e}\" rgba=\"0.55 0.6 0.7 1\"/>"
                 );
             }
             if last {
@@ -248,7 +277,7 @@ pub fn mjcf(hand: &Hand, object: &Object, shape: Shape, p: &Params) -> Result<St
                 v3(&mut x, &f.tip);
                 let _ = writeln!(
                     x,
-                    "\" contype=\"2\" conaffinity=\"1\" density=\"{HAND_DENSITY:e}\" rgba=\"0.3 0.45 0.8 1\"/>"
+                    "\" contype=\"{contype}\" conaffinity=\"{conaffinity}\" density=\"{HAND_DENSITY:e}\" rgba=\"0.3 0.45 0.8 1\"/>"
                 );
             }
             depth += 1;
@@ -341,6 +370,29 @@ mod tests {
         assert!(xml.contains("type=\"sphere\" size=\"4.75e-2\""), "{xml}");
         // Bodies nest: every opened body is closed.
         assert_eq!(xml.matches("<body").count(), xml.matches("</body>").count());
+    }
+
+    #[test]
+    fn fingers_touch_the_object_and_each_other_never_themselves() {
+        // MuJoCo's rule: a contact when either's contype meets the other's conaffinity.
+        let touch = |a: (u32, u32), b: (u32, u32)| a.0 & b.1 != 0 || b.0 & a.1 != 0;
+        for n in [1, 4, 5, MAX_FINGERS] {
+            let object = collision_bits(n, n);
+            for i in 0..n {
+                let fi = collision_bits(i, n);
+                assert!(touch(fi, object), "finger {i} of {n} and the object");
+                assert!(!touch(fi, fi), "finger {i} of {n} and itself");
+                for j in (0..n).filter(|&j| j != i) {
+                    assert!(touch(fi, collision_bits(j, n)), "fingers {i}, {j} of {n}");
+                }
+            }
+        }
+        let hand = icrflow_plan::paper::hand();
+        let object = Object::sphere(0.0475, 16, 16).unwrap();
+        let xml = mjcf(&hand, &object, Shape::Sphere { radius: 0.0475 }, &params()).unwrap();
+        // Finger 1 (slot 0): bit 1; touches the object (bit 0) and fingers 2-4 (bits 2-4).
+        assert!(xml.contains("contype=\"2\" conaffinity=\"29\""), "{xml}");
+        assert!(xml.contains("contype=\"1\" conaffinity=\"30\""), "{xml}");
     }
 
     #[test]

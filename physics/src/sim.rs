@@ -80,6 +80,24 @@ pub struct TrueContact {
     pub slip_speed: Real,
 }
 
+/// Which parts of the hand touch what they should not this step (bit `k`: the finger in slot
+/// `k`): a planned grasp touches the object with its fingertips only, and no finger touches
+/// another.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Collisions {
+    /// Fingers a link of which (not the fingertip) touches the object.
+    pub links_on_object: u32,
+    /// Fingers touching another finger (fingertip or link, either side).
+    pub fingers_touching: u32,
+}
+
+impl Collisions {
+    /// Whether anything touched.
+    pub fn any(&self) -> bool {
+        self.links_on_object != 0 || self.fingers_touching != 0
+    }
+}
+
 /// Where a finger is in the model.
 #[derive(Debug, Clone)]
 struct FingerIds {
@@ -111,6 +129,10 @@ pub struct Sim {
     /// how many of MuJoCo's contacts that is the mean.
     touching: Vec<Option<TrueContact>>,
     counts: Vec<usize>,
+    /// The finger slot of each geom of the hand (`None`: the object's, or another).
+    geom_slot: Vec<Option<u8>>,
+    /// This step's collisions.
+    collisions: Collisions,
     /// An external force and torque on the object (hand frame, about its centre of mass)
     /// until a simulation time (s).
     push: Option<([Real; 6], Real)>,
@@ -192,8 +214,21 @@ impl Sim {
             }
             fingers.push(ids);
         }
+        // A geom belongs to the finger whose joints move its body.
+        let geom_slot = model
+            .geom_bodyid()
+            .iter()
+            .map(|&body| {
+                fingers
+                    .iter()
+                    .position(|f| f.joint.iter().any(|&j| model.jnt_bodyid()[j] == body))
+                    .map(|slot| slot as u8)
+            })
+            .collect();
         let mut sim = Self {
             data: MjData::new(Box::new(model)),
+            geom_slot,
+            collisions: Collisions::default(),
             touching: vec![None; fingers.len()],
             counts: vec![0; fingers.len()],
             fingers,
@@ -346,7 +381,9 @@ impl Sim {
             *t = None;
         }
         self.counts.fill(0);
+        self.collisions = Collisions::default();
         let object = self.object_geom as i32;
+        let slot_of = |g: i32| usize::try_from(g).ok().and_then(|g| self.geom_slot[g]);
         for i in 0..self.data.contact().len() {
             let c = &self.data.contact()[i];
             let (g1, g2) = (c.geom[0], c.geom[1]);
@@ -355,9 +392,16 @@ impl Sim {
             } else if g2 == object {
                 g1
             } else {
+                // Two parts of the hand: the model lets only different fingers touch.
+                if let (Some(a), Some(b)) = (slot_of(g1), slot_of(g2)) {
+                    self.collisions.fingers_touching |= (1 << a) | (1 << b);
+                }
                 continue;
             };
             let Some(slot) = self.fingers.iter().position(|f| f.tip_geom as i32 == other) else {
+                if let Some(k) = slot_of(other) {
+                    self.collisions.links_on_object |= 1 << k;
+                }
                 continue;
             };
             let frame = c.frame;
@@ -394,24 +438,9 @@ impl Sim {
         }
     }
 
-    /// How many of MuJoCo's contacts this step are between the object and a part of the hand
-    /// other than a fingertip (a link).
-    pub fn link_contacts(&self) -> usize {
-        let object = self.object_geom as i32;
-        self.data
-            .contact()
-            .iter()
-            .filter(|c| {
-                let other = if c.geom[0] == object {
-                    c.geom[1]
-                } else if c.geom[1] == object {
-                    c.geom[0]
-                } else {
-                    return false;
-                };
-                !self.fingers.iter().any(|f| f.tip_geom as i32 == other)
-            })
-            .count()
+    /// Which parts of the hand touched what they should not this step.
+    pub fn collisions(&self) -> Collisions {
+        self.collisions
     }
 
     /// The velocity of the point `p` (hand frame) moving with body `body`.

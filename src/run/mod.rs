@@ -10,9 +10,11 @@
 //! | [`hold_cause`] | the cause of a hold, from its reason, with its numbers |
 //! | [`status`] | what the run says on stderr as it goes: its messages and one status line |
 //! | [`physics`] | the run against MuJoCo's truth: the summary's `physics` |
+//! | [`collisions`] | fingers touching each other and links touching the object in MuJoCo |
 //! | [`track`] | the state machines the watch feeds: heartbeats, the estimate against the truth, re-plans, SIGHUP |
 //! | [`summary`] | what the run prints at the end and writes with `--summary-json` |
 
+pub(crate) mod collisions;
 pub(crate) mod histogram;
 pub(crate) mod hold_cause;
 pub(crate) mod launch;

@@ -20,6 +20,7 @@ use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlanStepHeader, PlantEngine, Pl
 use icrflow_scenario::{Config, Setup};
 use serde::Serialize;
 
+use super::collisions::{CollisionSummary, CollisionTrack};
 use super::true_margin::{Below, Planned, TrueMargin};
 
 /// Truths in a row without contact after which a finger planned in contact is lost (30 ms at
@@ -118,6 +119,9 @@ pub struct PhysicsSummary {
     pub max_tilt_deg: Real,
     /// Gravity in the hand frame (m/s^2), as the plant simulates it.
     pub gravity: [Real; 3],
+    /// Fingers touching each other and links touching the object.
+    #[serde(flatten)]
+    pub collisions: CollisionSummary,
 }
 
 /// The physics of a run so far.
@@ -162,6 +166,7 @@ pub struct PhysicsTrack {
     last_step: Option<u64>,
     gravity: [Real; 3],
     margin: TrueMargin,
+    collisions: CollisionTrack,
 }
 
 impl PhysicsTrack {
@@ -174,6 +179,7 @@ impl PhysicsTrack {
         Ok(Self {
             gravity: config.plant.gravity,
             margin,
+            collisions: CollisionTrack::default(),
             mu: config.grasp.model.mu(),
             engine: format!("MuJoCo {version}"),
             drop_distance,
@@ -300,6 +306,7 @@ impl PhysicsTrack {
         }
         let first = self.first_stamp.unwrap_or(t.header.source_time_ns);
         let at_s = t.header.source_time_ns.saturating_sub(first) as Real * 1e-9;
+        self.collisions.truth(t, at_s);
         let plan = self.last_step.map(|step| Planned {
             step,
             phase: self.phase,
@@ -391,6 +398,7 @@ impl PhysicsTrack {
             below_alpha: m.below,
             max_tilt_deg: m.max_tilt.to_degrees(),
             gravity: self.gravity,
+            collisions: self.collisions.summary(),
         }
     }
 }
