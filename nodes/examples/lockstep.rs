@@ -134,8 +134,30 @@ fn main() -> Result<()> {
     // Integration steps, and those with fingers touching each other / links on the object,
     // with the first time of each.
     let mut collisions = (0u64, 0u64, 0u64, None::<f64>, None::<f64>);
+    // Per finger slot: ticks in a row its fingertip has been off the object while the plan has
+    // it in contact (rolling steps), and how many such gaps ended after each length (1 ms
+    // ticks; the last bucket: longer).
+    let mut off_ticks = [0usize; MAX_FINGERS];
+    let mut gaps = [0u64; 12];
     let started = std::time::Instant::now();
     let ended = lockstep::run(&config, &setup, seconds, 0.5, replan_s, &mut |tick| {
+        if let Some(plan) = tick.plan.filter(|p| p.phase == PlanPhase::Rolling as u32) {
+            let n = (plan.finger_count as usize).min(MAX_FINGERS);
+            for (slot, f) in setup.hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+                let planned = plan.targets[..n]
+                    .iter()
+                    .any(|t| t.finger == f.id && t.in_contact == 1);
+                let on = tick.plant.sim().contact(slot).is_some();
+                if planned && !on {
+                    off_ticks[slot] += 1;
+                } else {
+                    if planned && off_ticks[slot] > 0 {
+                        gaps[off_ticks[slot].min(gaps.len() - 1)] += 1;
+                    }
+                    off_ticks[slot] = 0;
+                }
+            }
+        }
         let Some(truth) = tick.truth else {
             return;
         };
@@ -338,6 +360,18 @@ fn main() -> Result<()> {
     for l in &losses {
         eprintln!("    lost: {l}");
     }
+    eprintln!(
+        "  contacts planned to roll, off for N ticks (1 ms) then back: {}",
+        (1..gaps.len())
+            .filter(|&k| gaps[k] > 0)
+            .map(|k| format!(
+                "{k}{}: {}",
+                if k + 1 == gaps.len() { "+" } else { "" },
+                gaps[k]
+            ))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     let first = |t: Option<f64>| {
         t.map(|t| format!(" (first at {t:.2} s)"))
             .unwrap_or_default()
