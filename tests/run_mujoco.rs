@@ -169,6 +169,10 @@ fn the_paper_sphere_turns_a_whole_turn_in_mujoco_as_the_estimate_says() {
         out.contains("physics    MuJoCo 3.17.0: the object turned "),
         "{out}"
     );
+    assert!(
+        out.contains(" 0 with fingers touching each other, 0 with a link on the object"),
+        "{out}"
+    );
     // Read back by the Rerun SDK: the true contacts and forces beside the estimated ones, and
     // the true rotation, which reaches what the summary says MuJoCo turned the object.
     let r = common::recorded(

@@ -198,6 +198,31 @@ impl RunSummary {
                 "           the object tilted up to {:.1} deg off the plan's axis; gravity [{}, {}, {}] m/s^2",
                 p.max_tilt_deg, p.gravity[0], p.gravity[1], p.gravity[2]
             )?;
+            let c = &p.collisions;
+            let ids = |f: &[u32]| f.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+            let first = |at: Option<crate::run::collisions::First>| {
+                at.map(|f| format!(", first at {:.2} s ({:.1} deg)", f.at_s, f.rotation_deg))
+                    .unwrap_or_default()
+            };
+            writeln!(
+                o,
+                "           of {} integration steps: {} with fingers touching each other{}{}, {} with a link on the object{}{}",
+                c.physics_steps,
+                c.finger_collisions,
+                if c.fingers_touching.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (fingers {})", ids(&c.fingers_touching))
+                },
+                first(c.first_finger_collision),
+                c.link_object_contacts,
+                if c.links_on_object.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (fingers {})", ids(&c.links_on_object))
+                },
+                first(c.first_link_object_contact),
+            )?;
         }
         if verbose {
             writeln!(
