@@ -108,7 +108,15 @@ pub fn run(
             command: made.as_ref().map(|(c, why)| (c, why.as_deref())),
             truth: out.truth.as_ref(),
         });
-        if lp.done_at.is_some_and(|d| t >= d + (settle * 1e9) as u64) {
+        // Done at the goal: after `settle`. Done short of it (a leg of a plan made again, or a
+        // plan that stopped short): the follower plans on once the object has stood still
+        // for REPLAN_NS (and planned), else it is over.
+        let wait = if lp.follower.ends_at_goal() {
+            (settle * 1e9) as u64
+        } else {
+            (settle * 1e9) as u64 + 2 * icrflow_plan::follow::REPLAN_NS + lp.replan_ns
+        };
+        if lp.done_at.is_some_and(|d| t >= d + wait) {
             break;
         }
     }
@@ -281,6 +289,9 @@ impl<'s> Loop<'s> {
         if let Some(m) = published {
             if m.phase == PlanPhase::Done as u32 {
                 self.done_at.get_or_insert(t);
+            } else {
+                // A plan made on from the end of one short of the goal.
+                self.done_at = None;
             }
             let _ = self.commander.on_plan(&m, t);
             self.plan = Some(m);

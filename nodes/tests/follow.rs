@@ -12,8 +12,8 @@
 use icrflow_nodes::estimator::RELEASE;
 use icrflow_nodes::planner::CLEARANCE;
 use icrflow_plan::follow::{
-    Estimate, EstimatedFinger, Event, Follower, LEAD, REPLAN_NS, SETTLED_NS, STANDOFFS, Target,
-    Tolerances, replan, targets,
+    Estimate, EstimatedFinger, Event, Follower, LEAD, REPLAN_HORIZON, REPLAN_NS, SETTLED_NS,
+    STANDOFFS, Target, Tolerances, replan, targets,
 };
 use icrflow_plan::planner::{Phase, Plan, Step};
 use icrflow_plan::rolling::{Surface, tip};
@@ -309,7 +309,8 @@ fn the_hand_at_a_rolling_targets_joints_reaches_it() {
 
 /// After the object slipped by 12 deg under the fingertips during a rolling step of the
 /// paper's plan (off the 5 deg candidate grid), a plan made again from that state starts with
-/// the hand where it is and the object where it is, and turns it to the goal.
+/// the hand where it is and the object where it is, and turns it toward the goal by a leg of
+/// [`REPLAN_HORIZON`].
 #[test]
 fn a_plan_made_again_after_a_slip_starts_where_the_hand_and_object_are() {
     let (config, setup, plan, _) = planned("paper_sphere.toml");
@@ -323,7 +324,7 @@ fn a_plan_made_again_after_a_slip_starts_where_the_hand_and_object_are() {
     let mut e = at_joints_of(step, step.rotation.to_degrees() + slip);
     let scenario = setup.scenario(&config);
     let again = replan(&scenario, &e, surface, 40, CLEARANCE, &mut || {}).unwrap();
-    let (list, delta) = (&again.targets, again.delta);
+    let (list, delta, at_goal) = (&again.targets, again.delta, again.at_goal);
     let again = &again.plan;
     assert!(again.summary.completed, "{:?}", again.summary.stop_reason);
     // The contacts were 12 deg off the grid: 2 deg short of a candidate.
@@ -345,12 +346,14 @@ fn a_plan_made_again_after_a_slip_starts_where_the_hand_and_object_are() {
             );
         }
     }
+    // A leg of REPLAN_HORIZON toward the goal (the rest is planned at its end).
     let last = again.steps.last().unwrap();
     assert!(
-        (last.rotation.to_degrees() - 360.0).abs() < 1e-9,
+        (last.rotation.to_degrees() - first.rotation.to_degrees() - 90.0).abs() < 1e-9,
         "{}",
         last.rotation.to_degrees()
     );
+    assert!(!at_goal);
     assert!(again.summary.min_quality >= config.grasp.alpha * (1.0 - 1e-9));
     assert_eq!(list.first().map(|t| t.step.step), Some(40));
     // An estimate with no finger in contact is refused by what is wrong.
@@ -601,12 +604,76 @@ fn the_follower_plans_again_when_the_object_stands_still_off_the_plan() {
     assert_eq!((f.replans(), f.current()), (1, Some(0)));
     let first = &f.targets()[0].step;
     assert_eq!((first.step, first.phase), (step.step + 1, Phase::Start));
-    assert!((first.rotation.to_degrees() - step.rotation.to_degrees() - 12.0).abs() < 1e-9);
+    let from = step.rotation.to_degrees() + 12.0;
+    assert!((first.rotation.to_degrees() - from).abs() < 1e-9);
+    // A leg of REPLAN_HORIZON (90 deg), not the 248 deg to the goal.
     let last = &f.targets().last().unwrap().step;
-    assert!((last.rotation.to_degrees() - 360.0).abs() < 1e-9);
+    assert!(
+        (last.rotation.to_degrees() - from - REPLAN_HORIZON.to_degrees()).abs() < 1e-9,
+        "{}",
+        last.rotation.to_degrees()
+    );
     // And follows the new plan on.
     follow_to(&mut f, 3, now + TICK);
     assert_eq!(f.current(), Some(3));
+}
+
+/// At the end of a leg of a plan made again (short of the goal), the object settled there, the
+/// follower plans on from the estimate, leg after leg, until a plan ends at the goal; there it
+/// is done. A plan that ends short without turning the object on is not made again.
+#[test]
+fn the_follower_plans_on_at_the_end_of_each_leg_to_the_goal() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let mut f = follower(&config, &setup);
+    let k = (0..f.targets().len())
+        .find(|&k| {
+            let t = &f.targets()[k];
+            t.step.phase == Phase::Rolling && !t.way_point && t.step.rotation.to_degrees() >= 100.0
+        })
+        .unwrap();
+    let mut now = follow_to(&mut f, k, 0);
+    // Off the plan by 12 deg, stood still: planned again.
+    let step = f.targets()[k].step.clone();
+    let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
+    let start = now;
+    while now - start <= REPLAN_NS {
+        f.on_estimate(&e, now, &mut || {});
+        now += TICK;
+    }
+    assert_eq!(f.replans(), 1);
+    let mut legs = vec![(
+        f.targets()[0].step.rotation.to_degrees(),
+        f.targets().last().unwrap().step.rotation.to_degrees(),
+    )];
+    while legs.len() < 8 {
+        let n = f.targets().len();
+        now = follow_to(&mut f, n, now);
+        // Settled at the last target.
+        let last = f.targets()[n - 1].step.clone();
+        let e = at_joints_of(&last, last.rotation.to_degrees());
+        let (start, replans) = (now, f.replans());
+        while now - start <= REPLAN_NS && f.replans() == replans {
+            f.on_estimate(&e, now, &mut || {});
+            now += TICK;
+        }
+        if f.replans() == replans {
+            break;
+        }
+        let (from, to) = (
+            f.targets()[0].step.rotation.to_degrees(),
+            f.targets().last().unwrap().step.rotation.to_degrees(),
+        );
+        assert!((from - last.rotation.to_degrees()).abs() < 1e-9, "{from}");
+        legs.push((from, to));
+    }
+    // Legs of 90 deg each from 112 deg, the last to the goal.
+    for (from, to) in &legs {
+        assert!(to - from <= REPLAN_HORIZON.to_degrees() + 1e-9, "{legs:?}");
+    }
+    assert_eq!(legs.len(), 3, "{legs:?}");
+    assert!((legs[2].1 - 360.0).abs() < 1e-9, "{legs:?}");
+    assert_eq!(f.current(), Some(f.targets().len()));
 }
 
 /// FNV-1a of the targets (step, phase, way point, rotation and each finger's contact and

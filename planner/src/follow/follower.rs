@@ -42,6 +42,14 @@ pub const SETTLED_NS: u64 = 500_000_000;
 /// plans again from the estimate (ns): longer than [`SETTLED_NS`], so that a step that settles
 /// within [`SETTLED_TOLERANCE`] counts as reached first.
 pub const REPLAN_NS: u64 = 1_000_000_000;
+/// How far a plan made again from the estimate turns the object at most (rad, 90 deg): the
+/// rest is planned at its end. On the Allegro's 5,040-facet ellipsoid a plan made again for
+/// the 157 deg left took over 40 s in a MuJoCo run (2026-12-05), the hand held all the while
+/// ("plan step is stale") until the run gave up; the whole 270 deg plan takes 25 s alone.
+pub const REPLAN_HORIZON: Real = std::f64::consts::FRAC_PI_2;
+/// How far a plan must have turned the object for the follower to plan on from its end when it
+/// does not reach the goal (rad): a plan that gets nowhere is not made again for ever.
+pub const MIN_PROGRESS: Real = 1.0 * std::f64::consts::PI / 180.0;
 /// Band the estimated rotation must stay in for the object to count as stopped, for a settled
 /// step and for a re-plan (rad): wider than the estimate's noise (the pose measurements' 0.2
 /// deg, corrected with the estimator's gain), far narrower than a rolling hand turns it in
@@ -140,6 +148,9 @@ pub struct Replanned {
     pub delta: Real,
     /// What [`targets`] noted.
     pub notes: Vec<String>,
+    /// Whether the new plan ends at the goal (not: a leg of [`REPLAN_HORIZON`], or a plan that
+    /// stopped short).
+    pub at_goal: bool,
 }
 
 impl fmt::Display for Replanned {
@@ -159,7 +170,11 @@ impl fmt::Display for Replanned {
             (p.summary.goal - p.steps.first().map_or(0.0, |s| s.rotation) - self.delta)
                 .to_degrees(),
             self.delta.to_degrees(),
-        )
+        )?;
+        if !self.at_goal && p.summary.completed {
+            write!(f, "; a leg: planned on at its end")?;
+        }
+        Ok(())
     }
 }
 
@@ -226,6 +241,10 @@ pub struct Follower<'a> {
     targets: Vec<Target>,
     /// Whether the plan's last step is the goal (a plan made again may end short of it).
     ends_at_goal: bool,
+    /// The rotation the plan followed starts at (rad).
+    plan_from: Real,
+    /// When the follower reached the end of the plan (ns), if it has.
+    at_end: Option<u64>,
     /// Plans made again from the estimate; 0 while the first plan is followed.
     replans: u32,
     /// The target being commanded; chosen from the first estimate (a restart resumes).
@@ -270,6 +289,8 @@ impl<'a> Follower<'a> {
             planning,
             clearance,
             tolerances,
+            plan_from: targets.first().map_or(0.0, |t| t.step.rotation),
+            at_end: None,
             targets,
             ends_at_goal: plan.summary.completed,
             replans: 0,
@@ -280,6 +301,12 @@ impl<'a> Follower<'a> {
                 target: usize::MAX,
             },
         })
+    }
+
+    /// Whether the plan followed ends at the goal (not: a leg of a plan made again, or a plan
+    /// that stopped short, at whose end the follower may plan on).
+    pub fn ends_at_goal(&self) -> bool {
+        self.ends_at_goal
     }
 
     /// The targets being followed.
@@ -369,8 +396,30 @@ impl<'a> Follower<'a> {
         } else {
             SETTLED_TOLERANCE
         };
-        if k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint, short) {
-            // Stuck short of the target: plan again from the estimate.
+        // At the end of a plan short of the goal (a leg of REPLAN_HORIZON, or a plan that
+        // stopped short), the object settled there with two contacts or more: plan on, if that
+        // plan turned the object on.
+        // (How long since the plan's end, not how long the object has stood within STOPPED:
+        // at rest the estimate wanders by a degree on the Allegro's sphere, and the hand,
+        // holding its last target, turns the object no farther.)
+        let end_ns = if k >= n {
+            now_ns.saturating_sub(*self.at_end.get_or_insert(now_ns))
+        } else {
+            self.at_end = None;
+            0
+        };
+        let leg_done = k >= n
+            && n > 0
+            && !self.ends_at_goal
+            && end_ns >= REPLAN_NS
+            && e.touching().count() >= 2
+            && (e.rotation - self.plan_from).abs() >= MIN_PROGRESS;
+        if leg_done
+            || (k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint, short))
+        {
+            // Stuck short of the target, or at the end of the plan: plan again from the
+            // estimate.
+            let k = k.min(n - 1);
             let target = self.targets[k].step.rotation;
             let first = self.targets[k].step.step + 1;
             let again = match &self.planning {
@@ -386,7 +435,9 @@ impl<'a> Follower<'a> {
                 Ok(again) => {
                     self.replans += 1;
                     self.targets = again.targets;
-                    self.ends_at_goal = again.plan.summary.completed;
+                    self.ends_at_goal = again.at_goal;
+                    self.plan_from = e.rotation;
+                    self.at_end = None;
                     self.current = Some(0);
                     self.stopped = Stopped {
                         since: Some(now_ns),
@@ -401,6 +452,7 @@ impl<'a> Follower<'a> {
                         plan: again.plan,
                         delta: again.delta,
                         notes: again.notes,
+                        at_goal: again.at_goal,
                     })));
                     return out;
                 }
@@ -408,6 +460,7 @@ impl<'a> Follower<'a> {
                     // Tried again after another REPLAN_NS from the next estimate on (the
                     // planning took a while); the target is held.
                     self.stopped.since = None;
+                    self.at_end = None;
                     out.event = Some(Event::ReplanFailed {
                         rotation: e.rotation,
                         target,

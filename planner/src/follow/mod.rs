@@ -26,8 +26,12 @@
 //! others, and the free fingers at their free pose, but the object has stood still for
 //! [`REPLAN_NS`] farther than [`SETTLED_TOLERANCE`] from the target), the follower plans again
 //! from the estimate ([`replan`]): from the estimated rotation, contacts, cap angles and
-//! joints to the goal. The new plan's steps are numbered on from the last one; its first step
-//! is a `Start`.
+//! joints toward the goal, at most [`REPLAN_HORIZON`] on: a plan made again on a large mesh
+//! takes seconds per tens of degrees, the hand held all the while, so it is planned in legs.
+//! At the end of a plan that does not reach the goal (a leg, or a plan that stopped short),
+//! with the object settled there, the follower plans on from the estimate, as long as that
+//! plan turned the object on ([`MIN_PROGRESS`]). The new plan's steps are numbered on from the
+//! last one; its first step is a `Start`.
 
 mod estimate;
 mod follower;
@@ -36,10 +40,10 @@ mod targets;
 
 pub use estimate::{Estimate, EstimatedFinger, fingers_in_contact};
 pub use follower::{
-    Event, Followed, Follower, GOAL_TOLERANCE, HAND_AT_TARGET, LEAD, Planning, REPLAN_NS,
-    ROTATION_TOLERANCE, Replanned, SETTLED_NS, SETTLED_TOLERANCE, STOPPED, Tolerances,
-    WAY_POINT_TOLERANCE,
+    Event, Followed, Follower, GOAL_TOLERANCE, HAND_AT_TARGET, LEAD, MIN_PROGRESS, Planning,
+    REPLAN_HORIZON, REPLAN_NS, ROTATION_TOLERANCE, Replanned, SETTLED_NS, SETTLED_TOLERANCE,
+    STOPPED, Tolerances, WAY_POINT_TOLERANCE,
 };
-pub(crate) use replan::at_the_gate;
 pub use replan::{Replan, ReplanError, replan};
+pub(crate) use replan::{at_the_gate, leg};
 pub use targets::{STANDOFF, STANDOFFS, SUBSTEP, Target, targets};

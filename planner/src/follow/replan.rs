@@ -3,7 +3,7 @@
 
 use icrflow_grasp::math::Real;
 
-use super::{Estimate, EstimatedFinger, Target, targets};
+use super::{Estimate, EstimatedFinger, REPLAN_HORIZON, Target, targets};
 use crate::hand::{Finger, wrap};
 use crate::planner::{Plan, PlanError, QUALITY_SLACK, Scenario, Settings, Start};
 use crate::rolling::{Surface, tip};
@@ -57,6 +57,20 @@ pub struct Replan {
     /// What [`targets`] noted (fingers without a stand-off or a route), and a plan made at
     /// the gate's margin ([`at_the_gate`]).
     pub notes: Vec<String>,
+    /// Whether it ends at the scenario's goal (not: at [`REPLAN_HORIZON`] short of it, or
+    /// stopped short).
+    pub at_goal: bool,
+}
+
+/// The goal of a plan made again from `from` toward `goal` (rad): at most
+/// [`REPLAN_HORIZON`] on; and whether that is `goal` itself.
+pub(crate) fn leg(from: Real, goal: Real) -> (Real, bool) {
+    let direction = if goal >= from { 1.0 } else { -1.0 };
+    if (goal - from).abs() <= REPLAN_HORIZON {
+        (goal, true)
+    } else {
+        (from + direction * REPLAN_HORIZON, false)
+    }
 }
 
 /// `plan(alpha)` at the plan's margin (`settings.alpha`); where the estimated grasp it starts
@@ -93,8 +107,9 @@ pub(crate) fn at_the_gate(
 /// candidate spacing, makes the farthest of them from its nearest candidate the nearest (on a
 /// circle, all of them on candidates), and those candidates are the contacts. The steps it
 /// returns are turned back by `delta`, so that their rotations are the object's and their
-/// fingertip poses the hand's. The goal is the scenario's: the last step turns the object to
-/// it.
+/// fingertip poses the hand's. The goal is the scenario's, at most [`REPLAN_HORIZON`] on
+/// ([`Replan::at_goal`] says whether it is the scenario's): the last step turns the object
+/// to it.
 pub fn replan(
     scenario: &Scenario<'_>,
     e: &Estimate,
@@ -157,7 +172,8 @@ pub fn replan(
             })
             .collect(),
     };
-    again.settings.goal += delta;
+    let (goal, whole) = leg(theta, again.settings.goal + delta);
+    again.settings.goal = goal;
     let mut notes = Vec::new();
     let settings = again.settings.clone();
     let mut plan = at_the_gate(&settings, &mut notes, |alpha| {
@@ -179,6 +195,7 @@ pub fn replan(
         notes.push(n)
     });
     Ok(Replan {
+        at_goal: whole && plan.summary.completed,
         targets,
         plan,
         delta,

@@ -76,7 +76,7 @@ pub fn targets_with(
 /// by as much, would come no nearer (tried: the Allegro's sphere in MuJoCo, 1.4 degrees short
 /// of the goal, got 0.3 degrees nearer per plan made again). The plan starts at the
 /// estimated rotation, and the free fingers at their free pose, where the follower plans
-/// again only. The contacts are not snapped to candidates (the spatial planner rolls on the
+/// again only; it goes at most [`crate::follow::REPLAN_HORIZON`] on. The contacts are not snapped to candidates (the spatial planner rolls on the
 /// surface, its contacts' candidates the nearest ones), so the offset is 0.
 pub fn replan(
     scenario: &SpatialScenario<'_>,
@@ -120,6 +120,8 @@ pub fn replan(
         return Err(ReplanError::NoContact);
     }
     again.start_rotation = e.rotation;
+    let (goal, whole) = crate::follow::leg(e.rotation, again.settings.goal);
+    again.settings.goal = goal;
     let mut notes = Vec::new();
     let settings = again.settings.clone();
     let mut plan = crate::follow::at_the_gate(&settings, &mut notes, |alpha| {
@@ -138,6 +140,7 @@ pub fn replan(
     }
     let targets = targets_with(&plan.steps, &again, beat);
     Ok(Replan {
+        at_goal: whole && plan.summary.completed,
         targets,
         plan,
         delta: 0.0,

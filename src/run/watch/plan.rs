@@ -36,6 +36,8 @@ impl Watch {
             self.done = true;
             return;
         }
+        // A plan made on from the end of one short of the goal (a leg): not done.
+        self.done = false;
         self.last_step = self.last_step.max(p.step);
         if self.progress.is_none_or(|(step, _)| step != p.step) {
             self.progress = Some((p.step, Instant::now()));
