@@ -559,6 +559,18 @@ fn an_object_settled_past_the_goal_is_done_and_one_short_of_it_is_not() {
     }
 }
 
+/// Leads `f` (from the start) to its first rolling target (not a way point) at `deg` degrees
+/// or more: that target, and the time after.
+fn to_a_rolling_target_past(f: &mut Follower<'_>, deg: f64) -> (usize, u64) {
+    let k = (0..f.targets().len())
+        .find(|&k| {
+            let t = &f.targets()[k];
+            t.step.phase == Phase::Rolling && !t.way_point && t.step.rotation.to_degrees() >= deg
+        })
+        .unwrap();
+    (k, follow_to(f, k, 0))
+}
+
 /// The object slipped 12 deg ahead of a rolling target, the hand at the target: the follower
 /// holds the target until the object has stood still for REPLAN_NS, then plans again from the
 /// estimate, numbers the new plan's steps on from the target's, and follows it.
@@ -567,13 +579,7 @@ fn the_follower_plans_again_when_the_object_stands_still_off_the_plan() {
     let config = config("paper_sphere.toml");
     let setup = Setup::new(&config).unwrap();
     let mut f = follower(&config, &setup);
-    let k = (0..f.targets().len())
-        .find(|&k| {
-            let t = &f.targets()[k];
-            t.step.phase == Phase::Rolling && !t.way_point && t.step.rotation.to_degrees() >= 100.0
-        })
-        .unwrap();
-    let mut now = follow_to(&mut f, k, 0);
+    let (k, mut now) = to_a_rolling_target_past(&mut f, 100.0);
     let step = f.targets()[k].step.clone();
     let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
     let (start, mut beats) = (now, 0);
@@ -620,19 +626,13 @@ fn the_follower_plans_again_when_the_object_stands_still_off_the_plan() {
 
 /// At the end of a leg of a plan made again (short of the goal), the object settled there, the
 /// follower plans on from the estimate, leg after leg, until a plan ends at the goal; there it
-/// is done. A plan that ends short without turning the object on is not made again.
+/// is done.
 #[test]
 fn the_follower_plans_on_at_the_end_of_each_leg_to_the_goal() {
     let config = config("paper_sphere.toml");
     let setup = Setup::new(&config).unwrap();
     let mut f = follower(&config, &setup);
-    let k = (0..f.targets().len())
-        .find(|&k| {
-            let t = &f.targets()[k];
-            t.step.phase == Phase::Rolling && !t.way_point && t.step.rotation.to_degrees() >= 100.0
-        })
-        .unwrap();
-    let mut now = follow_to(&mut f, k, 0);
+    let (k, mut now) = to_a_rolling_target_past(&mut f, 100.0);
     // Off the plan by 12 deg, stood still: planned again.
     let step = f.targets()[k].step.clone();
     let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
