@@ -98,7 +98,7 @@ struct Window {
 
 impl Window {
     fn add(&mut self, c: icrflow_physics::sim::Collisions) {
-        self.steps = self.steps.saturating_add(1);
+        self.steps += 1;
         self.link_object_steps += u32::from(c.links_on_object != 0);
         self.finger_touch_steps += u32::from(c.fingers_touching != 0);
         self.links_on_object |= c.links_on_object;

@@ -18,8 +18,9 @@
 //!   fingertips and links, never with their own finger ([`collision_bits`]: a bit per finger
 //!   in `contype`, the object's bit and every other finger's in `conaffinity`), so that a plan
 //!   whose fingers touch each other or whose links touch the object shows it
-//!   ([`crate::sim::Collisions`]); friction `mu` on both sides (MuJoCo takes the larger), three-dimensional
-//!   (sliding friction, no torsional or rolling resistance: a fingertip rolls freely), elliptic
+//!   ([`crate::sim::Collisions`]); friction `mu` on both sides (MuJoCo takes the larger),
+//!   three-dimensional (sliding friction, no torsional or rolling resistance: a fingertip
+//!   rolls freely), elliptic
 //!   cones with `impratio` 10 (stiff friction) and [`Params::noslip_iterations`] of the
 //!   no-slip solver (without it, friction under a steady tangential load creeps), stiff
 //!   contacts (`solref`

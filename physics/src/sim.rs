@@ -91,13 +91,6 @@ pub struct Collisions {
     pub fingers_touching: u32,
 }
 
-impl Collisions {
-    /// Whether anything touched.
-    pub fn any(&self) -> bool {
-        self.links_on_object != 0 || self.fingers_touching != 0
-    }
-}
-
 /// Where a finger is in the model.
 #[derive(Debug, Clone)]
 struct FingerIds {

@@ -9,7 +9,9 @@
 //! any route's.
 //!
 //! The grid's poses are checked only as the search reaches them; fingers of more than
-//! [`MAX_JOINTS`] joints are not searched (their grids are too large).
+//! [`MAX_JOINTS`] joints are not searched (their grids are too large). The A* is our own, a
+//! few lines over the grid's indices; `pathfinding::astar` (integer costs) would serve as
+//! well and is not yet compared.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -17,7 +19,7 @@ use std::collections::BinaryHeap;
 use icrflow_grasp::math::Real;
 
 use crate::hand::Finger;
-use crate::route::along;
+use crate::route::skipping;
 
 /// The grid's spacing in every joint (rad): 10 deg.
 pub const STEP: Real = 10.0 * std::f64::consts::PI / 180.0;
@@ -128,6 +130,7 @@ pub fn grid_route(
         }
     }
     let mut idx = vec![0usize; d];
+    let mut n = vec![0usize; d];
     let mut reached = None;
     while let Some((_, u)) = heap.pop() {
         if ends.contains(&u) {
@@ -143,7 +146,6 @@ pub fn grid_route(
         // Every neighbour: each joint -1, 0 or +1 grid step.
         for m in 0..3usize.pow(d as u32) {
             let mut code = m;
-            let mut n = vec![0usize; d];
             let mut inside = true;
             let mut moved = false;
             for k in 0..d {
@@ -180,26 +182,14 @@ pub fn grid_route(
     path.push(from.to_vec());
     path.reverse();
     path.push(to.to_vec());
-    // Drop the way points a clear straight move can skip.
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i + 1 < path.len() {
-        let j = (i + 1..path.len())
-            .rev()
-            .find(|&j| along(&path[i], &path[j], &holds))
-            .unwrap_or(i + 1);
-        if j + 1 < path.len() {
-            out.push(path[j].clone());
-        }
-        i = j;
-    }
-    Some(out)
+    Some(skipping(&path, &holds))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::paper;
+    use crate::route::along;
 
     /// A wall across the way: the grid goes around it, every leg of the route clear.
     #[test]

@@ -207,23 +207,27 @@ fn roadmap(
         path.push(previous[last]);
     }
     path.reverse();
-    // Drop the way points a clear leg can skip.
-    let mut kept = vec![0];
+    let poses: Vec<Vec<Real>> = path.iter().map(|&i| poses[i].clone()).collect();
+    Some(skipping(&poses, &holds))
+}
+
+/// The way points of the route through `path` (its first pose the start, its last the goal)
+/// that a clear straight move (`holds` all along it, [`along`]) cannot skip, neither end
+/// included: from each kept pose, the farthest pose of `path` reached in one clear move.
+pub(crate) fn skipping(path: &[Vec<Real>], holds: impl Fn(&[Real]) -> bool) -> Vec<Vec<Real>> {
+    let mut out = Vec::new();
     let mut at = 0;
-    while path[at] != 1 {
+    while at + 1 < path.len() {
         let next = (at + 1..path.len())
             .rev()
-            .find(|&j| along(&poses[path[at]], &poses[path[j]], &holds))
+            .find(|&j| along(&path[at], &path[j], &holds))
             .unwrap_or(at + 1);
-        kept.push(path[next]);
+        if next + 1 < path.len() {
+            out.push(path[next].clone());
+        }
         at = next;
     }
-    Some(
-        kept[1..kept.len() - 1]
-            .iter()
-            .map(|&i| poses[i].clone())
-            .collect(),
-    )
+    out
 }
 
 #[cfg(test)]

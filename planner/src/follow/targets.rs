@@ -200,9 +200,9 @@ fn outside(f: &Finger, a: &[Real], b: &[Real], r: Real, surface: &Surface, theta
 /// the object where needed ([`route`]), its stand-off pose), a detach step by those of the
 /// released finger (its stand-off pose, its route), so that a finger never crosses the object
 /// or another finger on its way (the others as they stand in the step it moves before); the
-/// detach step is reached with the released finger at its free pose. Between a stand-off and the free pose a fingertip stays `clearance` (m) beyond
-/// the contact distance: farther than the estimator's release distance, so that no passing
-/// finger is taken for a contact. Where a finger has no stand-off pose or no route, `note`
+/// detach step is reached with the released finger at its free pose. Between a stand-off and
+/// the free pose a fingertip stays `clearance` (m) beyond the contact distance: farther than
+/// the estimator's release distance, so that no passing finger is taken for a contact. Where a finger has no stand-off pose or no route, `note`
 /// is told, and it moves straight.
 pub fn targets(
     steps: &[Step],

@@ -199,7 +199,15 @@ impl RunSummary {
                 p.max_tilt_deg, p.gravity[0], p.gravity[1], p.gravity[2]
             )?;
             let c = &p.collisions;
-            let ids = |f: &[u32]| f.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+            // " (fingers 1, 2)", or nothing for none.
+            let which = |f: &[u32]| {
+                if f.is_empty() {
+                    String::new()
+                } else {
+                    let ids: Vec<String> = f.iter().map(u32::to_string).collect();
+                    format!(" (fingers {})", ids.join(", "))
+                }
+            };
             let first = |at: Option<crate::run::collisions::First>| {
                 at.map(|f| format!(", first at {:.2} s ({:.1} deg)", f.at_s, f.rotation_deg))
                     .unwrap_or_default()
@@ -209,18 +217,10 @@ impl RunSummary {
                 "           of {} integration steps: {} with fingers touching each other{}{}, {} with a link on the object{}{}",
                 c.physics_steps,
                 c.finger_collisions,
-                if c.fingers_touching.is_empty() {
-                    String::new()
-                } else {
-                    format!(" (fingers {})", ids(&c.fingers_touching))
-                },
+                which(&c.fingers_touching),
                 first(c.first_finger_collision),
                 c.link_object_contacts,
-                if c.links_on_object.is_empty() {
-                    String::new()
-                } else {
-                    format!(" (fingers {})", ids(&c.links_on_object))
-                },
+                which(&c.links_on_object),
                 first(c.first_link_object_contact),
             )?;
         }
