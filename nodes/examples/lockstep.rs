@@ -37,6 +37,8 @@ struct PhaseStats {
     slip: f64,
     friction_use: f64,
     lost: u64,
+    /// Rotation off the plan's axis accrued truth to truth (deg).
+    off_axis: f64,
 }
 
 /// Finger `slot`'s true normal force (N) and friction use `|f_t| / (mu f_n)`.
@@ -134,6 +136,12 @@ fn main() -> Result<()> {
     // Integration steps, and those with fingers touching each other / links on the object,
     // with the first time of each.
     let mut collisions = (0u64, 0u64, 0u64, None::<f64>, None::<f64>);
+    // The object's tilt off the plan's axis since the first truth (deg), and its largest.
+    let axis = nalgebra::Unit::new_normalize(config.turn.axis);
+    let mut first_pose = None;
+    let mut last_pose: Option<nalgebra::UnitQuaternion<f64>> = None;
+    let mut tilt = 0.0_f64;
+    let mut max_tilt = (0.0_f64, 0.0_f64);
     // Per finger slot: ticks in a row its fingertip has been off the object while the plan has
     // it in contact (rolling steps), and how many such gaps ended after each length (1 ms
     // ticks; the last bucket: longer).
@@ -170,10 +178,32 @@ fn main() -> Result<()> {
         if truth.link_object_steps > 0 {
             collisions.4.get_or_insert(tick.time);
         }
+        let [w, x, y, z] = truth.orientation;
+        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+        let since = q * first_pose.get_or_insert(q).inverse();
+        let turned = icrflow_plan::rolling::twist(
+            [since.w, since.i, since.j, since.k],
+            [axis.x, axis.y, axis.z],
+        );
+        tilt = (since * nalgebra::UnitQuaternion::from_axis_angle(&axis, turned).inverse())
+            .angle()
+            .to_degrees();
+        if tilt > max_tilt.0 {
+            max_tilt = (tilt, tick.time);
+        }
+        let off_axis = last_pose.replace(q).map_or(0.0, |last| {
+            let d = q * last.inverse();
+            let turned =
+                icrflow_plan::rolling::twist([d.w, d.i, d.j, d.k], [axis.x, axis.y, axis.z]);
+            (d * nalgebra::UnitQuaternion::from_axis_angle(&axis, turned).inverse())
+                .angle()
+                .to_degrees()
+        });
         let plan = tick.plan;
         let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));
         let s = stats.entry(phase).or_default();
         s.ticks += 1;
+        s.off_axis += off_axis;
         if let Some(plan) = plan {
             let n = (plan.finger_count as usize).min(MAX_FINGERS);
             for slot in 0..truth.finger_count as usize {
@@ -313,7 +343,7 @@ fn main() -> Result<()> {
                 }
             }
             forces += &format!(
-                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b}",
+                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b} | tilt {tilt:.2} deg",
                 tick.plant.sim().collisions().links_on_object,
                 tick.plant.sim().collisions().fingers_touching
             );
@@ -384,13 +414,18 @@ fn main() -> Result<()> {
         collisions.2,
         first(collisions.4)
     );
+    eprintln!(
+        "  the object tilted off the plan's axis: at most {:.2} deg (at {:.2} s), {tilt:.2} deg at the end",
+        max_tilt.0, max_tilt.1
+    );
     for (phase, s) in &stats {
         eprintln!(
-            "  {phase:8} {:6} truths  max slip {:7.1} mm/s  max friction use {:.2}  lost {}",
+            "  {phase:8} {:6} truths  max slip {:7.1} mm/s  max friction use {:.2}  lost {}  off the axis {:.2} deg",
             s.ticks,
             s.slip * 1e3,
             s.friction_use,
-            s.lost
+            s.lost,
+            s.off_axis
         );
     }
     if let Some((_, w)) = worst {

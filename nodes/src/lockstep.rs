@@ -314,6 +314,9 @@ impl<'s> Loop<'s> {
                     );
                 }
                 self.replanned.push((time, said));
+                // Not done: the plan made again goes on (with `replan_s`, its first step is
+                // published only when the planning is over).
+                self.done_at = None;
                 if self.replan_ns > 0 {
                     self.busy_until = Some(t + self.replan_ns);
                 }
