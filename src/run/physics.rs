@@ -20,7 +20,7 @@ use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlanStepHeader, PlantEngine, Pl
 use icrflow_scenario::{Config, Setup};
 use serde::Serialize;
 
-use super::collisions::{CollisionSummary, CollisionTrack};
+use super::collisions::{CollisionSummary, CollisionTrack, First};
 use super::true_margin::{Below, Planned, TrueMargin};
 
 /// Truths in a row without contact after which a finger planned in contact is lost (30 ms at
@@ -117,6 +117,11 @@ pub struct PhysicsSummary {
     pub below_alpha: Vec<Below>,
     /// The largest angle the object turned off the plan's axis since the first truth (deg).
     pub max_tilt_deg: Real,
+    /// When the tilt was largest (`None`: no tilt at all).
+    pub max_tilt_at: Option<First>,
+    /// The rotation off the plan's axis accrued truth to truth, by the plan step's phase
+    /// (deg; "none": before the first step).
+    pub off_axis_deg: std::collections::BTreeMap<&'static str, Real>,
     /// Gravity in the hand frame (m/s^2), as the plant simulates it.
     pub gravity: [Real; 3],
     /// Fingers touching each other and links touching the object.
@@ -397,6 +402,12 @@ impl PhysicsTrack {
             time_below_alpha_s: m.below_s,
             below_alpha: m.below,
             max_tilt_deg: m.max_tilt.to_degrees(),
+            max_tilt_at: m.max_tilt_at,
+            off_axis_deg: m
+                .off_axis
+                .iter()
+                .map(|(k, v)| (*k, v.to_degrees()))
+                .collect(),
             gravity: self.gravity,
             collisions: self.collisions.summary(),
         }
@@ -623,6 +634,53 @@ mod tests {
         );
         assert_eq!(s.true_quality_p01, Some(0.0));
         assert_eq!(s.max_tilt_deg, 0.0);
+        assert_eq!(
+            (s.max_tilt_at, s.off_axis_deg.get("start")),
+            (None, Some(&0.0))
+        );
         assert_eq!(s.gravity, config.plant.gravity);
+    }
+
+    /// The tilt: the largest rotation off the plan's axis since the first truth, when it came,
+    /// and what each phase added truth to truth (a tilt there and back counts twice).
+    #[test]
+    fn the_tilt_says_when_and_in_which_phase() {
+        let (config, _) = paper();
+        let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        let mut feed = feeder();
+        let about = |axis: Vec3, deg: f64| {
+            let q = UnitQuaternion::from_axis_angle(
+                &nalgebra::Unit::new_normalize(axis),
+                deg.to_radians(),
+            );
+            [q.w, q.i, q.j, q.k]
+        };
+        let mut t = truth(&config, [None; 4]);
+        track.plan_step(&step(1, [true, true, false, true]));
+        feed(&mut track, &t);
+        // Turned 10 deg about the plan's axis (z): no tilt.
+        t.orientation = about(Vec3::z(), 10.0);
+        t.rotation = 10f64.to_radians();
+        feed(&mut track, &t);
+        // Then, in an attach step, 3 deg about x on top, and back.
+        let mut attach = step(2, [true, true, true, true]);
+        attach.phase = PlanPhase::Attach as u32;
+        track.plan_step(&attach);
+        let z = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), 10f64.to_radians());
+        let x = UnitQuaternion::from_axis_angle(&Vec3::x_axis(), 3f64.to_radians());
+        let tilted = x * z;
+        t.orientation = [tilted.w, tilted.i, tilted.j, tilted.k];
+        feed(&mut track, &t);
+        t.orientation = about(Vec3::z(), 10.0);
+        feed(&mut track, &t);
+        let s = track.summary();
+        assert!((s.max_tilt_deg - 3.0).abs() < 1e-9, "{s:?}");
+        let at = s.max_tilt_at.unwrap();
+        assert!(
+            (at.at_s - 0.02).abs() < 1e-9 && (at.rotation_deg - 10.0).abs() < 1e-9,
+            "{at:?}"
+        );
+        assert!(s.off_axis_deg["start"].abs() < 1e-9, "{s:?}");
+        assert!((s.off_axis_deg["attach"] - 6.0).abs() < 1e-9, "{s:?}");
     }
 }

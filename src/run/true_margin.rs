@@ -22,6 +22,7 @@ use icrflow_scenario::{ObjectSpec, Setup};
 use nalgebra::{Quaternion, Unit};
 use serde::Serialize;
 
+use super::collisions::First;
 use crate::percentile;
 
 /// The intervals below the margin a summary lists (it counts them all).
@@ -78,6 +79,13 @@ pub struct Margin {
     pub steps_not_closed: u32,
     /// The largest tilt off the plan's axis (rad).
     pub max_tilt: Real,
+    /// When it was largest: seconds since the first truth, and the true rotation then.
+    pub max_tilt_at: Option<First>,
+    /// The object's rotation off the plan's axis accrued truth to truth, by the plan step's
+    /// phase then (rad; "none" before the first step): the swing of each truth's rotation
+    /// since the one before, summed. Where the tilt comes from, which [`Margin::max_tilt`]
+    /// (the net rotation off the axis) does not say.
+    pub off_axis: std::collections::BTreeMap<&'static str, Real>,
 }
 
 /// The sampler.
@@ -89,6 +97,7 @@ pub struct TrueMargin {
     alpha: Real,
     axis: Unit<Vec3>,
     first_orientation: Option<UnitQuaternion>,
+    last_orientation: Option<UnitQuaternion>,
     made: bool,
     qualities: Vec<Real>,
     last_s: Option<Real>,
@@ -108,6 +117,7 @@ impl TrueMargin {
             alpha,
             axis: Unit::new_normalize(axis),
             first_orientation: None,
+            last_orientation: None,
             made: false,
             qualities: Vec::new(),
             last_s: None,
@@ -136,10 +146,18 @@ impl TrueMargin {
         let [w, x, y, z] = t.orientation;
         let q = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
         let first = *self.first_orientation.get_or_insert(q);
-        self.out.max_tilt = self
-            .out
-            .max_tilt
-            .max(tilt(&(q * first.inverse()), &self.axis));
+        let tilted = tilt(&(q * first.inverse()), &self.axis);
+        if tilted > self.out.max_tilt {
+            self.out.max_tilt = tilted;
+            self.out.max_tilt_at = Some(First {
+                at_s,
+                rotation_deg: t.rotation.to_degrees(),
+            });
+        }
+        if let Some(last) = self.last_orientation.replace(q) {
+            let phase = plan.map_or("none", |p| p.phase);
+            *self.out.off_axis.entry(phase).or_default() += tilt(&(q * last.inverse()), &self.axis);
+        }
         let Some(plan) = plan else { return };
         let n = (t.finger_count as usize).min(MAX_FINGERS);
         let touching =

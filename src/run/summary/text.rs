@@ -195,8 +195,14 @@ impl RunSummary {
             }
             writeln!(
                 o,
-                "           the object tilted up to {:.1} deg off the plan's axis; gravity [{}, {}, {}] m/s^2",
-                p.max_tilt_deg, p.gravity[0], p.gravity[1], p.gravity[2]
+                "           the object tilted up to {:.1} deg off the plan's axis{}; gravity [{}, {}, {}] m/s^2",
+                p.max_tilt_deg,
+                p.max_tilt_at
+                    .map(|a| format!(" (at {:.2} s, turned {:.1} deg)", a.at_s, a.rotation_deg))
+                    .unwrap_or_default(),
+                p.gravity[0],
+                p.gravity[1],
+                p.gravity[2]
             )?;
             let c = &p.collisions;
             // " (fingers 1, 2)", or nothing for none.
