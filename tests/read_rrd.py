@@ -17,6 +17,8 @@ Prints one JSON object:
   alpha           the values logged on /timeseries/quality/alpha (distinct)
   true_rotation_max  the largest value logged on /timeseries/angles/object_true (a
                   simulated plant's true rotation)
+  true_tilt_max   the largest value logged on /timeseries/angles/object_tilt (its true
+                  rotation off the plan's axis)
   dropped_max     the last count of dropped frames (/timeseries/dropped_frames)
 
 With --png: the picture's width, height and number of distinct colours (a blank one has
@@ -127,7 +129,7 @@ def main() -> int:
     ids, entities = set(), set()
     rows = collections.Counter()
     steps, quality, alpha, dropped, phases, rendezvous = [], [], set(), [], [], []
-    true_rotation = []
+    true_rotation, true_tilt = [], []
     for path in sys.argv[1:]:
         reader = RrdReader(path)
         ids.update(r.recording_id for r in reader.recordings())
@@ -140,6 +142,7 @@ def main() -> int:
         alpha.update(values(store, "/timeseries/quality/alpha"))
         dropped += values(store, "/timeseries/dropped_frames")
         true_rotation += values(store, "/timeseries/angles/object_true")
+        true_tilt += values(store, "/timeseries/angles/object_tilt")
         phases += rows_by_step(store, "/timeseries/phase", SCALARS)
         rendezvous += rows_by_step(store, "/scene/object/rendezvous", POSITIONS)
     print(
@@ -153,6 +156,7 @@ def main() -> int:
                 "rendezvous": sorted(rendezvous),
                 "quality_min": min(quality) if quality else None,
                 "true_rotation_max": max(true_rotation) if true_rotation else None,
+                "true_tilt_max": max(true_tilt) if true_tilt else None,
                 "alpha": sorted(alpha),
                 "dropped_max": max(dropped) if dropped else None,
             }

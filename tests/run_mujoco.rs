@@ -182,10 +182,18 @@ fn the_paper_sphere_turns_a_whole_turn_in_mujoco_as_the_estimate_says() {
             "/scene/truth/contacts",
             "/scene/truth/forces",
             "/timeseries/angles/object_true",
+            "/scene/truth/object",
+            "/timeseries/angles/object_tilt",
         ],
     );
     let recorded = r["true_rotation_max"].as_f64().unwrap();
     assert!((recorded - truth).abs() < 3.0, "{recorded} vs {truth}");
+    // The true pose is recorded, and its tilt off the axis: the frames sample the truths
+    // whose largest tilt the summary gives (0.01 deg for the two references, the plant's
+    // start and its first truth).
+    let tilted = r["true_tilt_max"].as_f64().unwrap();
+    let most = p["max_tilt_deg"].as_f64().unwrap();
+    assert!(tilted <= most + 0.01, "{tilted} vs {most}");
     assert!(!out.contains("DROPPED"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -430,11 +430,17 @@ pub(crate) fn finger_view(
 }
 
 /// What a simulated plant's truth shows: the fingertips touching the object, where, and with
-/// what force.
-fn truth_view(t: &PlantTruth) -> TruthView {
+/// what force; the object's pose (its frame at the hand frame's origin at the start, centre of
+/// mass `com`), and how far it turned off the plan's `axis`.
+fn truth_view(t: &PlantTruth, com: &Vec3, axis: &Vec3) -> TruthView {
     let n = (t.finger_count as usize).min(MAX_FINGERS);
     let touching = (0..n).filter(|&s| t.in_contact[s] != 0);
     let f32s = |v: &[f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
+    let (translation, rotation) = geometry::pose(t.position, t.orientation, com);
+    let q = rotation.quaternion();
+    let axis = nalgebra::Unit::new_normalize(*axis);
+    let twist = icrflow_plan::rolling::twist([q.w, q.i, q.j, q.k], [axis.x, axis.y, axis.z]);
+    let swing = rotation * nalgebra::UnitQuaternion::from_axis_angle(&axis, twist).inverse();
     TruthView {
         contacts: touching
             .clone()
@@ -442,6 +448,11 @@ fn truth_view(t: &PlantTruth) -> TruthView {
             .collect(),
         forces: touching.map(|s| f32s(&t.contact_forces[s])).collect(),
         rotation_deg: t.rotation.to_degrees(),
+        pose: (
+            p3(&translation),
+            [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
+        ),
+        tilt_deg: swing.angle().to_degrees(),
     }
 }
 
@@ -484,7 +495,7 @@ fn tick_frame(
             fingers.extend(finger_view(finger, q, &centre));
         }
     }
-    let truth = truth.map(truth_view);
+    let truth = truth.map(|t| truth_view(t, com, &ctx.scenario.config.turn.axis));
     let q = rotation.quaternion();
     Frame::Tick {
         t: Some(t),

@@ -33,6 +33,9 @@ pub mod paths {
     /// With a simulated plant: the true contact forces on the object, as arrows
     /// ([`super::FORCE_SCALE`] m per N).
     pub const TRUE_FORCES: &str = "/scene/truth/forces";
+    /// With a simulated plant: the object's true pose, as a frame (its axes drawn), beside
+    /// the estimated one at [`OBJECT`].
+    pub const TRUE_OBJECT: &str = "/scene/truth/object";
     /// Each finger's links and fingertip (`/scene/fingers/finger_<n>/{links,tip}`).
     pub const FINGERS: &str = "/scene/fingers";
     /// The desired rotation axis.
@@ -83,6 +86,11 @@ pub struct TruthView {
     pub forces: Vec<[f32; 3]>,
     /// The object's true rotation about z (deg, unwrapped).
     pub rotation_deg: f64,
+    /// The object's true pose: its frame's translation and rotation (`x y z w`), hand frame.
+    pub pose: (P3, [f32; 4]),
+    /// Its rotation off the plan's axis since the start (deg): the swing of its swing-twist
+    /// decomposition about the axis.
+    pub tilt_deg: f64,
 }
 
 /// A finger's state in a scene frame.
@@ -573,6 +581,21 @@ fn log_truth(rec: &rerun::RecordingStream, truth: TruthView) -> Result<()> {
     rec.log(
         format!("{}/object_true", paths::ANGLES),
         &rerun::Scalars::single(truth.rotation_deg),
+    )?;
+    rec.log(
+        format!("{}/object_tilt", paths::ANGLES),
+        &rerun::Scalars::single(truth.tilt_deg),
+    )?;
+    let (translation, [x, y, z, w]) = truth.pose;
+    rec.log(
+        paths::TRUE_OBJECT,
+        &[
+            &rerun::Transform3D::from_translation_rotation(
+                translation,
+                rerun::Quaternion::from_xyzw([x, y, z, w]),
+            ) as &dyn rerun::AsComponents,
+            &rerun::TransformAxes3D::new(0.03),
+        ],
     )?;
     Ok(())
 }
