@@ -29,6 +29,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Parser;
 use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlantTruth};
 use icrflow_nodes::lockstep;
+use icrflow_plan::rolling::tilt as tilt_of;
 use icrflow_scenario::{Config, Setup};
 
 #[derive(Default, Debug)]
@@ -180,24 +181,12 @@ fn main() -> Result<()> {
         }
         let [w, x, y, z] = truth.orientation;
         let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
-        let since = q * first_pose.get_or_insert(q).inverse();
-        let turned = icrflow_plan::rolling::twist(
-            [since.w, since.i, since.j, since.k],
-            [axis.x, axis.y, axis.z],
-        );
-        tilt = (since * nalgebra::UnitQuaternion::from_axis_angle(&axis, turned).inverse())
-            .angle()
-            .to_degrees();
+        tilt = tilt_of(&(q * first_pose.get_or_insert(q).inverse()), &axis).to_degrees();
         if tilt > max_tilt.0 {
             max_tilt = (tilt, tick.time);
         }
         let off_axis = last_pose.replace(q).map_or(0.0, |last| {
-            let d = q * last.inverse();
-            let turned =
-                icrflow_plan::rolling::twist([d.w, d.i, d.j, d.k], [axis.x, axis.y, axis.z]);
-            (d * nalgebra::UnitQuaternion::from_axis_angle(&axis, turned).inverse())
-                .angle()
-                .to_degrees()
+            tilt_of(&(q * last.inverse()), &axis).to_degrees()
         });
         let plan = tick.plan;
         let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));

@@ -15,7 +15,9 @@
 //! `r_o` (the paper's sphere) this is `dtheta = (1 + r_f / r_o) dpsi - (r_f / r_o) dphi`, `psi`
 //! the fingertip centre's world angle, which is what [`Surface::Circle`] computes.
 
+use icrflow_grasp::math::{UnitQuaternion, Vec3};
 use icrflow_grasp::object::Section;
+use nalgebra::Unit;
 
 use crate::hand::{Finger, wrap};
 
@@ -199,6 +201,13 @@ impl Roller<'_> {
 pub fn twist(q: [f64; 4], axis: [f64; 3]) -> f64 {
     let along = q[1] * axis[0] + q[2] * axis[1] + q[3] * axis[2];
     wrap(2.0 * along.atan2(q[0]))
+}
+
+/// The angle (rad) of rotation `q` off the unit `axis`: the angle of its swing, `q` with its
+/// twist about the axis ([`twist`]) taken away. How far an object turned off the plan's axis.
+pub fn tilt(q: &UnitQuaternion, axis: &Unit<Vec3>) -> f64 {
+    let about = twist([q.w, q.i, q.j, q.k], [axis.x, axis.y, axis.z]);
+    (q * UnitQuaternion::from_axis_angle(axis, about).inverse()).angle()
 }
 
 /// The samples of a [`Surface::Curve`], in order of increasing polar angle.
@@ -513,6 +522,24 @@ impl Curve {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_tilt_is_what_is_not_about_the_axis() {
+        use super::{UnitQuaternion, Vec3, tilt};
+        let axis = nalgebra::Unit::new_normalize(Vec3::new(0.2, 1.0, 0.2));
+        // About the axis only: no tilt, however far.
+        for a in [0.3, 2.0, -3.0] {
+            let q = UnitQuaternion::from_axis_angle(&axis, a);
+            assert!(tilt(&q, &axis) < 1e-12, "{a}");
+        }
+        // 5 deg about an axis at right angles to it, before and after a turn about it.
+        let across = nalgebra::Unit::new_normalize(axis.cross(&Vec3::x()));
+        let off = UnitQuaternion::from_axis_angle(&across, 5f64.to_radians());
+        for a in [0.0, 1.0, 2.5] {
+            let q = off * UnitQuaternion::from_axis_angle(&axis, a);
+            assert!((tilt(&q, &axis).to_degrees() - 5.0).abs() < 1e-9, "{a}");
+        }
+    }
+
     use super::*;
     use icrflow_grasp::math::Vec3;
     use icrflow_grasp::object::Object;

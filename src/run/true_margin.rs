@@ -17,6 +17,7 @@ use icrflow_grasp::math::{Real, UnitQuaternion, Vec3};
 use icrflow_grasp::object::Object;
 use icrflow_grasp::quality::GraspProblem;
 use icrflow_interfaces::{MAX_FINGERS, PlantTruth};
+use icrflow_plan::rolling::tilt;
 use icrflow_plan::spatial::surface::Convex;
 use icrflow_scenario::{ObjectSpec, Setup};
 use nalgebra::{Quaternion, Unit};
@@ -277,34 +278,4 @@ fn surface_of(setup: &Setup, spec: &ObjectSpec) -> Option<Convex> {
 
 fn polyhedron(object: &Object) -> Option<Convex> {
     Convex::polyhedron(object).ok()
-}
-
-/// The angle (rad) of rotation `q` off the unit `axis`: the angle of its swing, `q` with its
-/// twist about the axis taken away.
-pub fn tilt(q: &UnitQuaternion, axis: &Unit<Vec3>) -> Real {
-    let twist = icrflow_plan::rolling::twist([q.w, q.i, q.j, q.k], [axis.x, axis.y, axis.z]);
-    let swing = q * UnitQuaternion::from_axis_angle(axis, twist).inverse();
-    swing.angle()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_tilt_is_what_is_not_about_the_axis() {
-        let axis = Unit::new_normalize(Vec3::new(0.2, 1.0, 0.2));
-        // About the axis only: no tilt, however far.
-        for a in [0.3, 2.0, -3.0] {
-            let q = UnitQuaternion::from_axis_angle(&axis, a);
-            assert!(tilt(&q, &axis) < 1e-12, "{a}");
-        }
-        // 5 deg about an axis at right angles to it, before and after a turn about it.
-        let across = Unit::new_normalize(axis.cross(&Vec3::x()));
-        let off = UnitQuaternion::from_axis_angle(&across, 5f64.to_radians());
-        for a in [0.0, 1.0, 2.5] {
-            let q = off * UnitQuaternion::from_axis_angle(&axis, a);
-            assert!((tilt(&q, &axis).to_degrees() - 5.0).abs() < 1e-9, "{a}");
-        }
-    }
 }

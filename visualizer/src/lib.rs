@@ -438,9 +438,6 @@ fn truth_view(t: &PlantTruth, com: &Vec3, axis: &Vec3) -> TruthView {
     let f32s = |v: &[f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
     let (translation, rotation) = geometry::pose(t.position, t.orientation, com);
     let q = rotation.quaternion();
-    let axis = nalgebra::Unit::new_normalize(*axis);
-    let twist = icrflow_plan::rolling::twist([q.w, q.i, q.j, q.k], [axis.x, axis.y, axis.z]);
-    let swing = rotation * nalgebra::UnitQuaternion::from_axis_angle(&axis, twist).inverse();
     TruthView {
         contacts: touching
             .clone()
@@ -452,7 +449,8 @@ fn truth_view(t: &PlantTruth, com: &Vec3, axis: &Vec3) -> TruthView {
             p3(&translation),
             [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
         ),
-        tilt_deg: swing.angle().to_degrees(),
+        tilt_deg: icrflow_plan::rolling::tilt(&rotation, &nalgebra::Unit::new_normalize(*axis))
+            .to_degrees(),
     }
 }
 
