@@ -571,6 +571,15 @@ fn to_a_rolling_target_past(f: &mut Follower<'_>, deg: f64) -> (usize, u64) {
     (k, follow_to(f, k, 0))
 }
 
+/// The paper's plan followed to a rolling target past 100 deg, at `now`: that target's step,
+/// and an estimate at its joints with the object slipped 12 deg ahead of it.
+fn slipped_12_deg_ahead(f: &mut Follower<'_>) -> (Step, Estimate, u64) {
+    let (k, now) = to_a_rolling_target_past(f, 100.0);
+    let step = f.targets()[k].step.clone();
+    let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
+    (step, e, now)
+}
+
 /// The object slipped 12 deg ahead of a rolling target, the hand at the target: the follower
 /// holds the target until the object has stood still for REPLAN_NS, then plans again from the
 /// estimate, numbers the new plan's steps on from the target's, and follows it.
@@ -579,9 +588,7 @@ fn the_follower_plans_again_when_the_object_stands_still_off_the_plan() {
     let config = config("paper_sphere.toml");
     let setup = Setup::new(&config).unwrap();
     let mut f = follower(&config, &setup);
-    let (k, mut now) = to_a_rolling_target_past(&mut f, 100.0);
-    let step = f.targets()[k].step.clone();
-    let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
+    let (step, e, mut now) = slipped_12_deg_ahead(&mut f);
     let (start, mut beats) = (now, 0);
     let replanned = loop {
         let out = f.on_estimate(&e, now, &mut || beats += 1);
@@ -632,10 +639,8 @@ fn the_follower_plans_on_at_the_end_of_each_leg_to_the_goal() {
     let config = config("paper_sphere.toml");
     let setup = Setup::new(&config).unwrap();
     let mut f = follower(&config, &setup);
-    let (k, mut now) = to_a_rolling_target_past(&mut f, 100.0);
     // Off the plan by 12 deg, stood still: planned again.
-    let step = f.targets()[k].step.clone();
-    let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
+    let (_, e, mut now) = slipped_12_deg_ahead(&mut f);
     let start = now;
     while now - start <= REPLAN_NS {
         f.on_estimate(&e, now, &mut || {});
