@@ -22,6 +22,7 @@ use icrflow_interfaces::{
     PlantTruth,
 };
 use icrflow_plan::follow::{Estimate, Event, Follower, Tolerances};
+use icrflow_plan::planner::Phase;
 use icrflow_scenario::{Config, PlantKind, Setup};
 
 use crate::command::Commander;
@@ -306,6 +307,18 @@ impl<'s> Loop<'s> {
                 let mut said = r.to_string();
                 for n in &r.notes {
                     said += &format!("; {n}");
+                }
+                // Its switches: which finger leaves for which, and why.
+                for s in &r.plan.steps {
+                    if let Some(w) = s.switch.as_ref().filter(|_| s.phase == Phase::Attach) {
+                        said += &format!(
+                            "; at {:.1} deg finger {} leaves ({}), finger {} takes over",
+                            s.rotation.to_degrees(),
+                            w.released,
+                            w.reason,
+                            w.attached
+                        );
+                    }
                 }
                 if !r.plan.summary.completed {
                     said += &format!(

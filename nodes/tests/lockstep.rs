@@ -208,5 +208,21 @@ fn the_ellipsoid_turns_a_whole_turn_with_re_plans_that_take_time() {
             "seed {seed}: {:?}",
             ended.replanned
         );
+        // Each re-plan names each of its switches: which finger takes over from which, and why.
+        for (_, r) in &ended.replanned {
+            let Some(switches) = r
+                .split(" switches")
+                .next()
+                .and_then(|s| s.rsplit(' ').next())
+                .and_then(|n| n.parse::<usize>().ok())
+            else {
+                continue;
+            };
+            assert_eq!(
+                r.matches(" deg finger ").count(),
+                switches,
+                "seed {seed}: {r}"
+            );
+        }
     }
 }
