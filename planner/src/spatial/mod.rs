@@ -54,6 +54,7 @@
 
 mod clearance;
 pub mod follow;
+mod pinch;
 mod reach;
 pub mod rolling;
 mod scenario;

@@ -5,9 +5,15 @@ use icrflow_grasp::icr::IcrError;
 use icrflow_grasp::math::{Real, Vec3};
 use nalgebra::{DMatrix, DVector};
 
-use super::{Roll, STEERS, SpatialScenario, Steer, Touch, surface};
+use super::{Roll, STEERS, SpatialScenario, Steer, Touch, pinch, surface};
 use crate::hand::Finger;
 use crate::planner::{PlanError, QUALITY_SLACK};
+
+/// How much nearer to a pinch ([`pinch::unbalanced`], of unit-sum normal forces) the grasp
+/// left by releasing one of two clashing fingers must come than the other's for that finger
+/// to be released: a tenth of the unit force (the Allegro's ring and thumb at right angles
+/// leave 0.71, a pinch 0).
+pub const PINCH_PREFERENCE: Real = 0.1;
 
 /// How far (m) one integration part may leave a fingertip centre off the surface before the
 /// Newton correction puts it back (the correction turns the fingertip a little, which is
@@ -313,9 +319,9 @@ impl SpatialScenario<'_> {
             }
         }
         if let Some((why, fingers)) = self.clash(&next, theta + step) {
-            // The first finger of the two that is in contact stops (a switch may free it).
+            // The finger that rolls into the other stops (a switch may free it).
             return Ok(
-                match next.iter().position(|t| fingers.contains(&t.finger)) {
+                match self.stopped_by_clash(touches, &next, theta + step, fingers) {
                     Some(i) => Roll::Blocked(i, why),
                     None => Roll::Stuck(format!("rolling on: {why}")),
                 },
@@ -353,6 +359,65 @@ impl SpatialScenario<'_> {
 }
 
 impl SpatialScenario<'_> {
+    /// Which contact of `after` (rolled from `before`, the object at `theta`) stops for the
+    /// clash of `fingers`: the one in contact of the two (the other at its home pose). Of two
+    /// in contact, the one without which the others' normal forces come nearer to squeezing
+    /// the object alone ([`pinch::unbalanced`], by more than [`PINCH_PREFERENCE`]): the grasp
+    /// keeps its pinch through the switch; else the one whose own step brings it into the
+    /// other (the clash gone with it kept where it was and not with the other kept), else the
+    /// one whose fingertip moved farther. (Stopping the first in the grasp's order instead
+    /// released the Allegro's index at the sphere's pole for the thumb rolling up to it, in
+    /// plans made again from the estimate, leaving middle, ring and thumb to hold the sphere
+    /// along its axis by friction alone: in MuJoCo under load the middle finger lost its
+    /// contact and the sphere was dropped in 6 of 18 runs, 2026-12-05; so too, once in 18
+    /// lockstep runs, with the finger whose own step made the clash stopping.)
+    fn stopped_by_clash(
+        &self,
+        before: &[Touch],
+        after: &[Touch],
+        theta: Real,
+        fingers: [u32; 2],
+    ) -> Option<usize> {
+        let of = |finger: u32| after.iter().position(|t| t.finger == finger);
+        let (a, b) = match (of(fingers[0]), of(fingers[1])) {
+            (Some(a), Some(b)) if a != b => (a, b),
+            (Some(a), _) => return Some(a),
+            (None, b) => return b,
+        };
+        let without = |i: usize| {
+            let rest: Vec<(Vec3, Vec3)> = after
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, t)| (t.point, t.normal))
+                .collect();
+            pinch::unbalanced(self.problem.frame(), &rest)
+        };
+        let (rest_a, rest_b) = (without(a), without(b));
+        if rest_a + PINCH_PREFERENCE < rest_b {
+            return Some(a);
+        }
+        if rest_b + PINCH_PREFERENCE < rest_a {
+            return Some(b);
+        }
+        let clears_kept = |i: usize| {
+            let mut kept = after.to_vec();
+            kept[i] = before[i].clone();
+            self.clash(&kept, theta).is_none()
+        };
+        match (clears_kept(a), clears_kept(b)) {
+            (true, false) => Some(a),
+            (false, true) => Some(b),
+            _ => {
+                let moved = |i: usize| {
+                    let f = self.finger(after[i].finger);
+                    (f.tip_centre(&after[i].q) - f.tip_centre(&before[i].q)).norm()
+                };
+                Some(if moved(b) > moved(a) { b } else { a })
+            }
+        }
+    }
+
     /// Which contact's roll from `before` to `after` lost the margin where the fingertips
     /// touch: the one whose contact put back where it was restores the most quality (`None`
     /// without contacts).
