@@ -221,15 +221,19 @@ fn the_ellipsoid_turns_a_whole_turn_under_gravity_in_mujoco() {
 /// whole turn about the hand's y axis through at least three finger switches (and a plan made
 /// again from the estimate where the object, rolled a little less than the plan by the soft
 /// contacts, stops off it), the centre held within millimetres by the command node's centring,
-/// the margin kept at MuJoCo's true contacts; the estimate about the axis follows the truth.
+/// the margin kept at MuJoCo's true contacts, no contact lost; the estimate about the axis
+/// follows the truth.
 #[test]
 fn the_allegro_turns_the_sphere_a_whole_turn_in_mujoco() {
     let _one = PIPELINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = scratch("mujoco-allegro");
     let (out, s, _) = run(&dir, "allegro_sphere_mujoco.toml", 360.0, "", "", None);
     assert_whole_turn(&s, 3, 0.1);
-    // 0.4-1.3 deg of tilt on 2026-12-05.
-    assert_true_margin(&s, 0.1, 3.0);
+    // No contact lost, and 0.7-0.9 deg of tilt, in 20 of 20 runs under full load on
+    // 2026-12-05 once the planner kept the index and ring's pinch (BENCHMARKS.md); before,
+    // plans made again released the index and 6 of 18 runs dropped the sphere.
+    assert_eq!(s["physics"]["unplanned_losses"], 0, "{s}");
+    assert_true_margin(&s, 0.1, 1.5);
     let truth = s["physics"]["rotation_deg"].as_f64().unwrap();
     let estimated = s["rotation_deg"].as_f64().unwrap();
     assert!(
