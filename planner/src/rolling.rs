@@ -522,9 +522,12 @@ impl Curve {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use icrflow_grasp::math::Vec3;
+    use icrflow_grasp::object::Object;
+
     #[test]
     fn the_tilt_is_what_is_not_about_the_axis() {
-        use super::{UnitQuaternion, Vec3, tilt};
         let axis = nalgebra::Unit::new_normalize(Vec3::new(0.2, 1.0, 0.2));
         // About the axis only: no tilt, however far.
         for a in [0.3, 2.0, -3.0] {
@@ -539,10 +542,6 @@ mod tests {
             assert!((tilt(&q, &axis).to_degrees() - 5.0).abs() < 1e-9, "{a}");
         }
     }
-
-    use super::*;
-    use icrflow_grasp::math::Vec3;
-    use icrflow_grasp::object::Object;
 
     fn ellipse() -> (Object, Surface) {
         let o = Object::ellipsoid(Vec3::new(0.055, 0.045, 0.04), 72, 36).unwrap();
