@@ -231,41 +231,58 @@ fn the_ellipsoid_turns_a_whole_turn_with_re_plans_that_take_time() {
 /// The Allegro's index and ring pinch the sphere at the poles of its axis all the way round:
 /// plans made again from the estimate (each taking 1.2 s of simulated time, as the planner
 /// node's do on a 2-core machine) release only the thumb and the middle finger, also where the
-/// thumb rolls up to the index (the finger that rolls into the other leaves), and the sphere
-/// turns a whole turn. Seed 12 of the measurement noise has the thumb roll up to the index
-/// after a re-plan; releasing the index there instead (the first of the two in the grasp's
-/// order, as the planner did until 2026-12-05) left middle, ring and thumb to hold the sphere
-/// along its axis by friction alone, and the pipeline dropped it in 3 of 8 runs under load.
+/// thumb rolls up to the index (the finger that rolls into the other leaves), the fingers never
+/// touch each other in MuJoCo, and the sphere turns a whole turn. Seed 12 of the measurement
+/// noise has the thumb roll up to the index after a re-plan; releasing the index there instead
+/// (the first of the two in the grasp's order, as the planner did until 2026-12-05) left
+/// middle, ring and thumb to hold the sphere along its axis by friction alone, and the
+/// pipeline dropped it in 3 of 8 runs under load. In seed 25 the thumb rolled to within 24.0x mm
+/// of the index (24.00 needed) before the switch released it, and MuJoCo had the two touching
+/// for 359 integration steps while the middle finger attached, before the planner kept
+/// [`icrflow_plan::spatial::FINGER_GAP`] between fingers.
 #[test]
 fn the_allegro_keeps_its_pinch_through_plans_made_again() {
-    let mut config = load("allegro_sphere_mujoco.toml");
-    config.pipeline.seed = 12;
-    let setup = Setup::new(&config).unwrap();
-    let ended = lockstep::run(&config, &setup, 60.0, 0.5, 1.2, &mut |_| {}).unwrap();
-    let switches: Vec<&str> = ended
-        .replanned
-        .iter()
-        .flat_map(|(_, r)| r.split("; at ").skip(1))
-        .collect();
-    println!(
-        "{:.1} deg after {:.1} s, {} re-plans; their switches: {switches:#?}",
-        ended.rotation.to_degrees(),
-        ended.time,
-        ended.replans
-    );
-    assert!(ended.done, "{ended:?}");
-    assert!(
-        (ended.rotation.to_degrees() - 360.0).abs() <= 0.02 * 360.0,
-        "{ended:?}"
-    );
-    assert!(
-        switches.iter().any(|s| s.contains("would touch")),
-        "no clash to decide: {switches:?}"
-    );
-    for s in &switches {
-        assert!(
-            !s.contains("finger 1 leaves") && !s.contains("finger 3 leaves"),
-            "{s}"
+    let mut clashes = 0;
+    for seed in [12, 25] {
+        let mut config = load("allegro_sphere_mujoco.toml");
+        config.pipeline.seed = seed;
+        let setup = Setup::new(&config).unwrap();
+        let (mut integrated, mut touching) = (0u64, 0u64);
+        let ended = lockstep::run(&config, &setup, 60.0, 0.5, 1.2, &mut |tick| {
+            if let Some(truth) = tick.truth {
+                integrated += u64::from(truth.physics_steps);
+                touching += u64::from(truth.finger_touch_steps);
+            }
+        })
+        .unwrap();
+        let switches: Vec<&str> = ended
+            .replanned
+            .iter()
+            .flat_map(|(_, r)| r.split("; at ").skip(1))
+            .collect();
+        println!(
+            "seed {seed}: {:.1} deg after {:.1} s, {} re-plans, {touching} of {integrated} integration steps with fingers touching; their switches: {switches:#?}",
+            ended.rotation.to_degrees(),
+            ended.time,
+            ended.replans
         );
+        assert!(ended.done, "seed {seed}: {ended:?}");
+        assert!(
+            (ended.rotation.to_degrees() - 360.0).abs() <= 0.02 * 360.0,
+            "seed {seed}: {ended:?}"
+        );
+        assert!(integrated > 10_000, "seed {seed}: {integrated}");
+        assert_eq!(touching, 0, "seed {seed}: fingers touching: {switches:#?}");
+        clashes += switches
+            .iter()
+            .filter(|s| s.contains("would touch"))
+            .count();
+        for s in &switches {
+            assert!(
+                !s.contains("finger 1 leaves") && !s.contains("finger 3 leaves"),
+                "seed {seed}: {s}"
+            );
+        }
     }
+    assert!(clashes > 0, "no clash to decide in either seed");
 }
