@@ -87,7 +87,8 @@ pub struct PhysicsSummary {
     /// The smallest alpha* of the true contacts over the plan steps whose true grasp was in
     /// force closure (`None`: none was).
     pub min_true_quality_closed: Option<Real>,
-    /// Plan steps whose true grasp was evaluated, and those of them not in force closure.
+    /// Plan steps whose true grasp was evaluated (from the hand's first grasp on: every finger
+    /// the plan has in contact touching at one truth), and those of them not in force closure.
     pub steps_evaluated: u32,
     /// See `steps_evaluated`.
     pub steps_not_closed: u32,
@@ -305,10 +306,6 @@ impl PhysicsTrack {
                 *counted = false;
             }
         }
-        if self.last_step.is_some() {
-            self.contacts(t);
-            self.pending_due = true;
-        }
         let first = self.first_stamp.unwrap_or(t.header.source_time_ns);
         let at_s = t.header.source_time_ns.saturating_sub(first) as Real * 1e-9;
         self.collisions.truth(t, at_s);
@@ -319,6 +316,14 @@ impl PhysicsTrack {
         });
         self.margin
             .truth(&self.setup.problem, t, at_s, plan.as_ref());
+        // A step's grasp is taken from the hand's first grasp on, as the true margin's
+        // samples are: MuJoCo steps from the first command on, and the start step may end
+        // before a fingertip placed at the surface has been pressed in (a run of 2026-12-05
+        // took the Allegro's start at its first truths, the thumb not yet touching).
+        if self.last_step.is_some() && self.margin.made() {
+            self.contacts(t);
+            self.pending_due = true;
+        }
     }
 
     /// The candidates of the grasp at truth `t`'s contacts, in the object's frame, into
@@ -567,6 +572,30 @@ mod tests {
         assert_eq!(s.not_closed[0].fingers, vec![1, 4]);
         // The step in force closure keeps its quality apart.
         assert_eq!(s.min_true_quality_closed, Some(alpha));
+    }
+
+    /// A step that ends before the hand has made its first grasp is not taken (its fingertips
+    /// placed at the surface, MuJoCo not yet pressing them in): the next, once made, is.
+    #[test]
+    fn a_step_before_the_first_grasp_is_not_taken() {
+        let (config, c) = paper();
+        let mut track = PhysicsTrack::new(&config, "3.17.0").unwrap();
+        track.plan_step(&step(0, [true, true, false, true]));
+        track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, None]));
+        track.plan_step(&step(1, [true, true, false, true]));
+        let s = track.summary();
+        assert_eq!((s.steps_evaluated, s.min_true_quality), (0, None), "{s:?}");
+        track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]));
+        track.plan_step(&step(2, [true, true, false, true]));
+        let s = track.summary();
+        assert_eq!((s.steps_evaluated, s.steps_not_closed), (1, 0), "{s:?}");
+        // Once made, a step whose grasp has lost a finger is taken as it is.
+        track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, None]));
+        for _ in 0..LOST_AFTER {
+            track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, None]));
+        }
+        let s = track.summary();
+        assert_eq!((s.steps_evaluated, s.steps_not_closed), (2, 1), "{s:?}");
     }
 
     /// The true grasp at every truth once the hand has made it: before every planned finger

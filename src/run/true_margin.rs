@@ -135,6 +135,12 @@ impl TrueMargin {
         self.alpha
     }
 
+    /// Whether the hand has made its first grasp (every finger the plan has in contact
+    /// touching at one truth): sampling has begun.
+    pub fn made(&self) -> bool {
+        self.made
+    }
+
     /// Truth `t`, `at_s` seconds after the first, under the plan's step `plan` (`None`: no
     /// step yet), evaluated with `problem`.
     pub fn truth(
