@@ -14,7 +14,8 @@
 //! contact candidate, estimated / planned; how far each fingertip is from its command across
 //! and along the surface; link contacts; the object's centre) and, at the end, the re-plans
 //! and per phase the largest slip speed and friction use at contacts planned to roll, and
-//! contacts lost while planned.
+//! contacts lost while planned; the collisions, the largest tilt, and the estimate's largest
+//! error against the truth (`lockstep::truth::TruthWatch`).
 
 #![allow(
     clippy::unwrap_used,
@@ -29,6 +30,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Parser;
 use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlantTruth};
 use icrflow_nodes::lockstep;
+use icrflow_nodes::lockstep::truth::{LOST_AFTER, TruthWatch};
 use icrflow_plan::rolling::tilt as tilt_of;
 use icrflow_scenario::{Config, Setup};
 
@@ -130,19 +132,11 @@ fn main() -> Result<()> {
     let mut stats: BTreeMap<&'static str, PhaseStats> = BTreeMap::new();
     let mut next_line = 0.0;
     let mut worst: Option<(f64, String)> = None;
-    // Per finger id: touched since planned in contact, truths off in a row; and the losses
-    // as `run` counts them (off for 3 truths in a row once made, while still planned).
-    let mut made: BTreeMap<u32, (bool, u32)> = BTreeMap::new();
-    let mut losses: Vec<String> = Vec::new();
-    // Integration steps, and those with fingers touching each other / links on the object,
-    // with the first time of each.
-    let mut collisions = (0u64, 0u64, 0u64, None::<f64>, None::<f64>);
-    // The object's tilt off the plan's axis since the first truth (deg), and its largest.
+    // Losses, collisions, tilt and the estimate's error, as `run` counts them.
+    let mut watch = TruthWatch::new(&config);
+    // The object's orientation at the last truth (its rotation off the axis accrues per phase).
     let axis = nalgebra::Unit::new_normalize(config.turn.axis);
-    let mut first_pose = None;
     let mut last_pose: Option<nalgebra::UnitQuaternion<f64>> = None;
-    let mut tilt = 0.0_f64;
-    let mut max_tilt = (0.0_f64, 0.0_f64);
     // Per finger slot: ticks in a row its fingertip has been off the object while the plan has
     // it in contact (rolling steps), and how many such gaps ended after each length (1 ms
     // ticks; the last bucket: longer).
@@ -167,24 +161,11 @@ fn main() -> Result<()> {
                 }
             }
         }
+        watch.observe(tick);
         let Some(truth) = tick.truth else {
             return;
         };
-        collisions.0 += u64::from(truth.physics_steps);
-        collisions.1 += u64::from(truth.finger_touch_steps);
-        collisions.2 += u64::from(truth.link_object_steps);
-        if truth.finger_touch_steps > 0 {
-            collisions.3.get_or_insert(tick.time);
-        }
-        if truth.link_object_steps > 0 {
-            collisions.4.get_or_insert(tick.time);
-        }
-        let [w, x, y, z] = truth.orientation;
-        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
-        tilt = tilt_of(&(q * first_pose.get_or_insert(q).inverse()), &axis).to_degrees();
-        if tilt > max_tilt.0 {
-            max_tilt = (tilt, tick.time);
-        }
+        let q = TruthWatch::orientation(truth);
         let off_axis = last_pose.replace(q).map_or(0.0, |last| {
             tilt_of(&(q * last.inverse()), &axis).to_degrees()
         });
@@ -195,28 +176,6 @@ fn main() -> Result<()> {
         s.off_axis += off_axis;
         if let Some(plan) = plan {
             let n = (plan.finger_count as usize).min(MAX_FINGERS);
-            for slot in 0..truth.finger_count as usize {
-                let finger = truth.finger_ids[slot];
-                let planned = plan.targets[..n]
-                    .iter()
-                    .any(|t| t.finger == finger && t.in_contact == 1);
-                let on = truth.in_contact[slot] == 1;
-                let (m, off) = made.entry(finger).or_default();
-                *m = planned && (*m || on);
-                if *m && !on {
-                    *off += 1;
-                    if *off == 3 {
-                        losses.push(format!(
-                            "t {:.3} s, step {} {phase}, finger {finger} (true {:.2} deg)",
-                            tick.time,
-                            plan.step,
-                            truth.rotation.to_degrees()
-                        ));
-                    }
-                } else {
-                    *off = 0;
-                }
-            }
             for k in 0..n {
                 let target = &plan.targets[k];
                 if target.in_contact != 1 {
@@ -332,9 +291,10 @@ fn main() -> Result<()> {
                 }
             }
             forces += &format!(
-                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b} | tilt {tilt:.2} deg",
+                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b} | tilt {:.2} deg",
                 tick.plant.sim().collisions().links_on_object,
-                tick.plant.sim().collisions().fingers_touching
+                tick.plant.sim().collisions().fingers_touching,
+                watch.tilt_deg
             );
             eprintln!(
                 "t {:5.2} s  true {:7.2} est {:7.2} plan {:7.2} deg  step {:4} {:8} fn/use/slip{forces}  centre [{:+.1} {:+.1} {:+.1}] mm{}",
@@ -373,10 +333,10 @@ fn main() -> Result<()> {
         eprintln!("  at {t:.2} s: {said}");
     }
     eprintln!(
-        "  {} contacts lost while planned (3 truths off in a row)",
-        losses.len()
+        "  {} contacts lost while planned ({LOST_AFTER} truths off in a row)",
+        watch.losses.len()
     );
-    for l in &losses {
+    for l in &watch.losses {
         eprintln!("    lost: {l}");
     }
     eprintln!(
@@ -397,15 +357,25 @@ fn main() -> Result<()> {
     };
     eprintln!(
         "  of {} integration steps: {} with fingers touching each other{}, {} with a link on the object{}",
-        collisions.0,
-        collisions.1,
-        first(collisions.3),
-        collisions.2,
-        first(collisions.4)
+        watch.integrated,
+        watch.fingers_touching,
+        first(watch.first_touching),
+        watch.links_on_object,
+        first(watch.first_link)
     );
     eprintln!(
-        "  the object tilted off the plan's axis: at most {:.2} deg (at {:.2} s), {tilt:.2} deg at the end",
-        max_tilt.0, max_tilt.1
+        "  the object tilted off the plan's axis: at most {:.2} deg (at {:.2} s), {:.2} deg at the end",
+        watch.max_tilt.0, watch.max_tilt.1, watch.tilt_deg
+    );
+    let w = watch.worst_estimate;
+    eprintln!(
+        "  the estimate off the truth: at most {:.2} deg (at {:.2} s, {}, true {:.1} deg); {} truths with a command tracked on an estimate more than {:.1} deg off",
+        w.deg,
+        w.time,
+        w.phase,
+        w.true_deg,
+        watch.tracked_off,
+        watch.bound_deg()
     );
     for (phase, s) in &stats {
         eprintln!(

@@ -31,6 +31,8 @@ use crate::physical::Physical;
 use crate::planner::{CLEARANCE, REPUBLISH, estimate, message};
 use crate::wrench::WrenchSpace;
 
+pub mod truth;
+
 /// What a tick of a lockstep run shows an observer.
 pub struct Tick<'s> {
     /// The simulated time since the start (s).
