@@ -166,8 +166,11 @@ fn every_push_of_the_ellipsoid_under_gravity_is_recovered() {
 
 /// The ellipsoid's whole turn under gravity with re-plans that take 1.3 s of simulated time
 /// (the planner node's 1.2 to 1.6 s on the mesh on this project's 2-core machines: its last
-/// step goes stale and the hand holds meanwhile), under three seeds of the measurement noise:
-/// each run reaches the goal, the object in the hand. With seed 2 a plan made again from the
+/// step goes stale and the hand holds meanwhile), under three seeds of the measurement noise
+/// looked at while fixing it and ten never used to tune anything (31-40, 2026-12-05): each run
+/// reaches the goal, the object in the hand, no contact lost while planned (as `run` counts a
+/// loss), no fingers touching, no link on the object, tilted less than 3 deg (the pipeline
+/// test's bound). With seed 2 a plan made again from the
 /// estimate once had an attach whose contact pose pressed 0.27 mm into the mesh; the follower
 /// found no stand-off for it, moved the finger straight onto the object, and the strike knocked
 /// the ellipsoid 20 deg on and 14 mm off its place, short of the goal for good (as the real
@@ -176,25 +179,41 @@ fn every_push_of_the_ellipsoid_under_gravity_is_recovered() {
 fn the_ellipsoid_turns_a_whole_turn_with_re_plans_that_take_time() {
     let config = load("ellipsoid_mujoco.toml");
     let setup = Setup::new(&config).unwrap();
-    for seed in [1, 2, 3] {
+    for seed in [1, 2, 3].into_iter().chain(31..=40) {
         let mut config = config.clone();
         config.pipeline.seed = seed;
         let mut drift = 0.0_f64;
         let mut start = None;
+        let mut watch = TruthWatch::new(&config);
         let ended = lockstep::run(&config, &setup, 40.0, 0.5, 1.3, &mut |tick| {
             let c = tick.plant.sim().object_centre();
             drift = drift.max((c - *start.get_or_insert(c)).norm());
+            watch.observe(tick);
         })
         .unwrap();
         println!(
-            "seed {seed}: {:.1} deg after {:.1} s, {} re-plans, {} holds, centre at most {:.1} mm off: {:?}",
+            "seed {seed}: {:.1} deg after {:.1} s, {} re-plans, {} holds, centre at most {:.1} mm off, {} contacts lost, tilt at most {:.2} deg: {:?}",
             ended.rotation.to_degrees(),
             ended.time,
             ended.replans,
             ended.holds,
             drift * 1e3,
+            watch.losses.len(),
+            watch.max_tilt.0,
             ended.replanned
         );
+        assert!(watch.losses.is_empty(), "seed {seed}: {:?}", watch.losses);
+        assert!(
+            watch.integrated > 10_000,
+            "seed {seed}: {}",
+            watch.integrated
+        );
+        assert_eq!(
+            (watch.fingers_touching, watch.links_on_object),
+            (0, 0),
+            "seed {seed}"
+        );
+        assert!(watch.max_tilt.0 < 3.0, "seed {seed}: {:?}", watch.max_tilt);
         assert!(ended.done, "seed {seed}: {ended:?}");
         assert!(ended.replans >= 1, "seed {seed}: {ended:?}");
         assert!(
