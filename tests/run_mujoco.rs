@@ -81,7 +81,8 @@ fn assert_whole_turn(s: &serde_json::Value, switches: u64, alpha: f64) {
 /// A turn of `goal` degrees as the physics has it: the run reached its goal through at least
 /// `switches` finger switches, MuJoCo turned the object within 2 % of `goal`, its centre stayed
 /// within 5 mm, at most two contacts were lost for a moment (30 ms or more) while planned,
-/// the grasp at MuJoCo's true contacts kept the margin `alpha` at every plan step, the
+/// the grasp at MuJoCo's true contacts kept the margin `alpha` at every plan step from the
+/// hand's first grasp on, the
 /// object stayed in the hand, and no finger touched another or the object with a link
 /// ([`assert_no_collision`]). (No loss at all held in every run of 2026-12-02; on 2026-12-03
 /// three CI runs of the sphere lost one, one and two contacts for a moment, goal, drift and

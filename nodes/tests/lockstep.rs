@@ -1,7 +1,8 @@
 //! The loop in lockstep on MuJoCo ([`icrflow_nodes::lockstep`]): the nodes' own steps on
 //! simulated time, no processes. The paper's sphere turned toward 45 degrees; both MuJoCo
 //! scenarios pushed at ten times of their whole turn; the ellipsoid with re-plans that take time;
-//! the Allegro sphere through re-plans, its pinch kept.
+//! the Allegro sphere through re-plans, its pinch kept; the Allegro sphere and the ellipsoid on
+//! ten noise seeds each never used to tune them.
 
 #![allow(
     clippy::unwrap_used,
@@ -284,10 +285,9 @@ fn allegro_sphere(seed: u64) -> (lockstep::Ended, TruthWatch) {
 /// pipeline dropped it in 3 of 8 runs under load. In seed 25 the thumb rolled to within 24.0x mm
 /// of the index (24.00 needed) before the switch released it, and MuJoCo had the two touching
 /// for 359 integration steps while the middle finger attached, before the planner kept
-/// [`icrflow_plan::spatial::FINGER_GAP`] between fingers.
+/// [`icrflow_plan::route::FINGER_GAP`] between fingers.
 #[test]
 fn the_allegro_keeps_its_pinch_through_plans_made_again() {
-    let mut clashes = 0;
     for seed in [12, 25] {
         let (ended, watch) = allegro_sphere(seed);
         let (integrated, touching) = (watch.integrated, watch.fingers_touching);
@@ -303,10 +303,10 @@ fn the_allegro_keeps_its_pinch_through_plans_made_again() {
             ended.replans
         );
         assert_eq!(touching, 0, "seed {seed}: fingers touching: {switches:#?}");
-        clashes += switches
-            .iter()
-            .filter(|s| s.contains("would touch"))
-            .count();
+        assert!(
+            switches.iter().any(|s| s.contains("would touch")),
+            "seed {seed}: no clash to decide: {switches:#?}"
+        );
         for s in &switches {
             assert!(
                 !s.contains("finger 1 leaves") && !s.contains("finger 3 leaves"),
@@ -314,7 +314,6 @@ fn the_allegro_keeps_its_pinch_through_plans_made_again() {
             );
         }
     }
-    assert!(clashes > 0, "no clash to decide in either seed");
 }
 
 /// Noise seeds never used to tune the Allegro sphere's config, the planner or the nodes (61-70;

@@ -46,7 +46,12 @@ pub const LINK_MARGIN: Real = 5e-3;
 
 /// How far a moving finger keeps from the other fingers' bodies (m; links as capsules of
 /// [`LINK_MARGIN`], fingertips as their spheres): the hand's links are not lines, and a finger
-/// crossing another's, as a planar hand's fingers in one plane would, collides.
+/// crossing another's, as a planar hand's fingers in one plane would, collides. The spatial
+/// planner keeps it too between any two fingers beyond their radii (its clash check, links as
+/// capsules of `plant.link_radius_mm`): with none, it rolled the Allegro's thumb to within
+/// 24.0x mm of the index (24.00 needed) at the sphere's pole before a switch released it, and
+/// the object, rolled a few tenths of a degree past the step while the middle finger attached,
+/// had MuJoCo's thumb and index touching (2 of 40 lockstep seeds and a CI run, 2026-12-05).
 pub const FINGER_GAP: Real = 1e-3;
 
 /// What a move keeps clear of the object (whose centre is the hand frame's origin).

@@ -6,7 +6,8 @@
 //! largest tangential slip speed and friction use `|f_t| / (mu f_n)`; contacts lost while the
 //! plan has them (a finger that touched the object while planned in contact, then is off it
 //! for [`LOST_AFTER`] truths in a row while still planned in contact: an attaching finger
-//! still on its way to the object has lost nothing); for every plan step, the quality alpha*
+//! still on its way to the object has lost nothing); for every plan step from the hand's first
+//! grasp on (every finger the plan has in contact touching at one truth), the quality alpha*
 //! of the grasp at MuJoCo's true contact points at the step's last truth, as the hand has made
 //! it (each point taken into the object's frame and snapped to the nearest candidate of the
 //! section; a contact planned that flickered off for fewer than [`LOST_AFTER`] truths counts at
@@ -25,6 +26,7 @@ use super::true_margin::{Below, Planned, TrueMargin};
 
 /// Truths in a row without contact after which a finger planned in contact is lost (30 ms at
 /// the truth's 100 Hz: MuJoCo's contacts flicker on a rolling fingertip for a step or two).
+/// The lockstep counts losses alike (`icrflow_nodes::lockstep::truth::LOST_AFTER`, equal).
 pub const LOST_AFTER: u32 = 3;
 /// The object is dropped when its centre has moved this fraction of its largest radius.
 pub const DROP_FRACTION: Real = 0.5;
@@ -161,8 +163,7 @@ pub struct PhysicsTrack {
     /// The candidates of the current plan step's grasp at the newest truth, if a truth came
     /// since the step: its quality is counted when the next step comes (or at the summary),
     /// so that each step's grasp is taken as the hand has made it (at a step's first truth an
-    /// attaching finger may not touch yet, and at the run's first the hand has not yet
-    /// pressed).
+    /// attaching finger may not touch yet); none before the hand's first grasp.
     pending: Vec<usize>,
     /// The fingers of `pending`, and the object's true rotation (rad) and the seconds since
     /// the first truth at it.

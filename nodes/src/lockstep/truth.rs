@@ -13,7 +13,8 @@ use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use super::Tick;
 
 /// Truths in a row (10 ms apart) a fingertip planned in contact, once it touched, is off the
-/// object before its contact counts as lost (`run`'s rule).
+/// object before its contact counts as lost: `run`'s rule, whose own constant (the root crate's
+/// `run::physics::LOST_AFTER`, which this crate cannot see) must stay equal to this one.
 pub const LOST_AFTER: u32 = 3;
 
 /// A contact lost while planned.

@@ -10,6 +10,7 @@ use crate::planner::{Phase, SQUEEZE_PROBE, Step};
 
 use crate::hand::Capsule;
 pub use crate::hand::segment_segment_distance;
+use crate::route::FINGER_GAP;
 
 impl SpatialScenario<'_> {
     /// How close finger `f`'s links (as lines) come to the object's surface at `q` with the
@@ -30,6 +31,16 @@ impl SpatialScenario<'_> {
     /// fingertips' radii or their link capsules allow with [`FINGER_GAP`] between them, if
     /// any, with the object at `theta`; and any free finger at home in the object.
     pub(super) fn clash(&self, touches: &[Touch], theta: Real) -> Option<(String, [u32; 2])> {
+        self.clash_with(touches, theta, FINGER_GAP)
+    }
+
+    /// [`Self::clash`] with `gap` (m) between two fingers beyond their radii.
+    pub(super) fn clash_with(
+        &self,
+        touches: &[Touch],
+        theta: Real,
+        gap: Real,
+    ) -> Option<(String, [u32; 2])> {
         let poses: Vec<(u32, &Finger, Vec<Real>)> = self
             .hand
             .fingers
@@ -51,14 +62,14 @@ impl SpatialScenario<'_> {
                 for x in sa {
                     for y in sb {
                         let d = segment_segment_distance(&x.from, &x.to, &y.from, &y.to);
-                        if d < x.radius + y.radius + FINGER_GAP {
+                        if d < x.radius + y.radius + gap {
                             return Some((
                                 format!(
                                     "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed, their {:.2} mm and a gap of {:.2} mm)",
                                     d * 1e3,
-                                    (x.radius + y.radius + FINGER_GAP) * 1e3,
+                                    (x.radius + y.radius + gap) * 1e3,
                                     (x.radius + y.radius) * 1e3,
-                                    FINGER_GAP * 1e3
+                                    gap * 1e3
                                 ),
                                 [*a, *b],
                             ));
@@ -204,14 +215,6 @@ pub fn segment_surface_distance(surface: &Convex, a: &Vec3, b: &Vec3) -> Real {
         }
     }
 }
-
-/// The gap (m) the planner keeps between two fingers beyond their radii (fingertips and link
-/// capsules). A finger follows its plan within a fraction of a millimetre, but the object
-/// rolls on past a planned step by a few tenths of a degree while a switch is made: with no
-/// gap, the planner rolled the Allegro's thumb to within 24.0x mm of the index (24.00 needed)
-/// at the sphere's pole before releasing it, and MuJoCo had them touching for 0.1-0.2 s in 2
-/// of 40 lockstep seeds and in CI (2026-12-05).
-pub const FINGER_GAP: Real = 1e-3;
 
 /// How close (m) to the smallest distance of a link from an ellipsoid or a polyhedron
 /// [`segment_surface_distance`] comes.

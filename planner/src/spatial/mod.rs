@@ -70,9 +70,7 @@ use crate::hand::{Finger, Hand};
 use crate::planner::Settings;
 use surface::Convex;
 
-pub use clearance::{
-    FINGER_GAP, TRACE_TOLERANCE, segment_segment_distance, segment_surface_distance,
-};
+pub use clearance::{TRACE_TOLERANCE, segment_segment_distance, segment_surface_distance};
 pub use reach::ReachMap;
 pub use step::mobility;
 

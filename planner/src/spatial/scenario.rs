@@ -243,7 +243,10 @@ impl SpatialScenario<'_> {
                 alpha,
             });
         }
-        if let Some((why, _)) = self.clash(&touches, theta) {
+        // Only fingers that overlap refuse the start (a plan made again from the estimate may
+        // start with two fingers nearer than the gap the planner keeps: its first step on
+        // blocks one of them, and a switch frees it).
+        if let Some((why, _)) = self.clash_with(&touches, theta, 0.0) {
             return Err(PlanError::Settings(format!("the initial grasp: {why}")));
         }
         Ok((touches, e.quality))
