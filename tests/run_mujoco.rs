@@ -101,6 +101,11 @@ fn assert_turn(s: &serde_json::Value, goal: f64, switches: u64, alpha: f64, not_
         "MuJoCo turned the object {truth} deg: {s}"
     );
     assert!(p["drift_m"].as_f64().unwrap() < 5e-3, "{s}");
+    // The hand made its grasp at the start: under the plan's first step, or its second where
+    // the first ended right after the start-up hold with a fingertip placed at the surface not
+    // yet pressed in (the steps before it are not judged, so they are bounded here).
+    assert!(p["first_grasp"]["step"].as_u64().unwrap() <= 1, "{s}");
+    assert!(p["steps_before_first_grasp"].as_u64().unwrap() <= 1, "{s}");
     assert!(p["unplanned_losses"].as_u64().unwrap() <= 2, "{s}");
     assert!(p["steps_not_closed"].as_u64().unwrap() <= not_closed, "{s}");
     let closed = p["min_true_quality_closed"].as_f64().unwrap();

@@ -66,6 +66,17 @@ pub struct NotClosed {
     pub at_s: Real,
 }
 
+/// When the hand first made its grasp.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct FirstGrasp {
+    /// The plan step then.
+    pub step: u64,
+    /// Seconds since the first truth.
+    pub at_s: Real,
+    /// The object's true rotation then (deg).
+    pub rotation_deg: Real,
+}
+
 /// The summary's `physics`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PhysicsSummary {
@@ -96,6 +107,11 @@ pub struct PhysicsSummary {
     pub steps_not_closed: u32,
     /// Which steps were not (the first [`LOSSES_KEPT`]).
     pub not_closed: Vec<NotClosed>,
+    /// When the hand first made its grasp (every finger the plan has in contact touching at
+    /// one truth), and the plan step then (`None`: never).
+    pub first_grasp: Option<FirstGrasp>,
+    /// Plan steps that ended before it (their true grasps not taken: the hand still closing).
+    pub steps_before_first_grasp: u32,
     /// Whether the object left the hand.
     pub dropped: bool,
     /// The margin the true grasp is held to (`grasp.alpha`).
@@ -171,6 +187,8 @@ pub struct PhysicsTrack {
     pending_at: (Real, Real),
     pending_due: bool,
     last_step: Option<u64>,
+    first_grasp: Option<FirstGrasp>,
+    steps_before_first_grasp: u32,
     gravity: [Real; 3],
     margin: TrueMargin,
     collisions: CollisionTrack,
@@ -212,6 +230,8 @@ impl PhysicsTrack {
             pending_at: (0.0, 0.0),
             pending_due: false,
             last_step: None,
+            first_grasp: None,
+            steps_before_first_grasp: 0,
         })
     }
 
@@ -225,6 +245,9 @@ impl PhysicsTrack {
                 if alpha <= 0.0 && self.not_closed.len() < LOSSES_KEPT {
                     self.not_closed.push(self.open_step());
                 }
+            } else if self.last_step.is_some() && self.first_grasp.is_none() {
+                // The step before ended with the hand still closing.
+                self.steps_before_first_grasp += 1;
             }
             self.last_step = Some(p.step);
         }
@@ -321,7 +344,14 @@ impl PhysicsTrack {
         // samples are: MuJoCo steps from the first command on, and the start step may end
         // before a fingertip placed at the surface has been pressed in (a run of 2026-12-05
         // took the Allegro's start at its first truths, the thumb not yet touching).
-        if self.last_step.is_some() && self.margin.made() {
+        if let Some(step) = self.last_step
+            && self.margin.made()
+        {
+            self.first_grasp.get_or_insert(FirstGrasp {
+                step,
+                at_s,
+                rotation_deg: t.rotation.to_degrees(),
+            });
             self.contacts(t);
             self.pending_due = true;
         }
@@ -397,6 +427,8 @@ impl PhysicsTrack {
             steps_evaluated: steps.evaluated,
             steps_not_closed: steps.not_closed,
             not_closed,
+            first_grasp: self.first_grasp,
+            steps_before_first_grasp: self.steps_before_first_grasp,
             dropped: self.dropped,
             alpha: self.margin.alpha(),
             true_quality_min: m.min,
@@ -586,10 +618,14 @@ mod tests {
         track.plan_step(&step(1, [true, true, false, true]));
         let s = track.summary();
         assert_eq!((s.steps_evaluated, s.min_true_quality), (0, None), "{s:?}");
+        assert_eq!((s.first_grasp, s.steps_before_first_grasp), (None, 1), "{s:?}");
         track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]));
         track.plan_step(&step(2, [true, true, false, true]));
         let s = track.summary();
         assert_eq!((s.steps_evaluated, s.steps_not_closed), (1, 0), "{s:?}");
+        // Made under step 1; step 0 ended before it.
+        let first = s.first_grasp.unwrap();
+        assert_eq!((first.step, s.steps_before_first_grasp), (1, 1), "{s:?}");
         // Once made, a step whose grasp has lost a finger is taken as it is.
         track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, None]));
         for _ in 0..LOST_AFTER {

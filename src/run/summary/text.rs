@@ -154,6 +154,18 @@ impl RunSummary {
                     l.finger, l.at_s, l.step, l.phase, l.rotation_deg
                 )?;
             }
+            match p.first_grasp {
+                Some(g) => writeln!(
+                    o,
+                    "           the hand made its grasp at {:.2} s (step {}, the object at {:.1} deg); {} plan steps ended before it",
+                    g.at_s, g.step, g.rotation_deg, p.steps_before_first_grasp
+                )?,
+                None => writeln!(
+                    o,
+                    "           the hand never made its grasp ({} plan steps came)",
+                    p.steps_before_first_grasp
+                )?,
+            }
             match p.min_true_quality {
                 Some(q) => writeln!(
                     o,
