@@ -100,6 +100,31 @@ proptest! {
         prop_assert!(f.limit_cost(&centred) <= f.limit_cost(&sol));
     }
 
+    /// The bound of a fingertip's travel on a straight joint-space move (what lets a route's
+    /// check pass poses without their kinematics) holds on the Allegro's fingers: the length
+    /// of the fingertip centre's path over any first part of the move, sampled finely, is at
+    /// most the bound scaled by the part's fraction.
+    #[test]
+    fn a_fingertip_travels_no_farther_than_its_bound_on_the_allegro(
+        finger in 0usize..4,
+        a in prop::array::uniform4(0.0..1.0f64),
+        b in prop::array::uniform4(0.0..1.0f64),
+    ) {
+        let fingers = allegro();
+        let f = &fingers[finger];
+        let (from, to) = (within(f, &a), within(f, &b));
+        let bound = f.tip_travel_bound(&from, &to);
+        let (mut at, mut path) = (f.tip_centre(&from), 0.0);
+        for i in 1..=400 {
+            let s = i as Real / 400.0;
+            let q: Vec<Real> = from.iter().zip(&to).map(|(x, y)| x + s * (y - x)).collect();
+            let next = f.tip_centre(&q);
+            path += (next - at).norm();
+            at = next;
+            prop_assert!(path <= s * bound * (1.0 + 1e-12) + 1e-15, "{path} > {s} x {bound}");
+        }
+    }
+
     /// The command loop's shift of a fingertip after the object's centre (`shift_point`): on
     /// the Allegro's fingers, the fingertip's material point at its centre or at a contact on
     /// its sphere (outward normal `n` of the object there: the point `centre - r_f n`), in a

@@ -618,7 +618,11 @@ mod tests {
         track.plan_step(&step(1, [true, true, false, true]));
         let s = track.summary();
         assert_eq!((s.steps_evaluated, s.min_true_quality), (0, None), "{s:?}");
-        assert_eq!((s.first_grasp, s.steps_before_first_grasp), (None, 1), "{s:?}");
+        assert_eq!(
+            (s.first_grasp, s.steps_before_first_grasp),
+            (None, 1),
+            "{s:?}"
+        );
         track.truth(&truth(&config, [Some(c[0]), Some(c[1]), None, Some(c[2])]));
         track.plan_step(&step(2, [true, true, false, true]));
         let s = track.summary();

@@ -424,6 +424,22 @@ impl Finger {
         (self.chain(q, |_| {}) * nalgebra::Point3::from(self.tip)).coords
     }
 
+    /// An upper bound (m) of how far the fingertip centre moves along the straight joint-space
+    /// move from `from` to `to`: each joint's change times the farthest the fingertip centre
+    /// can be from that joint's axis (the lengths of the joint origins beyond it and the
+    /// fingertip's offset, summed; every joint turns about an axis through its origin).
+    pub fn tip_travel_bound(&self, from: &[Real], to: &[Real]) -> Real {
+        let mut beyond = self.tip.norm();
+        let mut bound = 0.0;
+        for (j, joint) in self.joints.iter().enumerate().rev() {
+            if let (Some(a), Some(b)) = (from.get(j), to.get(j)) {
+                bound += (b - a).abs() * beyond;
+            }
+            beyond += joint.origin.translation.vector.norm();
+        }
+        bound
+    }
+
     /// How far the joints `q` are from their limits, each as a fraction of its range from the
     /// nearer end (0 at a limit, 0.5 mid-range): the smallest, the finger's limit margin.
     pub fn limit_margin(&self, q: &[Real]) -> Real {

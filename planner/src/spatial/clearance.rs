@@ -41,7 +41,7 @@ impl SpatialScenario<'_> {
         theta: Real,
         gap: Real,
     ) -> Option<(String, [u32; 2])> {
-        let poses: Vec<(u32, &Finger, Vec<Real>)> = self
+        let parts: Vec<(u32, Vec<Capsule>)> = self
             .hand
             .fingers
             .iter()
@@ -49,46 +49,73 @@ impl SpatialScenario<'_> {
                 let q = touches
                     .iter()
                     .find(|t| t.finger == f.id)
-                    .map_or_else(|| f.home.clone(), |t| t.q.clone());
-                (f.id, f, q)
+                    .map_or(&f.home, |t| &t.q);
+                (f.id, f.capsules(q, self.spatial.link_radius))
             })
             .collect();
-        let parts: Vec<(u32, Vec<Capsule>)> = poses
+        let parts: Vec<(u32, &[Capsule])> = parts.iter().map(|(id, c)| (*id, &c[..])).collect();
+        touching(&parts, gap).or_else(|| self.home_in_object(touches, theta))
+    }
+
+    /// The hand's fingers as capsules with finger `moving` left out (`None` in its place), the
+    /// others at their poses in `touches` or at home: what [`Self::clash_moving`] checks a
+    /// finger moving among them against.
+    pub(super) fn bodies_without(&self, moving: u32, touches: &[Touch]) -> Bodies {
+        self.hand
+            .fingers
             .iter()
-            .map(|(id, f, q)| (*id, f.capsules(q, self.spatial.link_radius)))
+            .map(|f| {
+                let caps = (f.id != moving).then(|| {
+                    let q = touches
+                        .iter()
+                        .find(|t| t.finger == f.id)
+                        .map_or(&f.home, |t| &t.q);
+                    f.capsules(q, self.spatial.link_radius)
+                });
+                (f.id, caps)
+            })
+            .collect()
+    }
+
+    /// [`Self::clash`] of `touches` and finger `moving` at its capsules `at`, the others'
+    /// capsules `bodies` ([`Self::bodies_without`] of `touches`, made once for a move); the
+    /// check of the free fingers at home, the same at every pose of the move, is kept in
+    /// `home` once made.
+    pub(super) fn clash_moving(
+        &self,
+        bodies: &Bodies,
+        moving: (u32, &[Capsule]),
+        touches: &[Touch],
+        theta: Real,
+        home: &mut Option<Option<(String, [u32; 2])>>,
+    ) -> Option<(String, [u32; 2])> {
+        let parts: Vec<(u32, &[Capsule])> = bodies
+            .iter()
+            .map(|(id, caps)| (*id, caps.as_deref().unwrap_or(moving.1)))
             .collect();
-        for (i, (a, sa)) in parts.iter().enumerate() {
-            for (b, sb) in &parts[i + 1..] {
-                for x in sa {
-                    for y in sb {
-                        let d = segment_segment_distance(&x.from, &x.to, &y.from, &y.to);
-                        if d < x.radius + y.radius + gap {
-                            return Some((
-                                format!(
-                                    "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed, their {:.2} mm and a gap of {:.2} mm)",
-                                    d * 1e3,
-                                    (x.radius + y.radius + gap) * 1e3,
-                                    (x.radius + y.radius) * 1e3,
-                                    gap * 1e3
-                                ),
-                                [*a, *b],
-                            ));
-                        }
-                    }
-                }
-            }
-        }
-        for (id, f, q) in &poses {
-            if touches.iter().any(|t| t.finger == *id) {
+        touching(&parts, FINGER_GAP).or_else(|| {
+            home.get_or_insert_with(|| self.home_in_object(touches, theta))
+                .clone()
+        })
+    }
+
+    /// A free finger (not in `touches`) whose fingertip or links at its home pose are in the
+    /// object at `theta`, said.
+    fn home_in_object(&self, touches: &[Touch], theta: Real) -> Option<(String, [u32; 2])> {
+        for f in &self.hand.fingers {
+            if touches.iter().any(|t| t.finger == f.id) {
                 continue;
             }
-            let tip = self.to_body(theta, &f.tip_centre(q));
-            let (clear, _) = self.link_clearance(f, q, theta);
+            let tip = self.to_body(theta, &f.tip_centre(&f.home));
+            let (clear, _) = self.link_clearance(f, &f.home, theta);
             let tip_clear = self.surface.closest(&tip).distance - f.tip_radius;
             if clear < self.spatial.link_radius || tip_clear < 0.0 {
                 return Some((
-                    format!("free finger {id} at its home pose would be in the object"),
-                    [*id, *id],
+                    format!(
+                        "free finger {} at its home pose would be in the object",
+                        f.id
+                    ),
+                    [f.id, f.id],
                 ));
             }
         }
@@ -170,6 +197,36 @@ impl SpatialScenario<'_> {
         }
         closest
     }
+}
+
+/// Every finger of the hand by id, as capsules (`None`: the finger that moves).
+pub(super) type Bodies = Vec<(u32, Option<Vec<Capsule>>)>;
+
+/// The first two fingers of `parts` (each finger's capsules, in the hand's order) nearer than
+/// their radii and `gap`, said.
+fn touching(parts: &[(u32, &[Capsule])], gap: Real) -> Option<(String, [u32; 2])> {
+    for (i, (a, sa)) in parts.iter().enumerate() {
+        for (b, sb) in &parts[i + 1..] {
+            for x in *sa {
+                for y in *sb {
+                    let d = segment_segment_distance(&x.from, &x.to, &y.from, &y.to);
+                    if d < x.radius + y.radius + gap {
+                        return Some((
+                            format!(
+                                "fingers {a} and {b} would touch ({:.2} mm apart where {:.2} mm is needed, their {:.2} mm and a gap of {:.2} mm)",
+                                d * 1e3,
+                                (x.radius + y.radius + gap) * 1e3,
+                                (x.radius + y.radius) * 1e3,
+                                gap * 1e3
+                            ),
+                            [*a, *b],
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    None
 }
 
 /// The distance of the segment `ab` (body frame) from the surface (m; negative: a point of it

@@ -11,6 +11,10 @@ use super::{LIFTS, ReachMap, Roll, STEERS, SpatialScenario, Touch, segment_surfa
 use crate::hand::Finger;
 use crate::planner::{NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
 
+/// Per way of [`LIFTS`], a finger's lifted poses off its contact, or why it cannot lift so;
+/// `None` until needed.
+type Lifted = [Option<Result<Vec<Vec<Real>>, String>>; LIFTS.len()];
+
 /// A switch that passed its checks ([`SpatialScenario::try_switch`]).
 struct Chosen {
     t: Touch,
@@ -53,32 +57,31 @@ impl SpatialScenario<'_> {
     /// at [`crate::route::SAMPLES`] poses: the fingertip off the object (touching only at the
     /// contact), the link capsules off it, no two fingers touching. The first of [`LIFTS`]
     /// whose way is clear: its poses; or why the way straight from home was not.
+    ///
+    /// `lifted` keeps the lifted poses of each of [`LIFTS`] once found (or why there are
+    /// none): a released finger's retreat is routed from the same contact for every placement
+    /// of the finger that takes over.
     fn route(
         &self,
         t: &Touch,
         others: &[Touch],
         theta: Real,
         what: &str,
+        lifted: &mut Lifted,
     ) -> Result<Vec<Vec<Real>>, String> {
         let f = self.finger(t.finger);
-        let n_w = self.rotation(theta) * t.normal;
-        let contact = self.to_world(theta, &t.point);
         let mut why: Option<String> = None;
-        'ways: for heights in LIFTS {
-            let mut vias = Vec::with_capacity(heights.len());
-            for h in heights {
-                let lifted = contact + n_w * (f.tip_radius + h);
-                match f.ik_position_centred(&lifted, &t.q) {
-                    Ok(q) => vias.push(q),
-                    Err(e) => {
-                        why.get_or_insert(format!(
-                            "on its {what} its fingertip cannot lift {:.0} mm off the contact: {e}",
-                            h * 1e3
-                        ));
-                        continue 'ways;
-                    }
+        'ways: for (w, heights) in LIFTS.iter().enumerate() {
+            let vias = match lifted[w]
+                .get_or_insert_with(|| self.lifted(f, t, theta, heights, what))
+                .clone()
+            {
+                Ok(vias) => vias,
+                Err(e) => {
+                    why.get_or_insert(e);
+                    continue 'ways;
                 }
-            }
+            };
             // From home straight to the first lifted pose, or first to that pose with its
             // distal joints (from the second, or the third, on) still at home (the finger
             // turns at its base before it curls: a thumb swinging home past a fingertip), or
@@ -121,6 +124,33 @@ impl SpatialScenario<'_> {
         Err(why.unwrap_or_default())
     }
 
+    /// Finger `f`'s poses with its fingertip lifted `heights` off its contact `t` along the
+    /// normal (the object at `theta`), or why it cannot lift so (`what`: its approach or its
+    /// retreat).
+    fn lifted(
+        &self,
+        f: &Finger,
+        t: &Touch,
+        theta: Real,
+        heights: &[Real],
+        what: &str,
+    ) -> Result<Vec<Vec<Real>>, String> {
+        let n_w = self.rotation(theta) * t.normal;
+        let contact = self.to_world(theta, &t.point);
+        heights
+            .iter()
+            .map(|h| {
+                f.ik_position_centred(&(contact + n_w * (f.tip_radius + h)), &t.q)
+                    .map_err(|e| {
+                        format!(
+                            "on its {what} its fingertip cannot lift {:.0} mm off the contact: {e}",
+                            h * 1e3
+                        )
+                    })
+            })
+            .collect()
+    }
+
     /// Whether finger `f` moving straight in joint space from `from` to `to` (checked at
     /// [`crate::route::SAMPLES`] poses, its fingertip also every [`ROUTE_SPACING`]) keeps its fingertip centre at least `floor` from the
     /// object, its link capsules off it, and off the fingers of `others` (`t`: the finger's
@@ -143,57 +173,71 @@ impl SpatialScenario<'_> {
         // spacing times the path's curvature. The distance from the object changes by at most
         // the distance moved, so a pose whose fingertip is nearer the last one measured than
         // that one's distance less the floor is clear without measuring it.
+        // A pose whose fingertip cannot have moved that far from the last measured (by
+        // [`Finger::tip_travel_bound`], kept a little over) is passed without its kinematics:
+        // the same poses are measured as if each were computed.
         let travel = (f.tip_centre(to) - f.tip_centre(from)).norm();
         let fine = crate::route::SAMPLES.max((travel / ROUTE_SPACING).ceil() as usize + 1);
-        let mut measured: Option<(Vec3, Real)> = None;
+        let per_sample = f.tip_travel_bound(from, to) * (1.0 + 1e-9) / (fine - 1) as Real + 1e-15;
+        let mut measured: Option<(usize, Vec3, Real)> = None;
         for i in 0..fine {
+            if measured.is_some_and(|(k, _, d)| (i - k) as Real * per_sample < d - floor) {
+                continue;
+            }
             let tip = self.to_body(theta, &f.tip_centre(&at(i as Real / (fine - 1) as Real)));
-            if measured.is_some_and(|(p, d)| (tip - p).norm() < d - floor) {
+            if measured.is_some_and(|(_, p, d)| (tip - p).norm() < d - floor) {
                 continue;
             }
             let d = self.surface.closest(&tip).distance;
             if d < floor {
                 return Err("its fingertip would hit the object".into());
             }
-            measured = Some((tip, d));
+            measured = Some((i, tip, d));
         }
         // The links and the other fingers at the route's samples; a link whose ends both
         // moved less than its last measured clearance beyond the capsule's radius is clear
         // (every point of it moved less).
+        // The other fingers hold still: their capsules are made once, and the check of the
+        // free fingers at home once it is needed.
         let samples = crate::route::SAMPLES;
+        let bodies = self.bodies_without(t.finger, others);
+        let mut home = None;
+        let mut trial = others.to_vec();
+        trial.push(t.clone());
         let mut links: Vec<Option<(Vec3, Vec3, Real)>> = Vec::new();
         for i in 0..samples {
             let q = at(i as Real / (samples - 1) as Real);
+            // Its links (each capsule but the last, the fingertip), counted from 1.
+            let caps = f.capsules(&q, self.spatial.link_radius);
             let mut hit: Option<(Real, usize)> = None;
-            f.link_segments(&q, |link, a, b| {
-                if hit.is_some() {
-                    return;
-                }
-                let (a, b) = (self.to_body(theta, &a), self.to_body(theta, &b));
+            for (k, c) in caps[..caps.len() - 1].iter().enumerate() {
+                let link = k + 1;
+                let (a, b) = (self.to_body(theta, &c.from), self.to_body(theta, &c.to));
                 if links.len() <= link {
                     links.resize(link + 1, None);
                 }
                 if let Some((a0, b0, d0)) = links[link] {
                     let moved = (a - a0).norm().max((b - b0).norm());
                     if moved < d0 - self.spatial.link_radius {
-                        return;
+                        continue;
                     }
                 }
                 let d = segment_surface_distance(self.surface, &a, &b);
+                links[link] = Some((a, b, d));
                 if d < self.spatial.link_radius {
                     hit = Some((d, link));
+                    break;
                 }
-                links[link] = Some((a, b, d));
-            });
+            }
             if let Some((clear, link)) = hit {
                 return Err(format!(
                     "its link {link} would come {:.2} mm from the object",
                     clear * 1e3
                 ));
             }
-            let mut trial = others.to_vec();
-            trial.push(Touch { q, ..t.clone() });
-            if let Some((why, _)) = self.clash(&trial, theta) {
+            if let Some((why, _)) =
+                self.clash_moving(&bodies, (t.finger, &caps), &trial, theta, &mut home)
+            {
                 return Err(why);
             }
         }
@@ -335,6 +379,8 @@ impl SpatialScenario<'_> {
         let mut rejected = Vec::new();
         let mut chosen = None;
         let mut tried = 0;
+        // The released finger retreats from the same contact whichever finger takes over.
+        let mut retreat_lifted = Lifted::default();
         'tiers: for tier in [&ahead, &behind] {
             let (ranked, limit) = placements(tier, progress);
             tried += ranked.len();
@@ -342,7 +388,15 @@ impl SpatialScenario<'_> {
                 progress(theta);
                 let room = room.unwrap_or_else(|| self.room(&t, theta, limit));
                 let ahead = self.ahead(&here, &t.point);
-                match self.try_switch(touches, k, theta, t, floor, &mut rejected)? {
+                match self.try_switch(
+                    touches,
+                    k,
+                    theta,
+                    t,
+                    floor,
+                    &mut rejected,
+                    &mut retreat_lifted,
+                )? {
                     Attempt::Chosen(c) => {
                         chosen = Some((room, ahead, *c));
                         break 'tiers;
@@ -403,6 +457,7 @@ impl SpatialScenario<'_> {
         t: Touch,
         floor: Real,
         rejected: &mut Vec<String>,
+        retreat_lifted: &mut Lifted,
     ) -> Result<Attempt, PlanError> {
         let mut reject = |why: String| {
             rejected.push(format!(
@@ -422,9 +477,9 @@ impl SpatialScenario<'_> {
         detach_set.push(t.clone());
         let gone = detach_set.remove(k);
         let routes = self
-            .route(&t, touches, theta, "approach")
+            .route(&t, touches, theta, "approach", &mut Lifted::default())
             .and_then(|approach| {
-                self.route(&gone, &detach_set, theta, "retreat")
+                self.route(&gone, &detach_set, theta, "retreat", retreat_lifted)
                     .map(|retreat| (approach, retreat))
             });
         let (approach, retreat) = match routes {
