@@ -36,6 +36,7 @@ use clarabel::solver::{
 use icrflow_grasp::hull::Hull;
 use icrflow_grasp::math::Real;
 use icrflow_grasp::quality::{GraspError, GraspProblem};
+use rayon::prelude::*;
 
 use crate::planner::QUALITY_SLACK;
 
@@ -75,12 +76,21 @@ pub fn regions(
     let n = problem.candidates().points.len();
     let occupied = |q: usize| contacts.iter().enumerate().any(|(i, &c)| i != k && c == q);
     let mut out = Regions::default();
-    // Exact, by brute force.
-    let mut trial = contacts.to_vec();
-    for q in (0..n).filter(|&q| !occupied(q)) {
-        trial[k] = q;
-        let e = problem.evaluate(&trial)?;
-        if e.force_closure() && e.quality >= alpha * (1.0 - QUALITY_SLACK) {
+    // Exact, by brute force: every candidate's grasp on every core (rayon), in order.
+    let keeps: Vec<Result<bool, GraspError>> = (0..n)
+        .into_par_iter()
+        .filter(|&q| !occupied(q))
+        .map_init(
+            || contacts.to_vec(),
+            |trial, q| {
+                trial[k] = q;
+                let e = problem.evaluate(trial)?;
+                Ok(e.force_closure() && e.quality >= alpha * (1.0 - QUALITY_SLACK))
+            },
+        )
+        .collect();
+    for (q, keep) in (0..n).filter(|&q| !occupied(q)).zip(keeps) {
+        if keep? {
             out.exact.push(q);
         }
     }

@@ -57,11 +57,12 @@ impl SpatialScenario<'_> {
         touching(&parts, gap).or_else(|| self.home_in_object(touches, theta))
     }
 
-    /// The hand's fingers as capsules with finger `moving` left out (`None` in its place), the
-    /// others at their poses in `touches` or at home: what [`Self::clash_moving`] checks a
-    /// finger moving among them against.
+    /// The hand's fingers as capsules with finger `moving` left out, the others at their poses
+    /// in `touches` or at home: what [`Self::clash_moving`] checks a finger moving among them
+    /// against.
     pub(super) fn bodies_without(&self, moving: u32, touches: &[Touch]) -> Bodies {
-        self.hand
+        let fingers: Vec<(u32, Option<Vec<Capsule>>)> = self
+            .hand
             .fingers
             .iter()
             .map(|f| {
@@ -74,13 +75,29 @@ impl SpatialScenario<'_> {
                 });
                 (f.id, caps)
             })
-            .collect()
+            .collect();
+        let still: Vec<(u32, &[Capsule])> = fingers
+            .iter()
+            .filter_map(|(id, c)| c.as_deref().map(|c| (*id, c)))
+            .collect();
+        let still_touch = touching(&still, FINGER_GAP).is_some();
+        let spheres = fingers
+            .iter()
+            .map(|(_, c)| c.as_deref().map(bounding_sphere))
+            .collect();
+        Bodies {
+            fingers,
+            still_touch,
+            spheres,
+        }
     }
 
     /// [`Self::clash`] of `touches` and finger `moving` at its capsules `at`, the others'
     /// capsules `bodies` ([`Self::bodies_without`] of `touches`, made once for a move); the
     /// check of the free fingers at home, the same at every pose of the move, is kept in
-    /// `home` once made.
+    /// `home` once made. The same answer as [`Self::clash`]'s: where the others hold apart,
+    /// only the pairs with the moving finger are measured, in the same order, and a pair
+    /// whose bounding spheres keep the gap is passed without measuring it.
     pub(super) fn clash_moving(
         &self,
         bodies: &Bodies,
@@ -90,10 +107,36 @@ impl SpatialScenario<'_> {
         home: &mut Option<Option<(String, [u32; 2])>>,
     ) -> Option<(String, [u32; 2])> {
         let parts: Vec<(u32, &[Capsule])> = bodies
+            .fingers
             .iter()
             .map(|(id, caps)| (*id, caps.as_deref().unwrap_or(moving.1)))
             .collect();
-        touching(&parts, FINGER_GAP).or_else(|| {
+        let pairs = if bodies.still_touch {
+            touching(&parts, FINGER_GAP)
+        } else {
+            let sphere = bounding_sphere(moving.1);
+            let apart = |other: Option<(Vec3, Real)>| {
+                other.is_some_and(|(c, r)| {
+                    (c - sphere.0).norm() - r - sphere.1 > FINGER_GAP * (1.0 + 1e-9) + 1e-12
+                })
+            };
+            let m = bodies
+                .fingers
+                .iter()
+                .position(|(_, c)| c.is_none())
+                .unwrap_or(parts.len());
+            (0..parts.len())
+                .filter(|&i| i != m && !apart(bodies.spheres[i]))
+                .find_map(|i| {
+                    let pair = if i < m {
+                        [parts[i], parts[m]]
+                    } else {
+                        [parts[m], parts[i]]
+                    };
+                    touching(&pair, FINGER_GAP)
+                })
+        };
+        pairs.or_else(|| {
             home.get_or_insert_with(|| self.home_in_object(touches, theta))
                 .clone()
         })
@@ -199,8 +242,27 @@ impl SpatialScenario<'_> {
     }
 }
 
-/// Every finger of the hand by id, as capsules (`None`: the finger that moves).
-pub(super) type Bodies = Vec<(u32, Option<Vec<Capsule>>)>;
+/// The fingers a finger moves among ([`SpatialScenario::bodies_without`]).
+pub(super) struct Bodies {
+    /// Every finger of the hand by id, as capsules (`None`: the finger that moves).
+    fingers: Vec<(u32, Option<Vec<Capsule>>)>,
+    /// Whether two of the others touch (then every pair is measured, as [`touching`] does).
+    still_touch: bool,
+    /// Each other finger's bounding sphere (centre, radius), in the order of `fingers`.
+    spheres: Vec<Option<(Vec3, Real)>>,
+}
+
+/// A sphere holding every capsule of `caps` (their ends' centroid, radius to the farthest end
+/// plus that capsule's radius).
+fn bounding_sphere(caps: &[Capsule]) -> (Vec3, Real) {
+    let n = (2 * caps.len()).max(1) as Real;
+    let centre = caps.iter().map(|c| c.from + c.to).sum::<Vec3>() / n;
+    let radius = caps
+        .iter()
+        .map(|c| (c.from - centre).norm().max((c.to - centre).norm()) + c.radius)
+        .fold(0.0, Real::max);
+    (centre, radius)
+}
 
 /// The first two fingers of `parts` (each finger's capsules, in the hand's order) nearer than
 /// their radii and `gap`, said.

@@ -3,8 +3,10 @@
 //! of the chosen one.
 
 use std::f64::consts::PI;
+use std::sync::OnceLock;
 
 use icrflow_grasp::math::{Real, Vec3};
+use rayon::prelude::*;
 
 use super::reach::REACH_MAP_GAP;
 use super::{LIFTS, ReachMap, Roll, STEERS, SpatialScenario, Touch, segment_surface_distance};
@@ -12,8 +14,8 @@ use crate::hand::Finger;
 use crate::planner::{NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
 
 /// Per way of [`LIFTS`], a finger's lifted poses off its contact, or why it cannot lift so;
-/// `None` until needed.
-type Lifted = [Option<Result<Vec<Vec<Real>>, String>>; LIFTS.len()];
+/// found once, when first needed (by any thread).
+type Lifted = [OnceLock<Result<Vec<Vec<Real>>, String>>; LIFTS.len()];
 
 /// A switch that passed its checks ([`SpatialScenario::try_switch`]).
 struct Chosen {
@@ -44,6 +46,12 @@ const ROUTE_SPACING: Real = 0.1e-3;
 /// simulated.
 const ROOM_OPTIONS: usize = 12;
 
+/// The most placements a switch search checks at once (on every core).
+const MAX_BATCH: usize = 32;
+
+/// Placements tried on every core between two calls of a switch search's progress.
+const PLACE_CHUNK: usize = 64;
+
 /// Most rolling steps simulated for a rendezvous option's rolling room.
 const ROOM_LIMIT: usize = 36;
 
@@ -67,13 +75,13 @@ impl SpatialScenario<'_> {
         others: &[Touch],
         theta: Real,
         what: &str,
-        lifted: &mut Lifted,
+        lifted: &Lifted,
     ) -> Result<Vec<Vec<Real>>, String> {
         let f = self.finger(t.finger);
         let mut why: Option<String> = None;
         'ways: for (w, heights) in LIFTS.iter().enumerate() {
             let vias = match lifted[w]
-                .get_or_insert_with(|| self.lifted(f, t, theta, heights, what))
+                .get_or_init(|| self.lifted(f, t, theta, heights, what))
                 .clone()
             {
                 Ok(vias) => vias,
@@ -322,35 +330,43 @@ impl SpatialScenario<'_> {
             .iter()
             .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
         // Every reachable placement of a tier: (limit margin, touch).
+        // Finger `f` placed at candidate `c`, if it reaches it clear of the others: its limit
+        // margin and touch.
+        let place_at = |f: &Finger, c: usize| -> Option<(Real, Touch)> {
+            // Far from every sampled pose of the finger: out of its reach (or nearly), not
+            // worth an inverse kinematics; else the nearest sample seeds it.
+            let map = maps.iter().find(|m| m.finger == f.id);
+            let p = self.surface.closest(&cands.points[c]);
+            let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
+            let seed = match map.map(|m| m.nearest(&tip)) {
+                Some(Some((d, _))) if d > REACH_MAP_GAP => return None,
+                Some(Some((_, q))) => q,
+                _ => &f.home,
+            };
+            let t = self
+                .place(f, &cands.points[c], theta, seed, false, false)
+                .ok()
+                .filter(|t| t.candidate == c)?;
+            let mut trial = touches.to_vec();
+            trial.push(t.clone());
+            if self.clash(&trial, theta).is_some() {
+                return None;
+            }
+            Some((f.limit_margin(&t.q), t))
+        };
         let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
+            // Every free finger at every candidate of the tier, on every core (rayon), a
+            // chunk at a time with the progress said between, kept in order.
+            let pairs: Vec<(&Finger, usize)> = free
+                .iter()
+                .flat_map(|f| tier.iter().map(move |&c| (*f, c)))
+                .collect();
             let mut options: Vec<(Real, Touch)> = Vec::new();
-            for f in &free {
-                let map = maps.iter().find(|m| m.finger == f.id);
-                for &c in tier {
-                    progress(theta);
-                    // Far from every sampled pose of the finger: out of its reach (or
-                    // nearly), not worth an inverse kinematics; else the nearest sample seeds
-                    // it.
-                    let p = self.surface.closest(&cands.points[c]);
-                    let tip = self.to_world(theta, &(p.point + p.normal * f.tip_radius));
-                    let seed = match map.map(|m| m.nearest(&tip)) {
-                        Some(Some((d, _))) if d > REACH_MAP_GAP => continue,
-                        Some(Some((_, q))) => q,
-                        _ => &f.home,
-                    };
-                    let Ok(t) = self.place(f, &cands.points[c], theta, seed, false, false) else {
-                        continue;
-                    };
-                    if t.candidate != c {
-                        continue;
-                    }
-                    let mut trial = touches.to_vec();
-                    trial.push(t.clone());
-                    if self.clash(&trial, theta).is_some() {
-                        continue;
-                    }
-                    options.push((f.limit_margin(&t.q), t));
-                }
+            for chunk in pairs.chunks(PLACE_CHUNK) {
+                progress(theta);
+                let placed: Vec<Option<(Real, Touch)>> =
+                    chunk.par_iter().map(|&(f, c)| place_at(f, c)).collect();
+                options.extend(placed.into_iter().flatten());
             }
             // The best centred joints first; of the first ROOM_OPTIONS, the most rolling
             // room first; then the rest (their room measured if one is chosen).
@@ -363,8 +379,9 @@ impl SpatialScenario<'_> {
                 .ceil()
                 .clamp(1.0, ROOM_LIMIT as Real) as usize;
             let rest = options.split_off(options.len().min(ROOM_OPTIONS));
+            progress(theta);
             let mut ranked: Vec<(Option<usize>, Touch)> = options
-                .into_iter()
+                .into_par_iter()
                 .map(|(_, t)| (Some(self.room(&t, theta, limit)), t))
                 .collect();
             ranked.sort_by(|x, y| {
@@ -380,30 +397,49 @@ impl SpatialScenario<'_> {
         let mut chosen = None;
         let mut tried = 0;
         // The released finger retreats from the same contact whichever finger takes over.
-        let mut retreat_lifted = Lifted::default();
+        let retreat_lifted = Lifted::default();
         'tiers: for tier in [&ahead, &behind] {
             let (ranked, limit) = placements(tier, progress);
             tried += ranked.len();
-            for (room, t) in ranked {
+            // The placements in their order, a batch at a time on every core (rayon), the
+            // batch growing while none passes: the first that passes is chosen, and the
+            // rejections before it kept, as one at a time would.
+            let mut batch = rayon::current_num_threads().max(1);
+            let mut rest = ranked.as_slice();
+            while !rest.is_empty() {
+                let (now, later) = rest.split_at(batch.min(rest.len()));
+                rest = later;
                 progress(theta);
-                let room = room.unwrap_or_else(|| self.room(&t, theta, limit));
-                let ahead = self.ahead(&here, &t.point);
-                match self.try_switch(
-                    touches,
-                    k,
-                    theta,
-                    t,
-                    floor,
-                    &mut rejected,
-                    &mut retreat_lifted,
-                )? {
-                    Attempt::Chosen(c) => {
-                        chosen = Some((room, ahead, *c));
-                        break 'tiers;
+                let results: Vec<(Vec<String>, Result<Attempt, PlanError>)> = now
+                    .par_iter()
+                    .map(|(_, t)| {
+                        let mut why = Vec::new();
+                        let r = self.try_switch(
+                            touches,
+                            k,
+                            theta,
+                            t.clone(),
+                            floor,
+                            &mut why,
+                            &retreat_lifted,
+                        );
+                        (why, r)
+                    })
+                    .collect();
+                for ((room, t), (why, r)) in now.iter().zip(results) {
+                    rejected.extend(why);
+                    match r? {
+                        Attempt::Chosen(c) => {
+                            let room = room.unwrap_or_else(|| self.room(t, theta, limit));
+                            let ahead = self.ahead(&here, &t.point);
+                            chosen = Some((room, ahead, *c));
+                            break 'tiers;
+                        }
+                        Attempt::Rejected => {}
+                        Attempt::Defect(why) => return Ok(Err(NoSwitch::defect(why))),
                     }
-                    Attempt::Rejected => {}
-                    Attempt::Defect(why) => return Ok(Err(NoSwitch::defect(why))),
                 }
+                batch = (batch * 2).min(MAX_BATCH);
             }
         }
         let Some((
@@ -457,7 +493,7 @@ impl SpatialScenario<'_> {
         t: Touch,
         floor: Real,
         rejected: &mut Vec<String>,
-        retreat_lifted: &mut Lifted,
+        retreat_lifted: &Lifted,
     ) -> Result<Attempt, PlanError> {
         let mut reject = |why: String| {
             rejected.push(format!(
