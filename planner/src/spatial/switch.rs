@@ -485,6 +485,7 @@ impl SpatialScenario<'_> {
     /// `theta`, checked: its squeeze reserve, its approach and the released finger's retreat,
     /// the attach and detach grasps' quality (against `floor`: below is a defect, the region
     /// being exact), and one rolling step after it. Why not goes to `rejected`.
+    #[allow(clippy::too_many_arguments)]
     fn try_switch(
         &self,
         touches: &[Touch],
@@ -513,7 +514,7 @@ impl SpatialScenario<'_> {
         detach_set.push(t.clone());
         let gone = detach_set.remove(k);
         let routes = self
-            .route(&t, touches, theta, "approach", &mut Lifted::default())
+            .route(&t, touches, theta, "approach", &Lifted::default())
             .and_then(|approach| {
                 self.route(&gone, &detach_set, theta, "retreat", retreat_lifted)
                     .map(|retreat| (approach, retreat))
