@@ -155,6 +155,11 @@ pub enum Command {
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
+        /// Also print where the planning's time went, per phase of the spatial planner
+        /// (rolling steps, switch searches and their parts: how many, and their time summed
+        /// over the threads that ran them; `phases` in the JSON).
+        #[arg(long, short)]
+        verbose: bool,
         /// Record the plan to this Rerun file.
         #[arg(long, conflicts_with_all = ["spawn_viewer", "connect_viewer"])]
         rrd: Option<PathBuf>,

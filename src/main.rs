@@ -34,6 +34,7 @@ fn main() -> ExitCode {
             config,
             out,
             json,
+            verbose,
             rrd,
             spawn_viewer,
             connect_viewer,
@@ -41,7 +42,7 @@ fn main() -> ExitCode {
         } => plan::run(
             &config,
             out,
-            json,
+            (json, verbose),
             &run::Viewer {
                 rrd,
                 spawn: spawn_viewer,

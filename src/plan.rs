@@ -1,4 +1,4 @@
-//! `icrflow plan CONFIG [--out DIR] [--json]`: the whole scenario offline.
+//! `icrflow plan CONFIG [--out DIR] [--json] [--verbose]`: the whole scenario offline.
 
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write};
@@ -10,6 +10,7 @@ use anyhow::{Context, Result, bail};
 use icrflow_grasp::math::Real;
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::Plan;
+use icrflow_plan::spatial::times::{PhaseTime, PhaseTimes};
 use serde::Serialize;
 
 use icrflow_scenario::{Config, Recording, Setup};
@@ -48,7 +49,7 @@ pub fn section_note(config: &Config) -> &'static [&'static str] {
 pub fn run(
     path: &Path,
     out: Option<PathBuf>,
-    json: bool,
+    (json, verbose): (bool, bool),
     viewer: &Viewer,
     progress_after: std::time::Duration,
 ) -> Result<u8> {
@@ -94,12 +95,17 @@ pub fn run(
     let mut shown = Planning::new(config.plan.goal, progress_after);
     let started = Instant::now();
     let planned = match &spatial {
-        Some(s) => s.plan(&mut |theta| shown.at(theta)),
-        None => setup.scenario(&config).plan(&mut |theta| shown.at(theta)),
+        Some(s) => s
+            .plan_timed(&mut |theta| shown.at(theta))
+            .map(|(p, t)| (p, Some(t))),
+        None => setup
+            .scenario(&config)
+            .plan(&mut |theta| shown.at(theta))
+            .map(|p| (p, None)),
     };
     let elapsed = started.elapsed();
     shown.finish();
-    let plan = match planned {
+    let (plan, times) = match planned {
         Ok(p) => p,
         Err(e) if crate::exit::is_grasp_answer(&e) => {
             // The words of the Python binding's error (`cannot plan: ...`); nothing written.
@@ -130,7 +136,15 @@ pub fn run(
     let s = &plan.summary;
     if json {
         let mut o = std::io::stdout().lock();
-        serde_json::to_writer_pretty(&mut o, s).context("writing JSON")?;
+        if verbose {
+            let mut v = serde_json::to_value(s).context("writing JSON")?;
+            if let Some(m) = v.as_object_mut() {
+                m.insert("phases".into(), serde_json::to_value(times)?);
+            }
+            serde_json::to_writer_pretty(&mut o, &v).context("writing JSON")?;
+        } else {
+            serde_json::to_writer_pretty(&mut o, s).context("writing JSON")?;
+        }
         writeln!(o)?;
     } else {
         print_text(
@@ -145,12 +159,62 @@ pub fn run(
                 .map(|r| (r, recorded.as_deref().unwrap_or_default())),
             spatial.is_some(),
         )?;
+        if verbose {
+            let mut text = String::new();
+            print_phases(&mut text, times.as_ref(), elapsed);
+            std::io::stdout().lock().write_all(text.as_bytes())?;
+        }
     }
     Ok(if s.completed {
         crate::exit::DONE
     } else {
         crate::exit::INCOMPLETE
     })
+}
+
+/// `plan --verbose`'s lines: where a spatial plan's time went, per phase (`times`; `None`: a
+/// planar plan, not timed per phase), the planning having taken `elapsed`.
+fn print_phases(o: &mut String, times: Option<&PhaseTimes>, elapsed: std::time::Duration) {
+    let Some(t) = times else {
+        let _ = writeln!(
+            o,
+            "phases     not timed: the planar planner's phases are not counted (the spatial planner's are)"
+        );
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "phases     where the time went (count, time summed over the threads; {:.2} s of wall time):",
+        elapsed.as_secs_f64()
+    );
+    let rows: [(&str, &PhaseTime, &str); 6] = [
+        ("rolling steps", &t.rolling, ""),
+        (
+            "switch searches",
+            &t.switches,
+            " (each on the planning thread)",
+        ),
+        ("  exact regions", &t.regions, ""),
+        (
+            "  placements",
+            &t.placements,
+            " (a centred inverse kinematics each)",
+        ),
+        ("  rolling rooms", &t.rooms, ""),
+        ("  checks", &t.checks, ""),
+    ];
+    for (name, p, note) in rows {
+        let _ = writeln!(
+            o,
+            "           {name:<17} {:>7} x {:>8.3} s{note}",
+            p.count, p.seconds
+        );
+    }
+    let _ = writeln!(
+        o,
+        "             of which routes {:>5} x {:>8.3} s (approach and retreat)",
+        t.routes.count, t.routes.seconds
+    );
 }
 
 /// The progress of planning on stderr, once it has taken `--progress-after`: a bar on a

@@ -102,6 +102,87 @@ fn spatial_ellipsoid_mesh_plan_keeps_the_margin() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `plan --verbose` says where a spatial plan's time went, per phase of the planning loop (in
+/// the text and as `phases` in the JSON), counts that agree with the plan; and the plan made on
+/// one thread (`RAYON_NUM_THREADS=1`) is byte for byte the one made on every core.
+#[test]
+fn a_spatial_plan_says_where_its_time_went_and_is_the_same_on_one_thread() {
+    let dir = scratch("plan-phases");
+    let config = "config/allegro_sphere_mujoco.toml";
+    let (a, b) = (dir.join("cores"), dir.join("one"));
+    let o = icrflow(&[
+        "plan",
+        config,
+        "--json",
+        "--verbose",
+        "--out",
+        a.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let p = &s["phases"];
+    let count = |k: &str| p[k]["count"].as_u64().unwrap();
+    let seconds = |k: &str| p[k]["seconds"].as_f64().unwrap();
+    let switches = s["switches"].as_u64().unwrap();
+    assert!(switches >= 3, "{s}");
+    // Every rolling step planned was one rolled (and a roll a switch then freed is counted
+    // too); every switch made came from a search, each search from one region, and every
+    // switch from a placement checked.
+    let rolled = s["rolling_steps"].as_u64().unwrap();
+    assert!(count("rolling") >= rolled && rolled > 0, "{s}");
+    assert!(count("switches") >= switches, "{s}");
+    assert_eq!(count("regions"), count("switches"), "{s}");
+    assert!(
+        count("checks") >= switches && count("routes") <= count("checks"),
+        "{s}"
+    );
+    assert!(count("placements") >= count("checks"), "{s}");
+    for k in ["rolling", "switches", "regions", "placements", "checks"] {
+        assert!(seconds(k) > 0.0, "{k}: {s}");
+    }
+    // The text says the same phases.
+    let o = icrflow(&["plan", config, "--verbose", "--out", a.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    for line in [
+        "phases     where the time went",
+        "rolling steps",
+        "switch searches",
+        "exact regions",
+        "placements",
+        "of which routes",
+    ] {
+        assert!(text.contains(line), "{line:?} not said: {text}");
+    }
+    let one = std::process::Command::new(env!("CARGO_BIN_EXE_icrflow"))
+        .args(["plan", config, "--out", b.to_str().unwrap()])
+        .env("RAYON_NUM_THREADS", "1")
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(one.status.success());
+    for f in ["trajectory.json", "trajectory.csv"] {
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs between every core and one"
+        );
+    }
+    // A planar plan is not timed per phase, and says so.
+    let o = icrflow(&[
+        "plan",
+        "config/paper_sphere.toml",
+        "--verbose",
+        "--out",
+        dir.join("paper").to_str().unwrap(),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("phases     not timed: the planar planner"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Every contact pose of a plan leaves its finger room to press `plan.squeeze_reserve_mm` (2
 /// mm by default) further along the contact normal with the same point of its fingertip: the
 /// ellipsoid's plan without the requirement has a finger that could press only hundredths of

@@ -61,6 +61,7 @@ mod scenario;
 mod step;
 pub mod surface;
 mod switch;
+pub mod times;
 
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::quality::GraspProblem;

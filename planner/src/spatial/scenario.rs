@@ -4,6 +4,7 @@
 use icrflow_grasp::math::{Real, Vec3};
 use icrflow_grasp::quality::GraspError;
 
+use super::times::{PhaseTimes, Timing};
 use super::{ReachMap, Roll, SpatialScenario, Touch};
 use crate::planner::{
     FingerState, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, Step, Stepper, Switched, drive,
@@ -14,6 +15,7 @@ use crate::planner::{
 struct Mapped<'s, 'a> {
     scenario: &'s SpatialScenario<'a>,
     maps: Vec<ReachMap>,
+    timing: Timing,
 }
 
 impl Stepper for Mapped<'_, '_> {
@@ -28,7 +30,9 @@ impl Stepper for Mapped<'_, '_> {
     }
 
     fn roll(&self, touches: &[Touch], theta: Real, step: Real) -> Result<Roll, PlanError> {
-        self.scenario.roll(touches, theta, step)
+        self.timing
+            .rolling
+            .time(|| self.scenario.roll(touches, theta, step))
     }
 
     fn switch(
@@ -39,8 +43,10 @@ impl Stepper for Mapped<'_, '_> {
         why: &str,
         progress: &mut dyn FnMut(Real),
     ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
-        self.scenario
-            .switch(touches, k, theta, why, &self.maps, progress)
+        self.timing.switches.time(|| {
+            self.scenario
+                .switch(touches, k, theta, why, &self.maps, progress, &self.timing)
+        })
     }
 
     fn record(
@@ -255,10 +261,19 @@ impl SpatialScenario<'_> {
     /// Plans the scenario. `progress` is called after every step with the rotation done
     /// (rad).
     pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+        self.plan_timed(progress).map(|(plan, _)| plan)
+    }
+
+    /// [`Self::plan`], and where its time went, per phase ([`PhaseTimes`]).
+    pub fn plan_timed(
+        &self,
+        progress: &mut dyn FnMut(Real),
+    ) -> Result<(Plan, PhaseTimes), PlanError> {
         let started = self.start()?;
         let mapped = Mapped {
             scenario: self,
             maps: self.hand.fingers.iter().map(ReachMap::new).collect(),
+            timing: Timing::default(),
         };
         let mut slip: Real = 0.0;
         let driven = drive(
@@ -284,6 +299,10 @@ impl SpatialScenario<'_> {
             self.spatial.axis.y,
             self.spatial.axis.z,
         ];
-        Ok(driven.into_plan(&self.settings, axis, slip, clearance.0, reserve))
+        let times = mapped.timing.read();
+        Ok((
+            driven.into_plan(&self.settings, axis, slip, clearance.0, reserve),
+            times,
+        ))
     }
 }
