@@ -58,15 +58,23 @@ impl SpatialScenario<'_> {
     }
 
     /// The hand's fingers as capsules with finger `moving` left out, the others at their poses
-    /// in `touches` or at home: what [`Self::clash_moving`] checks a finger moving among them
-    /// against.
-    pub(super) fn bodies_without(&self, moving: u32, touches: &[Touch]) -> Bodies {
+    /// in `touches` or at home (finger `ignore`, if any, nowhere: none of its capsules): what
+    /// [`Self::clash_moving`] checks a finger moving among them against.
+    pub(super) fn bodies_without(
+        &self,
+        moving: u32,
+        touches: &[Touch],
+        ignore: Option<u32>,
+    ) -> Bodies {
         let fingers: Vec<(u32, Option<Vec<Capsule>>)> = self
             .hand
             .fingers
             .iter()
             .map(|f| {
                 let caps = (f.id != moving).then(|| {
+                    if ignore == Some(f.id) {
+                        return Vec::new();
+                    }
                     let q = touches
                         .iter()
                         .find(|t| t.finger == f.id)
@@ -83,7 +91,7 @@ impl SpatialScenario<'_> {
         let still_touch = touching(&still, FINGER_GAP).is_some();
         let spheres = fingers
             .iter()
-            .map(|(_, c)| c.as_deref().map(bounding_sphere))
+            .map(|(_, c)| c.as_deref().filter(|c| !c.is_empty()).map(bounding_sphere))
             .collect();
         Bodies {
             fingers,

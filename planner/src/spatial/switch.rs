@@ -18,6 +18,16 @@ use crate::planner::{NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
 /// found once, when first needed (by any thread).
 type Lifted = [OnceLock<Result<Vec<Vec<Real>>, String>>; LIFTS.len()];
 
+/// The released finger's retreat, the same for every placement of a switch search: its lifted
+/// poses, and per free finger whether the retreat is clear of the object and of every finger
+/// but that one (found once, when first needed). Where it is not, no placement of that finger
+/// can make it clear: the finger only adds to what the retreat must keep clear of.
+#[derive(Default)]
+struct Retreat {
+    lifted: Lifted,
+    without: Vec<(u32, OnceLock<Result<(), String>>)>,
+}
+
 /// A switch that passed its checks ([`SpatialScenario::try_switch`]).
 struct Chosen {
     t: Touch,
@@ -77,6 +87,7 @@ impl SpatialScenario<'_> {
         theta: Real,
         what: &str,
         lifted: &Lifted,
+        ignore: Option<u32>,
     ) -> Result<Vec<Vec<Real>>, String> {
         let f = self.finger(t.finger);
         let mut why: Option<String> = None;
@@ -120,7 +131,9 @@ impl SpatialScenario<'_> {
                     } else {
                         f.tip_radius
                     };
-                    if let Err(e) = self.clear_move(f, pair[0], pair[1], floor, t, others, theta) {
+                    if let Err(e) =
+                        self.clear_move(f, pair[0], pair[1], floor, t, others, theta, ignore)
+                    {
                         why.get_or_insert(format!("on its {what} {e}"));
                         continue 'turns;
                     }
@@ -174,6 +187,7 @@ impl SpatialScenario<'_> {
         t: &Touch,
         others: &[Touch],
         theta: Real,
+        ignore: Option<u32>,
     ) -> Result<(), String> {
         let at =
             |s: Real| -> Vec<Real> { from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect() };
@@ -209,10 +223,15 @@ impl SpatialScenario<'_> {
         // The other fingers hold still: their capsules are made once, and the check of the
         // free fingers at home once it is needed.
         let samples = crate::route::SAMPLES;
-        let bodies = self.bodies_without(t.finger, others);
+        let bodies = self.bodies_without(t.finger, others, ignore);
         let mut home = None;
         let mut trial = others.to_vec();
         trial.push(t.clone());
+        // A finger left out is not at home either.
+        trial.extend(ignore.map(|finger| Touch {
+            finger,
+            ..t.clone()
+        }));
         let mut links: Vec<Option<(Vec3, Vec3, Real)>> = Vec::new();
         for i in 0..samples {
             let q = at(i as Real / (samples - 1) as Real);
@@ -403,7 +422,10 @@ impl SpatialScenario<'_> {
         let mut chosen = None;
         let mut tried = 0;
         // The released finger retreats from the same contact whichever finger takes over.
-        let retreat_lifted = Lifted::default();
+        let retreat = Retreat {
+            lifted: Lifted::default(),
+            without: free.iter().map(|f| (f.id, OnceLock::new())).collect(),
+        };
         'tiers: for tier in [&ahead, &behind] {
             let (ranked, limit) = placements(tier, progress);
             tried += ranked.len();
@@ -428,7 +450,7 @@ impl SpatialScenario<'_> {
                                 t.clone(),
                                 floor,
                                 &mut why,
-                                &retreat_lifted,
+                                &retreat,
                                 &timing.routes,
                             )
                         });
@@ -505,7 +527,7 @@ impl SpatialScenario<'_> {
         t: Touch,
         floor: Real,
         rejected: &mut Vec<String>,
-        retreat_lifted: &Lifted,
+        retreat: &Retreat,
         routes_timing: &Counter,
     ) -> Result<Attempt, PlanError> {
         let mut reject = |why: String| {
@@ -521,14 +543,36 @@ impl SpatialScenario<'_> {
         if let Some(why) = self.pose_check(f, &t.q, theta, &touch, true) {
             return reject(why);
         }
+        // The released finger's retreat clear of all but this finger, else none of its
+        // placements can serve (found once per finger of a search).
+        if let Some((_, clear)) = retreat.without.iter().find(|(id, _)| *id == t.finger) {
+            let without = clear.get_or_init(|| {
+                let mut others = touches.to_vec();
+                let gone = others.remove(k);
+                routes_timing.time(|| {
+                    self.route(
+                        &gone,
+                        &others,
+                        theta,
+                        "retreat",
+                        &retreat.lifted,
+                        Some(t.finger),
+                    )
+                    .map(|_| ())
+                })
+            });
+            if let Err(why) = without {
+                return reject(why.clone());
+            }
+        }
         // The approach from home and the released finger's retreat to it.
         let mut detach_set = touches.to_vec();
         detach_set.push(t.clone());
         let gone = detach_set.remove(k);
         let routes = routes_timing.time(|| {
-            self.route(&t, touches, theta, "approach", &Lifted::default())
+            self.route(&t, touches, theta, "approach", &Lifted::default(), None)
                 .and_then(|approach| {
-                    self.route(&gone, &detach_set, theta, "retreat", retreat_lifted)
+                    self.route(&gone, &detach_set, theta, "retreat", &retreat.lifted, None)
                         .map(|retreat| (approach, retreat))
                 })
         });
