@@ -549,17 +549,15 @@ impl SpatialScenario<'_> {
             let without = clear.get_or_init(|| {
                 let mut others = touches.to_vec();
                 let gone = others.remove(k);
-                routes_timing.time(|| {
-                    self.route(
-                        &gone,
-                        &others,
-                        theta,
-                        "retreat",
-                        &retreat.lifted,
-                        Some(t.finger),
-                    )
-                    .map(|_| ())
-                })
+                self.route(
+                    &gone,
+                    &others,
+                    theta,
+                    "retreat",
+                    &retreat.lifted,
+                    Some(t.finger),
+                )
+                .map(|_| ())
             });
             if let Err(why) = without {
                 return reject(why.clone());

@@ -58,7 +58,8 @@ pub struct Timing {
     pub rooms: Counter,
     /// Placements checked (routes, grasps, a rolling step after).
     pub checks: Counter,
-    /// Of those checks, the approach and retreat routes.
+    /// Of those checks, the approach and retreat routes (each check's once; not the retreat
+    /// checked once per finger of a search without that finger).
     pub routes: Counter,
 }
 
