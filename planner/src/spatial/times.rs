@@ -56,7 +56,9 @@ pub struct Timing {
     pub placements: Counter,
     /// Placements' rolling room simulated.
     pub rooms: Counter,
-    /// Placements checked (routes, grasps, a rolling step after).
+    /// Placements checked (routes, grasps, a rolling step after); on several threads, those
+    /// checked ahead in a batch past the one chosen count too (the count depends on the
+    /// threads, the plan does not).
     pub checks: Counter,
     /// Of those checks, the approach and retreat routes (each check's once; not the retreat
     /// checked once per finger of a search without that finger).
