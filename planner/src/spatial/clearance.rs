@@ -84,6 +84,10 @@ impl SpatialScenario<'_> {
                 (f.id, caps)
             })
             .collect();
+        let moving = fingers
+            .iter()
+            .position(|(_, c)| c.is_none())
+            .unwrap_or(fingers.len());
         let still: Vec<(u32, &[Capsule])> = fingers
             .iter()
             .filter_map(|(id, c)| c.as_deref().map(|c| (*id, c)))
@@ -95,12 +99,13 @@ impl SpatialScenario<'_> {
             .collect();
         Bodies {
             fingers,
+            moving,
             still_touch,
             spheres,
         }
     }
 
-    /// [`Self::clash`] of `touches` and finger `moving` at its capsules `at`, the others'
+    /// [`Self::clash`] of `touches` and finger `moving` (its id and capsules), the others'
     /// capsules `bodies` ([`Self::bodies_without`] of `touches`, made once for a move); the
     /// check of the free fingers at home, the same at every pose of the move, is kept in
     /// `home` once made. The same answer as [`Self::clash`]'s: where the others hold apart,
@@ -114,12 +119,14 @@ impl SpatialScenario<'_> {
         theta: Real,
         home: &mut Option<Option<(String, [u32; 2])>>,
     ) -> Option<(String, [u32; 2])> {
-        let parts: Vec<(u32, &[Capsule])> = bodies
-            .fingers
-            .iter()
-            .map(|(id, caps)| (*id, caps.as_deref().unwrap_or(moving.1)))
-            .collect();
+        // Finger `i` of the hand as it stands in this pose.
+        let part = |i: usize| -> (u32, &[Capsule]) {
+            let (id, caps) = &bodies.fingers[i];
+            (*id, caps.as_deref().unwrap_or(moving.1))
+        };
+        let n = bodies.fingers.len();
         let pairs = if bodies.still_touch {
+            let parts: Vec<(u32, &[Capsule])> = (0..n).map(part).collect();
             touching(&parts, FINGER_GAP)
         } else {
             let sphere = bounding_sphere(moving.1);
@@ -128,18 +135,14 @@ impl SpatialScenario<'_> {
                     (c - sphere.0).norm() - r - sphere.1 > FINGER_GAP * (1.0 + 1e-9) + 1e-12
                 })
             };
-            let m = bodies
-                .fingers
-                .iter()
-                .position(|(_, c)| c.is_none())
-                .unwrap_or(parts.len());
-            (0..parts.len())
+            let m = bodies.moving;
+            (0..n)
                 .filter(|&i| i != m && !apart(bodies.spheres[i]))
                 .find_map(|i| {
                     let pair = if i < m {
-                        [parts[i], parts[m]]
+                        [part(i), part(m)]
                     } else {
-                        [parts[m], parts[i]]
+                        [part(m), part(i)]
                     };
                     touching(&pair, FINGER_GAP)
                 })
@@ -254,6 +257,8 @@ impl SpatialScenario<'_> {
 pub(super) struct Bodies {
     /// Every finger of the hand by id, as capsules (`None`: the finger that moves).
     fingers: Vec<(u32, Option<Vec<Capsule>>)>,
+    /// The moving finger's place in `fingers`.
+    moving: usize,
     /// Whether two of the others touch (then every pair is measured, as [`touching`] does).
     still_touch: bool,
     /// Each other finger's bounding sphere (centre, radius), in the order of `fingers`.

@@ -22,7 +22,6 @@ type Lifted = [OnceLock<Result<Vec<Vec<Real>>, String>>; LIFTS.len()];
 /// poses, and per free finger whether the retreat is clear of the object and of every finger
 /// but that one (found once, when first needed). Where it is not, no placement of that finger
 /// can make it clear: the finger only adds to what the retreat must keep clear of.
-#[derive(Default)]
 struct Retreat {
     lifted: Lifted,
     without: Vec<(u32, OnceLock<Result<(), String>>)>,
@@ -305,8 +304,8 @@ impl SpatialScenario<'_> {
     }
 
     /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
-    /// the search goes on (per candidate placed, per placement tried: a search that takes a
-    /// second still reports).
+    /// the search goes on (per [`PLACE_CHUNK`] candidates placed, per batch of placements
+    /// checked: a search that takes a second still reports); `timing` counts its phases.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn switch(
         &self,
@@ -353,7 +352,6 @@ impl SpatialScenario<'_> {
         let (ahead, behind): (Vec<usize>, Vec<usize>) = chosen_from
             .iter()
             .partition(|&&c| is_ahead(self.ahead(&here, &cands.points[c])));
-        // Every reachable placement of a tier: (limit margin, touch).
         // Finger `f` placed at candidate `c`, if it reaches it clear of the others: its limit
         // margin and touch.
         let place_at = |f: &Finger, c: usize| -> Option<(Real, Touch)> {
@@ -379,6 +377,7 @@ impl SpatialScenario<'_> {
             }
             Some((f.limit_margin(&t.q), t))
         };
+        // Every reachable placement of a tier, ranked.
         let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
             // Every free finger at every candidate of the tier, on every core (rayon), a
             // chunk at a time with the progress said between, kept in order.
@@ -581,12 +580,41 @@ impl SpatialScenario<'_> {
         // Then the grasps and the rolling step after it. (Checked first, they cost the
         // Allegro sphere's plan more than they save: 1,737 of its 1,738 placements checked
         // went on to their routes.)
-        let (attach, detach, q_attach, q_detach) =
-            match self.switch_grasps(touches, k, theta, &t, floor)? {
-                Ok(g) => g,
-                Err(Verdict::Defect(why)) => return Ok(Attempt::Defect(why)),
-                Err(Verdict::Reject(why)) => return reject(why),
-            };
+        let mut attach = touches.to_vec();
+        attach.push(t.clone());
+        let mut detach = attach.clone();
+        detach.remove(k);
+        let (g_attach, g_detach) = (self.grid_quality(&attach)?, self.grid_quality(&detach)?);
+        if g_attach < floor || g_detach < floor {
+            return Ok(Attempt::Defect(format!(
+                "switch of finger {} to finger {} at {} fails verification: quality {g_attach:.6} attached, {g_detach:.6} detached at the candidates, alpha = {} (a defect: the region is exact)",
+                touches[k].finger,
+                t.finger,
+                self.describe(&t.point),
+                self.settings.alpha
+            )));
+        }
+        let (q_attach, q_detach) = (self.quality(&attach)?, self.quality(&detach)?);
+        if q_attach < floor || q_detach < floor {
+            return reject(format!(
+                "where the fingertips touch the grasp would keep alpha* {q_attach:.4} attached, {q_detach:.4} detached < alpha = {} (at the candidates {g_attach:.4}, {g_detach:.4})",
+                self.settings.alpha
+            ));
+        }
+        for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
+            if let Some((_, why)) = self.one_off(grasp)? {
+                return reject(format!("{name}: {why}"));
+            }
+        }
+        let step = self.settings.step.min(self.settings.goal - theta);
+        if step > 1e-12 {
+            let new = detach.len() - 1;
+            match self.roll(&detach, theta, step)? {
+                Roll::Blocked(j, why) if j == new => return reject(why),
+                Roll::Stuck(why) => return reject(why),
+                _ => {}
+            }
+        }
         Ok(Attempt::Chosen(Box::new(Chosen {
             t,
             attach,
@@ -597,67 +625,6 @@ impl SpatialScenario<'_> {
             retreat,
         })))
     }
-
-    /// The grasps of finger `t.finger` attaching at `t` in place of `touches[k]` with the object
-    /// at `theta` (attached, detached, and their alpha* where the fingertips touch), checked
-    /// against `floor` at the candidates (below: a defect, the region being exact) and where the
-    /// fingertips touch, with their neighbours, and one rolling step after it; or why not.
-    fn switch_grasps(
-        &self,
-        touches: &[Touch],
-        k: usize,
-        theta: Real,
-        t: &Touch,
-        floor: Real,
-    ) -> Result<Result<Grasps, Verdict>, PlanError> {
-        let mut attach = touches.to_vec();
-        attach.push(t.clone());
-        let mut detach = attach.clone();
-        detach.remove(k);
-        let (g_attach, g_detach) = (self.grid_quality(&attach)?, self.grid_quality(&detach)?);
-        if g_attach < floor || g_detach < floor {
-            return Ok(Err(Verdict::Defect(format!(
-                "switch of finger {} to finger {} at {} fails verification: quality {g_attach:.6} attached, {g_detach:.6} detached at the candidates, alpha = {} (a defect: the region is exact)",
-                touches[k].finger,
-                t.finger,
-                self.describe(&t.point),
-                self.settings.alpha
-            ))));
-        }
-        let (q_attach, q_detach) = (self.quality(&attach)?, self.quality(&detach)?);
-        if q_attach < floor || q_detach < floor {
-            return Ok(Err(Verdict::Reject(format!(
-                "where the fingertips touch the grasp would keep alpha* {q_attach:.4} attached, {q_detach:.4} detached < alpha = {} (at the candidates {g_attach:.4}, {g_detach:.4})",
-                self.settings.alpha
-            ))));
-        }
-        for (grasp, name) in [(&attach, "attached"), (&detach, "detached")] {
-            if let Some((_, why)) = self.one_off(grasp)? {
-                return Ok(Err(Verdict::Reject(format!("{name}: {why}"))));
-            }
-        }
-        let step = self.settings.step.min(self.settings.goal - theta);
-        if step > 1e-12 {
-            let new = detach.len() - 1;
-            match self.roll(&detach, theta, step)? {
-                Roll::Blocked(j, why) if j == new => return Ok(Err(Verdict::Reject(why))),
-                Roll::Stuck(why) => return Ok(Err(Verdict::Reject(why))),
-                _ => {}
-            }
-        }
-        Ok(Ok((attach, detach, q_attach, q_detach)))
-    }
-}
-
-/// A switch's grasps, attached and detached, and their alpha* where the fingertips touch.
-type Grasps = (Vec<Touch>, Vec<Touch>, Real, Real);
-
-/// Why a switch's grasps do not serve.
-enum Verdict {
-    /// The placement does not serve (said).
-    Reject(String),
-    /// A defect (said), which stops the plan.
-    Defect(String),
 }
 
 /// What the placements of a switch that failed ran into, for its message: each reason (the
