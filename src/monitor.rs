@@ -234,6 +234,7 @@ impl View {
         });
         out.push(match &self.command {
             Some(c) if c.mode == "hold" => format!("command   HOLD: {}", c.reason),
+            Some(c) if c.mode == "attach" => format!("command   ATTACH: {}", c.reason),
             Some(_) => "command   tracking".into(),
             None => "command   (none yet)".into(),
         });

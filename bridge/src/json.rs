@@ -181,9 +181,9 @@ pub struct HandCommandJson {
     /// The common fields.
     #[serde(flatten)]
     pub envelope: Envelope,
-    /// `track` or `hold`.
+    /// `track`, `hold`, or `attach` (below the margin, a finger attaching to the grasp held).
     pub mode: String,
-    /// Why the hand holds (empty when tracking).
+    /// Why the hand holds or attaches below the margin (empty when tracking).
     pub reason: String,
     /// Quality alpha* the command was computed with (0 when holding).
     pub quality: f64,
@@ -325,7 +325,12 @@ pub fn hand_command(rig: &str, c: &HandCommand) -> HandCommandJson {
     };
     HandCommandJson {
         envelope: Envelope::of("hand_command", rig, &c.header),
-        mode: if tracking { "track" } else { "hold" }.into(),
+        mode: match c.mode {
+            m if m == CommandMode::Track as u32 => "track",
+            m if m == CommandMode::Attach as u32 => "attach",
+            _ => "hold",
+        }
+        .into(),
         reason: read_text(&c.reason),
         quality: c.quality,
         latency_us,
@@ -415,6 +420,11 @@ mod tests {
         assert_eq!(back.fingers[1].finger, 4);
         assert_eq!(back.fingers[1].force, [0.5, -1.0, 0.0]);
         assert_eq!(envelope(&text).unwrap(), back.envelope);
+        // Each mode by its name; an unknown one is a hold, as the plants take it.
+        for (mode, name) in [(0, "track"), (1, "hold"), (2, "attach"), (7, "hold")] {
+            c.mode = mode;
+            assert_eq!(hand_command("lab", &c).mode, name, "{mode}");
+        }
     }
 
     #[test]

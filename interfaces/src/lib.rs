@@ -683,6 +683,20 @@ pub enum CommandMode {
     Track = 0,
     /// Hold the last safe grasp (see `reason`).
     Hold = 1,
+    /// Below the margin, hold the grasp's fingers where the last tracking command put them
+    /// and move the finger the plan step attaches onto the object (see `reason`): adding a
+    /// contact can only raise the grasp's quality (the command node's
+    /// `Gate::attach_below_margin`). A plant follows it as it follows `Track`.
+    Attach = 2,
+}
+
+impl CommandMode {
+    /// Whether a command of mode `mode` (as in [`HandCommand::mode`]) moves the hand to its
+    /// targets: tracking, or attaching below the margin; a hold (or an unknown mode) keeps
+    /// the hand where the last such command put it.
+    pub fn moves(mode: u32) -> bool {
+        mode == Self::Track as u32 || mode == Self::Attach as u32
+    }
 }
 
 /// A command to the hand.
@@ -707,7 +721,8 @@ pub struct HandCommand {
     /// Quality alpha* of the grasp (from the wrench space) the command was computed with; 0
     /// when holding.
     pub quality: f64,
-    /// Why the hand holds (UTF-8, zero-padded; empty when tracking).
+    /// Why the hand holds, or attaches below the margin (UTF-8, zero-padded; empty when
+    /// tracking).
     pub reason: [u8; TEXT_BYTES],
 }
 

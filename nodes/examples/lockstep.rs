@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, Result, bail};
 use clap::Parser;
-use icrflow_interfaces::{MAX_FINGERS, PlanPhase, PlantTruth};
+use icrflow_interfaces::{CommandMode, MAX_FINGERS, PlanPhase, PlantTruth, read_text};
 use icrflow_nodes::lockstep;
 use icrflow_nodes::lockstep::truth::{LOST_AFTER, TruthWatch};
 use icrflow_plan::rolling::tilt as tilt_of;
@@ -308,20 +308,26 @@ fn main() -> Result<()> {
                 c.y * 1e3,
                 c.z * 1e3,
                 tick.command
-                    .and_then(|(_, why)| why)
-                    .map(|w| format!("  HOLD {w}"))
+                    .and_then(|(c, why)| match why {
+                        Some(w) => Some(format!("  HOLD {w}")),
+                        None if c.mode == CommandMode::Attach as u32 => {
+                            Some(format!("  ATTACH {}", read_text(&c.reason)))
+                        }
+                        None => None,
+                    })
                     .unwrap_or_default()
             );
         }
     })?;
     eprintln!(
-        "ended after {:.2} s simulated ({:.1} s computed): done {}, true {:.2} deg, estimated {:.2} deg, {} holds, {} replans{}",
+        "ended after {:.2} s simulated ({:.1} s computed): done {}, true {:.2} deg, estimated {:.2} deg, {} holds, {} attach commands below the margin, {} replans{}",
         ended.time,
         started.elapsed().as_secs_f64(),
         ended.done,
         ended.rotation.to_degrees(),
         ended.estimated.to_degrees(),
         ended.holds,
+        ended.attaches_below_margin,
         ended.replans,
         ended
             .holding

@@ -48,7 +48,7 @@ use icrflow_plan::forces::{Balance, ForceContact, ForceError, ForceSolver, Load}
 use icrflow_scenario::{Config, Setup};
 
 use crate::Context;
-use crate::safety::{EstimateBounds, Gate, Hold};
+use crate::safety::{Attach, EstimateBounds, Gate, Hold};
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence, now};
 
@@ -110,6 +110,7 @@ impl<'a> Commander<'a> {
                 pressing: [u32::MAX; MAX_FINGERS],
                 forces: Vec::with_capacity(MAX_FINGERS),
                 last: None,
+                held: None,
                 centring: [0.0; 3],
             },
             watchdog_ns: (WATCHDOG_PERIODS * (1.0 / p.rate_hz) * 1e9) as u64,
@@ -170,25 +171,68 @@ impl<'a> Commander<'a> {
         if accepted {
             let mut header = Header::after(Kind::HandCommand, 0, &w.header, now);
             header.source_time_ns = now;
-            match self.gate.decide(now) {
-                Ok(plan) => match self.tracker.track(plan, &self.gate, header, now) {
-                    Ok(c) => {
-                        self.last_sent = now;
-                        return Command {
-                            command: c,
-                            hold: None,
-                        };
+            let decided = self.gate.decide(now).copied();
+            // Below the margin, an attach that adds a finger to the grasp the gate judged goes
+            // on, the grasp's fingers held (the gate's `attach_below_margin`); only after a
+            // tracking command, whose targets they are held at.
+            let attach = match &decided {
+                Err(hold) if self.tracker.last.is_some() => self.gate.attach_below_margin(hold),
+                _ => None,
+            };
+            match (decided, attach) {
+                (Ok(plan), _) => return self.track(&plan, header, now, None),
+                (Err(_), Some(a)) => {
+                    let plan = self.gate.plan().copied();
+                    if let Some(plan) = plan {
+                        return self.track(&plan, header, now, Some(a));
                     }
-                    Err(e) => {
-                        let _ = write!(self.reason, "forces: {e}");
-                    }
-                },
-                Err(hold) => {
+                }
+                (Err(hold), None) => {
                     let _ = write!(self.reason, "{hold}");
                 }
             }
         }
         self.hold(now)
+    }
+
+    /// The command that tracks `plan` at `now` with `header` (attaching `attach` below the
+    /// margin, the other fingers held); a hold if no forces balance its contacts.
+    fn track(
+        &mut self,
+        plan: &PlanStepHeader,
+        header: Header,
+        now: u64,
+        attach: Option<Attach>,
+    ) -> Command<'_> {
+        match self
+            .tracker
+            .track(plan, &self.gate, header, now, attach.map(|a| a.finger))
+        {
+            Ok(mut c) => {
+                self.last_sent = now;
+                let Some(a) = attach else {
+                    return Command {
+                        command: c,
+                        hold: None,
+                    };
+                };
+                c.mode = CommandMode::Attach as u32;
+                let _ = write!(
+                    self.reason,
+                    "finger {} attaches, the others held: quality alpha* = {:.4} below the margin alpha = {}",
+                    a.finger, a.quality, a.alpha
+                );
+                write_text(&mut c.reason, &self.reason);
+                Command {
+                    command: c,
+                    hold: None,
+                }
+            }
+            Err(e) => {
+                let _ = write!(self.reason, "forces: {e}");
+                self.hold(now)
+            }
+        }
     }
 
     /// The watchdog, on the node's timer at `now`: a hold when no command has been made for
@@ -290,6 +334,9 @@ struct Tracker<'a> {
     forces: Vec<Vec3>,
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
+    /// While a finger attaches below the margin: the tracking command before, whose joint
+    /// targets hold the other fingers, and the centring then.
+    held: Option<(HandCommand, [f64; 3])>,
     /// How far the fingers in contact are moved together to hold the object's centre where
     /// the plan has it (m; a planar hand's in the hand's plane).
     centring: [f64; 3],
@@ -347,13 +394,18 @@ enum Untracked {
 
 impl Tracker<'_> {
     /// The command that follows `plan` in the grasp the gate accepted, with `header`, at time
-    /// `t`; or why there is none.
+    /// `t`; or why there is none. With `attaching` (below the margin: the gate's
+    /// `attach_below_margin`), only that finger moves toward the plan step; every other
+    /// finger keeps the joint targets of the last tracking command before (those in contact
+    /// moved together by the centring since), its forces those of the grasp without the
+    /// attaching finger until it touches, as in any attach.
     fn track(
         &mut self,
         plan: &PlanStepHeader,
         gate: &Gate,
         header: Header,
         t: u64,
+        attaching: Option<u32>,
     ) -> Result<HandCommand, Untracked> {
         let (config, setup) = (self.config, self.setup);
         let p = &config.pipeline;
@@ -379,6 +431,16 @@ impl Tracker<'_> {
         for (c, m) in self.centring.iter_mut().zip(moved) {
             *c = (*c - CENTRING_RATE * elapsed * m).clamp(-CENTRING_LIMIT, CENTRING_LIMIT);
         }
+        // Below the margin, the grasp is held from the first attach command on where the last
+        // tracking command put it (the gate allows one only after a tracking command).
+        match attaching {
+            Some(_) if self.held.is_none() => {
+                self.held = self.last.map(|(prev, _)| (prev, self.centring));
+            }
+            Some(_) => {}
+            None => self.held = None,
+        }
+        let held = self.held;
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
             let Some(f) = setup.hand.finger(target.finger) else {
@@ -387,7 +449,29 @@ impl Tracker<'_> {
             let joints = (target.joint_count as usize).min(MAX_JOINTS).min(f.dof());
             let touches = touching(gate, target.finger);
             let shift = if touches { self.centring } else { moved };
-            let goal = self.goal(f, target, joints, touches, shift, &rot);
+            // A held finger keeps its joints then, moved only by the centring since (the
+            // grasp carried as a whole, so that the object's centre comes back to where the
+            // plan has it and the attaching finger, aimed where the estimate has the object,
+            // meets its way points).
+            let kept = attaching
+                .filter(|&a| a != target.finger)
+                .and(held)
+                .and_then(|(prev, at)| {
+                    let m = (prev.finger_count as usize).min(MAX_FINGERS);
+                    let s = (0..m).find(|&s| prev.finger_ids[s] == target.finger)?;
+                    let mut kept = *target;
+                    kept.joints = prev.joint_targets[s];
+                    let since = if touches {
+                        [0, 1, 2].map(|i| self.centring[i] - at[i])
+                    } else {
+                        [0.0; 3]
+                    };
+                    Some(self.goal(f, &kept, joints, touches, since, &rot))
+                });
+            let goal = match kept {
+                Some(q) => q,
+                None => self.goal(f, target, joints, touches, shift, &rot),
+            };
             // From the last tracking command; when resumed, from the joints the grasp state
             // was estimated from: where the hand stopped, which may be short of the last
             // command.
@@ -715,6 +799,115 @@ mod tests {
         let (flicker, hold) = step(&mut c, &mut i, 4);
         assert_eq!(hold, None);
         assert_eq!(flicker.forces, touching.forces);
+    }
+
+    /// Below the margin the gate holds, except for the one command that cannot lower the
+    /// margin: an attach step adding its finger to exactly the grasp the estimate has; then
+    /// only that finger moves (the others keep the last tracking command's targets and
+    /// forces), and the command says so. Any other attach below the margin holds: the
+    /// attaching finger already touching, a planned contact lost, no force closure, no
+    /// tracking command before.
+    #[test]
+    fn below_the_margin_only_an_attach_to_the_grasp_held_moves_and_only_its_finger() {
+        let (config, setup) = paper();
+        let alpha = config.grasp.alpha;
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let max_step = config.pipeline.joint_speed / config.pipeline.rate_hz;
+        // The attach step: the free finger attaches opposite the first contact, every joint
+        // target 20 periods' motion ahead of the hand.
+        let attach = |seq: u64| {
+            let mut i = inputs(&config, &setup, seq, T0 + seq * dt, 20.0 * max_step);
+            let free = (0..setup.hand.fingers.len())
+                .find(|&s| i.plan.targets[s].in_contact == 0)
+                .unwrap();
+            let cands = setup.problem.candidates();
+            let n = cands.points.len() as u32;
+            let at = (i.plan.targets[0].candidate + n / 2) % n;
+            let p = cands.points[at as usize];
+            i.plan.phase = PlanPhase::Attach as u32;
+            i.plan.rendezvous_finger = i.plan.targets[free].finger;
+            i.plan.targets[free].in_contact = 1;
+            i.plan.targets[free].candidate = at;
+            i.plan.targets[free].point = [p.x, p.y, p.z];
+            i.wrench.quality = 0.6 * alpha;
+            (i, free)
+        };
+        // No tracking command yet: held.
+        let mut c = Commander::new(&config, &setup, T0);
+        let (i, _) = attach(1);
+        let (_, hold) = offer(&mut c, &i, T0 + dt);
+        assert!(hold.unwrap().contains("below the margin"));
+        // After one: the attach goes on.
+        let mut c = Commander::new(&config, &setup, T0);
+        let (tracked, hold) = offer(&mut c, &inputs(&config, &setup, 1, T0, 0.0), T0);
+        assert_eq!(hold, None);
+        let (i, free) = attach(2);
+        let (cmd, hold) = offer(&mut c, &i, T0 + 2 * dt);
+        assert_eq!(hold, None);
+        assert_eq!(cmd.mode, CommandMode::Attach as u32);
+        assert_eq!(cmd.quality, 0.6 * alpha);
+        let f = setup.hand.fingers[free].id;
+        assert!(
+            read_text(&cmd.reason).starts_with(&format!(
+                "finger {f} attaches, the others held: quality alpha* = {:.4} below the margin",
+                0.6 * alpha
+            )),
+            "{}",
+            read_text(&cmd.reason)
+        );
+        for slot in 0..setup.hand.fingers.len() {
+            if slot == free {
+                assert_ne!(cmd.joint_targets[slot], tracked.joint_targets[slot]);
+                assert_eq!(cmd.forces[slot], [0.0; 3]);
+            } else {
+                assert_eq!(
+                    cmd.joint_targets[slot], tracked.joint_targets[slot],
+                    "{slot}"
+                );
+            }
+        }
+        assert_eq!(cmd.forces, tracked.forces);
+        // A way point of its approach (the finger still free in the step) goes on alike.
+        let (mut way, _) = attach(3);
+        way.plan.targets[free].in_contact = 0;
+        let (via, hold) = offer(&mut c, &way, T0 + 3 * dt);
+        assert_eq!(hold, None);
+        assert_eq!(via.mode, CommandMode::Attach as u32);
+        for slot in (0..setup.hand.fingers.len()).filter(|&s| s != free) {
+            assert_eq!(
+                via.joint_targets[slot], tracked.joint_targets[slot],
+                "{slot}"
+            );
+        }
+        let cmd = via;
+        // The same step held: the attaching finger touches (the attach is made: the grasp
+        // with it is judged), a planned contact is lost, no force closure, or rolling.
+        type Spoil = fn(&mut Inputs, usize);
+        let cases: [(&str, Spoil); 4] = [
+            ("below the margin", |i, free| {
+                i.grasp.fingers[free].in_contact = 1;
+                i.grasp.fingers[free].candidate = i.plan.targets[free].candidate;
+            }),
+            ("below the margin", |i, free| {
+                let other = (free + 1) % i.plan.finger_count as usize;
+                i.grasp.fingers[other].in_contact = 0;
+            }),
+            ("not force closure", |i, _| i.wrench.force_closure = 0),
+            ("below the margin", |i, _| {
+                i.plan.phase = PlanPhase::Rolling as u32;
+            }),
+        ];
+        for (k, (reason, spoil)) in cases.into_iter().enumerate() {
+            let seq = 4 + k as u64;
+            let (mut i, free) = attach(seq);
+            spoil(&mut i, free);
+            let (held, hold) = offer(&mut c, &i, T0 + seq * dt);
+            let hold = hold.unwrap_or_else(|| panic!("case {k}: not held"));
+            assert!(hold.contains(reason), "case {k}: {hold}");
+            assert_eq!(held.mode, CommandMode::Hold as u32);
+            // What a hold holds is the last command that moved the hand.
+            assert_eq!(held.joint_targets, cmd.joint_targets, "case {k}");
+        }
     }
 
     #[test]

@@ -63,6 +63,9 @@ pub struct Ended {
     pub rotation: f64,
     /// Hold commands.
     pub holds: u64,
+    /// Commands that attached a finger below the margin, the others held
+    /// (`CommandMode::Attach`).
+    pub attaches_below_margin: u64,
     /// Plans made again from the estimate.
     pub replans: u32,
     /// The reason of the last hold, if the run ended holding.
@@ -129,6 +132,7 @@ pub fn run(
         estimated: lp.estimator.rotation(),
         rotation: lp.plant.rotation(),
         holds: lp.holds,
+        attaches_below_margin: lp.attaches_below_margin,
         replans: lp.follower.replans(),
         holding: lp.holding,
         replanned: lp.replanned,
@@ -168,6 +172,7 @@ struct Loop<'s> {
     next_republish: u64,
     done_at: Option<u64>,
     holds: u64,
+    attaches_below_margin: u64,
     holding: Option<String>,
     replanned: Vec<(f64, String)>,
     /// While the planner plans again (until then), it follows and publishes nothing.
@@ -203,6 +208,7 @@ impl<'s> Loop<'s> {
             next_republish: t0,
             done_at: None,
             holds: 0,
+            attaches_below_margin: 0,
             holding: None,
             replanned: Vec::new(),
             busy_until: None,
@@ -374,6 +380,8 @@ impl<'s> Loop<'s> {
         c.header.source_time_ns = t;
         if c.mode == CommandMode::Hold as u32 {
             self.holds += 1;
+        } else if c.mode == CommandMode::Attach as u32 {
+            self.attaches_below_margin += 1;
         }
         self.holding = why.clone();
         self.command = Some(c);

@@ -222,7 +222,7 @@ impl<'a> Physical<'a> {
     pub fn tick(&mut self, now_ns: u64, command: Option<&HandCommand>) -> Output {
         self.events.clear();
         self.ticks += 1;
-        if let Some(c) = command.filter(|c| c.mode == CommandMode::Track as u32) {
+        if let Some(c) = command.filter(|c| CommandMode::moves(c.mode)) {
             self.started = true;
             self.command_time = c.header.source_time_ns;
             if now_ns.saturating_sub(self.command_time) <= self.max_age_ns {

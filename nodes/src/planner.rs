@@ -69,13 +69,13 @@ pub(crate) fn estimate(g: &GraspState, hand: &Hand, e: &mut Estimate) {
 }
 
 /// A target's regions as its plan-step messages carry them: the members (each finger's ICR,
-/// then the rendezvous region), each finger's region length, and the attaching finger with
-/// the rendezvous region's length.
+/// then the rendezvous region), each finger's region length, and the rendezvous region's
+/// length.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(crate) struct Regions {
     members: Vec<u32>,
     lengths: [u32; MAX_FINGERS],
-    rendezvous: (u32, u32),
+    rendezvous: u32,
 }
 
 impl Regions {
@@ -106,7 +106,7 @@ impl Regions {
             let before = r.members.len();
             r.members
                 .extend(sw.brute_force.iter().take(room).map(|&c| c as u32));
-            r.rendezvous = (sw.attached, (r.members.len() - before) as u32);
+            r.rendezvous = (r.members.len() - before) as u32;
         }
         r
     }
@@ -164,7 +164,11 @@ pub(crate) fn message(
         region_lengths: regions.lengths,
         ..Default::default()
     };
-    (h.rendezvous_finger, h.rendezvous_length) = regions.rendezvous;
+    // The attaching finger from the step itself (the command node's gate needs it whether or
+    // not the regions were computed: the lockstep computes none); the region's length from
+    // the regions.
+    h.rendezvous_finger = step.switch.as_ref().map_or(0, |sw| sw.attached);
+    h.rendezvous_length = regions.rendezvous;
     for (slot, f) in step.fingers.iter().enumerate().take(MAX_FINGERS) {
         let t = &mut h.targets[slot];
         *t = FingerTarget {
@@ -375,9 +379,9 @@ mod tests {
                     "target {k}: a force-closure grasp without a region per contact: {own:?}"
                 );
             }
-            let listed: u32 = own.lengths.iter().sum::<u32>() + own.rendezvous.1;
+            let listed: u32 = own.lengths.iter().sum::<u32>() + own.rendezvous;
             assert_eq!(listed as usize, own.members.len(), "target {k}");
-            assert_eq!(own.rendezvous.1 > 0, t.step.switch.is_some(), "target {k}");
+            assert_eq!(own.rendezvous > 0, t.step.switch.is_some(), "target {k}");
         }
     }
 

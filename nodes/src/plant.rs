@@ -325,7 +325,7 @@ impl<'a> Plant<'a> {
     pub fn tick(&mut self, now_ns: u64, command: Option<&HandCommand>) -> Output {
         self.events.clear();
         if let Some(c) = command {
-            self.target = (c.mode == CommandMode::Track as u32).then_some(*c);
+            self.target = CommandMode::moves(c.mode).then_some(*c);
         }
         self.ticks += 1;
         let t = now_ns;

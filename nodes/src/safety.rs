@@ -269,6 +269,11 @@ impl Gate {
         Ok(())
     }
 
+    /// The last accepted plan step.
+    pub fn plan(&self) -> Option<&PlanStepHeader> {
+        self.plan.as_ref()
+    }
+
     /// The last accepted grasp state.
     pub fn grasp(&self) -> Option<&GraspState> {
         self.grasp.as_ref()
@@ -337,6 +342,66 @@ impl Gate {
             });
         }
         Ok(plan)
+    }
+}
+
+/// A plan step's attach let through below the margin ([`Gate::attach_below_margin`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Attach {
+    /// The finger that attaches.
+    pub finger: u32,
+    /// The quality alpha* of the estimated grasp, the fingers touching without it.
+    pub quality: f64,
+    /// The margin it is below.
+    pub alpha: f64,
+}
+
+impl Gate {
+    /// Below the margin, the one command that cannot lower it: where the gate holds for
+    /// `hold` = [`Hold::BelowMargin`] (so every other check passed: fresh, matched, believed,
+    /// force closure) and the plan step attaches a finger (`rendezvous_finger`; the step
+    /// itself, or a way point of the finger's approach, where it is still free) to exactly the
+    /// fingers the estimate has touching, the attach may go on with those fingers held where
+    /// the last tracking command put them (the caller's part): the grasp is the one the gate
+    /// judged, a free finger moves along its route checked clear of the object and the other
+    /// fingers, and a contact is added to the grasp; the wrench space of more contacts contains
+    /// that of fewer, so alpha* can only grow. Holding instead leaves the grasp below the
+    /// margin for as long as the plan waits for that attach. The attaching finger and the
+    /// quality; `None` where the hold stands.
+    pub fn attach_below_margin(&self, hold: &Hold) -> Option<Attach> {
+        let Hold::BelowMargin { quality, alpha } = *hold else {
+            return None;
+        };
+        let (plan, grasp) = (self.plan.as_ref()?, self.grasp.as_ref()?);
+        let finger = plan.rendezvous_finger;
+        if plan.phase != PlanPhase::Attach as u32 || finger == 0 || quality <= 0.0 {
+            return None;
+        }
+        let n = (plan.finger_count as usize).min(MAX_FINGERS);
+        let planned = &plan.targets[..n];
+        if !planned.iter().any(|t| t.finger == finger) {
+            return None;
+        }
+        let m = (grasp.finger_count as usize).min(MAX_FINGERS);
+        let touching = |id: u32| {
+            grasp.fingers[..m]
+                .iter()
+                .any(|c| c.finger == id && c.in_contact == 1)
+        };
+        // The estimate's contacts are the plan step's without the attaching finger's: no
+        // finger touching that the step has free, none of its others lost.
+        let same = planned
+            .iter()
+            .all(|t| touching(t.finger) == (t.in_contact == 1 && t.finger != finger))
+            && grasp.fingers[..m]
+                .iter()
+                .filter(|c| c.in_contact == 1)
+                .all(|c| planned.iter().any(|t| t.finger == c.finger));
+        same.then_some(Attach {
+            finger,
+            quality,
+            alpha,
+        })
     }
 }
 

@@ -22,6 +22,17 @@ pub struct RecordingSummary {
     pub dropped: u64,
 }
 
+/// The commands that moved a finger onto the object while the grasp was below the margin,
+/// its other fingers held (the command node's attach below the margin: adding a contact
+/// cannot lower alpha*); neither tracking (`min_quality` is not theirs) nor holds.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct BelowMarginAttaches {
+    /// Commands sent.
+    pub commands: u64,
+    /// The smallest alpha* of the grasp they were sent with (below the margin).
+    pub min_quality: f64,
+}
+
 /// The run's summary (`--summary-json`).
 #[derive(Debug, Serialize)]
 pub struct RunSummary {
@@ -43,6 +54,8 @@ pub struct RunSummary {
     pub replans: usize,
     /// Smallest quality alpha* of the grasp a tracking command was computed with.
     pub min_quality: f64,
+    /// The attaches below the margin, if any.
+    pub attaching_below_margin: Option<BelowMarginAttaches>,
     /// The margin.
     pub alpha: f64,
     /// Node restarts by the supervisor.
@@ -213,6 +226,7 @@ impl RunSummary {
             } else {
                 0.0
             },
+            attaching_below_margin: seen.attaching_below_margin,
             alpha: facts.alpha,
             restarts: facts.restarts,
             holds: seen.holds,

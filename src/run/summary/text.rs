@@ -84,6 +84,13 @@ impl RunSummary {
             if s.min_quality >= s.alpha { ">=" } else { "<" },
             s.alpha
         )?;
+        if let Some(a) = s.attaching_below_margin {
+            writeln!(
+                o,
+                "attaching  {} commands moved a finger onto the object below the margin, the others held (alpha* down to {:.4})",
+                a.commands, a.min_quality
+            )?;
+        }
         let causes: Vec<String> = s
             .hold_causes
             .iter()

@@ -10,6 +10,7 @@ use icrflow_interfaces::{CommandMode, HandCommand, read_text};
 use super::Watch;
 use crate::run::hold_cause::HoldCause;
 use crate::run::status::say;
+use crate::run::summary::BelowMarginAttaches;
 
 /// A hold this long is reported on stderr, and again every time as long.
 const HOLD_REPORT: Duration = Duration::from_secs(1);
@@ -23,7 +24,7 @@ impl Watch {
     pub(super) fn command(&mut self, c: &HandCommand) {
         self.sent += 1;
         self.arrived.insert(TopicId::HandCommand.name());
-        if c.mode == CommandMode::Track as u32 {
+        if CommandMode::moves(c.mode) {
             self.tracked = true;
             if let Some((since, _)) = self.holding.take()
                 && since.elapsed() >= HOLD_REPORT
@@ -33,7 +34,25 @@ impl Watch {
                     since.elapsed().as_secs_f64()
                 );
             }
-            self.min_quality = self.min_quality.min(c.quality);
+            if c.mode == CommandMode::Attach as u32 {
+                // Below the margin, a finger attaching with the others held: said once a
+                // spell, counted apart from tracking (whose minimum alpha* it is not).
+                let a = self
+                    .attaching_below_margin
+                    .get_or_insert(BelowMarginAttaches {
+                        commands: 0,
+                        min_quality: f64::INFINITY,
+                    });
+                a.commands += 1;
+                a.min_quality = a.min_quality.min(c.quality);
+                if !self.attaching {
+                    say!("run: {}", read_text(&c.reason));
+                }
+                self.attaching = true;
+            } else {
+                self.attaching = false;
+                self.min_quality = self.min_quality.min(c.quality);
+            }
             self.truth.tracked(1, self.limits.estimate_bound);
             self.doubting = false;
             self.timing.add(c.header.trace.as_slice());

@@ -36,7 +36,7 @@ use super::measure::{AllocationTrack, Rate, Timing};
 use super::physics::{PhysicsSummary, PhysicsTrack};
 use super::status::{Status, say};
 use super::stop::StopReason;
-use super::summary::{Allocations, Latencies, Memory, PlanStream};
+use super::summary::{Allocations, BelowMarginAttaches, Latencies, Memory, PlanStream};
 use super::track::{EstimateError, Hangup, Heartbeats, ReplanProgress, TruthTrack};
 use nodes::silence;
 
@@ -60,6 +60,7 @@ pub(super) struct Seen {
     pub replans: usize,
     pub steps: usize,
     pub min_quality: f64,
+    pub attaching_below_margin: Option<BelowMarginAttaches>,
     pub holds: u64,
     pub startup_holds: u64,
     pub hold_causes: BTreeMap<String, u64>,
@@ -195,6 +196,9 @@ pub(super) struct Watch {
     attaches: BTreeSet<u64>,
     replans: BTreeSet<u64>,
     min_quality: f64,
+    attaching_below_margin: Option<BelowMarginAttaches>,
+    /// Whether the last command attached below the margin.
+    attaching: bool,
     rotation: f64,
     /// Holds after the start-up (see [`Watch::command`]), and by cause.
     holds: u64,
@@ -369,6 +373,8 @@ impl Watch {
             attaches: BTreeSet::new(),
             replans: BTreeSet::new(),
             min_quality: f64::INFINITY,
+            attaching_below_margin: None,
+            attaching: false,
             rotation: 0.0,
             holds: 0,
             hold_causes: BTreeMap::new(),
@@ -508,6 +514,7 @@ impl Watch {
             replans: self.replans.len(),
             steps: self.last_step as usize,
             min_quality: self.min_quality,
+            attaching_below_margin: self.attaching_below_margin,
             holds: self.holds,
             startup_holds: self.startup_holds,
             hold_causes: self.hold_causes,
