@@ -335,8 +335,8 @@ struct Tracker<'a> {
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
     /// While a finger attaches below the margin: the tracking command before, whose joint
-    /// targets hold the other fingers, and the centring then.
-    held: Option<(HandCommand, [f64; 3])>,
+    /// targets hold the other fingers, the centring then, and the plan step attached.
+    held: Option<(HandCommand, [f64; 3], u64)>,
     /// How far the fingers in contact are moved together to hold the object's centre where
     /// the plan has it (m; a planar hand's in the hand's plane).
     centring: [f64; 3],
@@ -433,14 +433,15 @@ impl Tracker<'_> {
         }
         // Below the margin, the grasp is held from the first attach command on where the last
         // tracking command put it (the gate allows one only after a tracking command).
+        // (Taken again at another plan step: an attach of another switch.)
         match attaching {
-            Some(_) if self.held.is_none() => {
-                self.held = self.last.map(|(prev, _)| (prev, self.centring));
+            Some(_) if self.held.is_none_or(|(_, _, step)| step != plan.step) => {
+                self.held = self.last.map(|(prev, _)| (prev, self.centring, plan.step));
             }
             Some(_) => {}
             None => self.held = None,
         }
-        let held = self.held;
+        let held = self.held.map(|(prev, at, _)| (prev, at));
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             c.finger_ids[k] = target.finger;
             let Some(f) = setup.hand.finger(target.finger) else {
