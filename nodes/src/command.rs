@@ -175,18 +175,17 @@ impl<'a> Commander<'a> {
             // Below the margin, an attach that adds a finger to the grasp the gate judged goes
             // on, the grasp's fingers held (the gate's `attach_below_margin`); only after a
             // tracking command, whose targets they are held at.
-            let attach = match &decided {
-                Err(hold) if self.tracker.last.is_some() => self.gate.attach_below_margin(hold),
+            let attach = match (&decided, self.gate.plan()) {
+                (Err(hold), Some(plan)) => self
+                    .gate
+                    .attach_below_margin(hold)
+                    .filter(|a| self.tracker.can_hold(plan, a.finger))
+                    .map(|a| (*plan, a)),
                 _ => None,
             };
             match (decided, attach) {
                 (Ok(plan), _) => return self.track(&plan, header, now, None),
-                (Err(_), Some(a)) => {
-                    let plan = self.gate.plan().copied();
-                    if let Some(plan) = plan {
-                        return self.track(&plan, header, now, Some(a));
-                    }
-                }
+                (Err(_), Some((plan, a))) => return self.track(&plan, header, now, Some(a)),
                 (Err(hold), None) => {
                     let _ = write!(self.reason, "{hold}");
                 }
@@ -334,12 +333,20 @@ struct Tracker<'a> {
     forces: Vec<Vec3>,
     /// The last tracking command and when it was made.
     last: Option<(HandCommand, u64)>,
-    /// While a finger attaches below the margin: the tracking command before, whose joint
-    /// targets hold the other fingers, the centring then, and the plan step attached.
-    held: Option<(HandCommand, [f64; 3], u64)>,
+    /// While a finger attaches below the margin: the command before, whose joint targets hold
+    /// the other fingers, the centring then, and the plan step and the finger attached.
+    held: Option<(HandCommand, [f64; 3], (u64, u32))>,
     /// How far the fingers in contact are moved together to hold the object's centre where
     /// the plan has it (m; a planar hand's in the hand's plane).
     centring: [f64; 3],
+}
+
+/// Finger `id`'s joint targets in command `c`, if it has the finger.
+fn joints_of(c: &HandCommand, id: u32) -> Option<[f64; MAX_JOINTS]> {
+    let m = (c.finger_count as usize).min(MAX_FINGERS);
+    (0..m)
+        .find(|&s| c.finger_ids[s] == id)
+        .map(|s| c.joint_targets[s])
 }
 
 /// Whether the estimate the gate accepted has finger `id` touching the object.
@@ -432,11 +439,13 @@ impl Tracker<'_> {
             *c = (*c - CENTRING_RATE * elapsed * m).clamp(-CENTRING_LIMIT, CENTRING_LIMIT);
         }
         // Below the margin, the grasp is held from the first attach command on where the last
-        // tracking command put it (the gate allows one only after a tracking command).
-        // (Taken again at another plan step: an attach of another switch.)
+        // command that moved the hand put it (the gate allows one only after a tracking
+        // command); taken again for another attach (another plan step or finger).
         match attaching {
-            Some(_) if self.held.is_none_or(|(_, _, step)| step != plan.step) => {
-                self.held = self.last.map(|(prev, _)| (prev, self.centring, plan.step));
+            Some(a) if self.held.is_none_or(|(_, _, at)| at != (plan.step, a)) => {
+                self.held = self
+                    .last
+                    .map(|(prev, _)| (prev, self.centring, (plan.step, a)));
             }
             Some(_) => {}
             None => self.held = None,
@@ -458,10 +467,8 @@ impl Tracker<'_> {
                 .filter(|&a| a != target.finger)
                 .and(held)
                 .and_then(|(prev, at)| {
-                    let m = (prev.finger_count as usize).min(MAX_FINGERS);
-                    let s = (0..m).find(|&s| prev.finger_ids[s] == target.finger)?;
                     let mut kept = *target;
-                    kept.joints = prev.joint_targets[s];
+                    kept.joints = joints_of(&prev, target.finger)?;
                     let since = if touches {
                         [0, 1, 2].map(|i| self.centring[i] - at[i])
                     } else {
@@ -475,8 +482,11 @@ impl Tracker<'_> {
             };
             // From the last tracking command; when resumed, from the joints the grasp state
             // was estimated from: where the hand stopped, which may be short of the last
-            // command.
+            // command. A held finger from its last command, however long the hand held (the
+            // holds commanded it there; set off from where it stands, a finger pressing on
+            // the object would let go of what it presses).
             let from = match self.last {
+                Some((prev, _)) if kept.is_some() => joints_of(&prev, target.finger),
                 Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
                 _ => gate.grasp().and_then(|g| {
                     let n = (g.finger_count as usize).min(MAX_FINGERS);
@@ -644,6 +654,25 @@ impl Tracker<'_> {
             *g = g.clamp(f.joints[j].lower, f.joints[j].upper);
         }
         goal
+    }
+
+    /// Whether finger `attaching` can attach to plan step `plan` below the margin with every
+    /// other finger of the step held: each is in the command it would be held at (the one
+    /// already held for this attach, else the last that moved the hand). Otherwise the hand
+    /// holds: a finger without a command to keep would move.
+    fn can_hold(&self, plan: &PlanStepHeader, attaching: u32) -> bool {
+        let at = (plan.step, attaching);
+        let from = match self.held {
+            Some((prev, _, held)) if held == at => Some(prev),
+            _ => self.last.map(|(prev, _)| prev),
+        };
+        let n = (plan.finger_count as usize).min(MAX_FINGERS);
+        from.is_some_and(|prev| {
+            plan.targets[..n]
+                .iter()
+                .filter(|t| t.finger != attaching)
+                .all(|t| joints_of(&prev, t.finger).is_some())
+        })
     }
 
     /// A hold of the last tracking command (before any, no motion at all), saying `why`.
@@ -817,7 +846,13 @@ mod tests {
         // The attach step: the free finger attaches opposite the first contact, every joint
         // target 20 periods' motion ahead of the hand.
         let attach = |seq: u64| {
-            let mut i = inputs(&config, &setup, seq, T0 + seq * dt, 20.0 * max_step);
+            let mut i = inputs(&config, &setup, seq, T0 + (seq + 10) * dt, 20.0 * max_step);
+            // The hand stands short of where it was commanded (pressing on the object).
+            for q in i.grasp.joints.iter_mut() {
+                for a in q.iter_mut() {
+                    *a -= 5.0 * max_step;
+                }
+            }
             let free = (0..setup.hand.fingers.len())
                 .find(|&s| i.plan.targets[s].in_contact == 0)
                 .unwrap();
@@ -836,14 +871,16 @@ mod tests {
         // No tracking command yet: held.
         let mut c = Commander::new(&config, &setup, T0);
         let (i, _) = attach(1);
-        let (_, hold) = offer(&mut c, &i, T0 + dt);
+        let (_, hold) = offer(&mut c, &i, T0 + 11 * dt);
         assert!(hold.unwrap().contains("below the margin"));
         // After one: the attach goes on.
         let mut c = Commander::new(&config, &setup, T0);
         let (tracked, hold) = offer(&mut c, &inputs(&config, &setup, 1, T0, 0.0), T0);
         assert_eq!(hold, None);
+        // A while after it (the hand held below the margin meanwhile: the tracking resumes
+        // from where the hand stands, but the held fingers do not set off from there).
         let (i, free) = attach(2);
-        let (cmd, hold) = offer(&mut c, &i, T0 + 2 * dt);
+        let (cmd, hold) = offer(&mut c, &i, T0 + 12 * dt);
         assert_eq!(hold, None);
         assert_eq!(cmd.mode, CommandMode::Attach as u32);
         assert_eq!(cmd.quality, 0.6 * alpha);
@@ -871,7 +908,7 @@ mod tests {
         // A way point of its approach (the finger still free in the step) goes on alike.
         let (mut way, _) = attach(3);
         way.plan.targets[free].in_contact = 0;
-        let (via, hold) = offer(&mut c, &way, T0 + 3 * dt);
+        let (via, hold) = offer(&mut c, &way, T0 + 13 * dt);
         assert_eq!(hold, None);
         assert_eq!(via.mode, CommandMode::Attach as u32);
         for slot in (0..setup.hand.fingers.len()).filter(|&s| s != free) {
@@ -902,7 +939,7 @@ mod tests {
             let seq = 4 + k as u64;
             let (mut i, free) = attach(seq);
             spoil(&mut i, free);
-            let (held, hold) = offer(&mut c, &i, T0 + seq * dt);
+            let (held, hold) = offer(&mut c, &i, T0 + (seq + 10) * dt);
             let hold = hold.unwrap_or_else(|| panic!("case {k}: not held"));
             assert!(hold.contains(reason), "case {k}: {hold}");
             assert_eq!(held.mode, CommandMode::Hold as u32);

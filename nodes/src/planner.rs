@@ -233,7 +233,8 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
 /// `icrflow plan` uses every core: with the node planning on both cores of the project's
 /// 2-core VM, `config/allegro_ellipsoid_mujoco.toml` reached the goal in 2 of 8 runs (the CI's
 /// and 7 here on 2026-12-06; the others stalled below the margin or lost the grasp at 112-250
-/// deg, tilted 3-15 deg), on one in every run measured (BENCHMARKS.md; tilted 1.4-1.8 deg),
+/// deg, tilted up to 14.6 deg), on one in every run measured (BENCHMARKS.md; 8 of 8, tilted
+/// 1.44-2.35 deg),
 /// the plans themselves byte-identical. Not yet explained: the node is idle while the hand
 /// follows (its pool asleep, 0 % CPU), and three of the failures came before any plan was
 /// made again. Issue 38's notes.
@@ -241,12 +242,17 @@ pub const THREADS: usize = 1;
 
 /// Runs the planner node: the adapter around [`Follower`].
 pub fn run(ctx: &Context) -> Result<()> {
-    if std::env::var_os("RAYON_NUM_THREADS").is_none() {
-        // Only this process's pool; an error means one was built already (not here).
-        let _ = rayon::ThreadPoolBuilder::new()
+    if std::env::var_os("RAYON_NUM_THREADS").is_none()
+        && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(THREADS)
-            .build_global();
+            .build_global()
+    {
+        eprintln!("icrflow-planner: the planning threads could not be set to {THREADS}: {e}");
     }
+    eprintln!(
+        "icrflow-planner: planning on {} thread(s)",
+        rayon::current_num_threads()
+    );
     let (setup, config) = (&ctx.scenario.setup, &ctx.scenario.config);
     let log_steps = ctx.launch.log.contacts;
     let tolerances = Tolerances::new(config.pipeline.joint_noise);

@@ -72,6 +72,7 @@ impl Watch {
             return;
         }
         self.holds += 1;
+        self.attaching = false;
         let cause = HoldCause::of(&reason);
         *self.hold_causes.entry(cause.key()).or_default() += 1;
         match self.hold_figures.entry(cause.key()) {
