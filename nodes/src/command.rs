@@ -769,6 +769,24 @@ mod tests {
         }
     }
 
+    /// `i`'s plan step made an attach step: the free finger attaches at the candidate opposite
+    /// the first contact's. Its slot and candidate.
+    fn attach_free_finger(setup: &Setup, i: &mut Inputs) -> (usize, u32) {
+        let free = (0..setup.hand.fingers.len())
+            .find(|&s| i.plan.targets[s].in_contact == 0)
+            .unwrap();
+        let cands = setup.problem.candidates();
+        let n = cands.points.len() as u32;
+        let at = (i.plan.targets[0].candidate + n / 2) % n;
+        let p = cands.points[at as usize];
+        i.plan.phase = PlanPhase::Attach as u32;
+        i.plan.rendezvous_finger = i.plan.targets[free].finger;
+        i.plan.targets[free].in_contact = 1;
+        i.plan.targets[free].candidate = at;
+        i.plan.targets[free].point = [p.x, p.y, p.z];
+        (free, at)
+    }
+
     /// Offers `i` (plan step, grasp state, wrench space) at `at`: the command.
     fn offer(c: &mut Commander<'_>, i: &Inputs, at: u64) -> (HandCommand, Option<String>) {
         c.on_plan(&i.plan, at).unwrap();
@@ -788,18 +806,7 @@ mod tests {
         let mut i = inputs(&config, &setup, 1, T0, 0.0);
         let (before, hold) = offer(&mut c, &i, T0);
         assert_eq!(hold, None);
-        // The free finger attaches at the candidate opposite the first contact's.
-        let free = (0..setup.hand.fingers.len())
-            .find(|&s| i.plan.targets[s].in_contact == 0)
-            .unwrap();
-        let cands = setup.problem.candidates();
-        let n = cands.points.len() as u32;
-        let at = (i.plan.targets[0].candidate + n / 2) % n;
-        let p = cands.points[at as usize];
-        i.plan.phase = PlanPhase::Attach as u32;
-        i.plan.targets[free].in_contact = 1;
-        i.plan.targets[free].candidate = at;
-        i.plan.targets[free].point = [p.x, p.y, p.z];
+        let (free, at) = attach_free_finger(&setup, &mut i);
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let step = |c: &mut Commander<'_>, i: &mut Inputs, seq: u64| {
             let t = T0 + seq * dt;
@@ -853,18 +860,7 @@ mod tests {
                     *a -= 5.0 * max_step;
                 }
             }
-            let free = (0..setup.hand.fingers.len())
-                .find(|&s| i.plan.targets[s].in_contact == 0)
-                .unwrap();
-            let cands = setup.problem.candidates();
-            let n = cands.points.len() as u32;
-            let at = (i.plan.targets[0].candidate + n / 2) % n;
-            let p = cands.points[at as usize];
-            i.plan.phase = PlanPhase::Attach as u32;
-            i.plan.rendezvous_finger = i.plan.targets[free].finger;
-            i.plan.targets[free].in_contact = 1;
-            i.plan.targets[free].candidate = at;
-            i.plan.targets[free].point = [p.x, p.y, p.z];
+            let (free, _) = attach_free_finger(&setup, &mut i);
             i.wrench.quality = 0.6 * alpha;
             (i, free)
         };
