@@ -683,7 +683,8 @@ pub enum CommandMode {
     Track = 0,
     /// Hold the last safe grasp (see `reason`).
     Hold = 1,
-    /// Below the margin, hold the grasp's fingers where the last tracking command put them
+    /// Below the margin, hold the grasp's fingers where the last command that moved the hand
+    /// put them
     /// and move the finger the plan step attaches onto the object (see `reason`): adding a
     /// contact can only raise the grasp's quality (the command node's
     /// `Gate::attach_below_margin`). A plant follows it as it follows `Track`.

@@ -70,7 +70,8 @@ const RECENT: usize = 16;
 /// number still 0.
 #[derive(Debug, Clone, Copy)]
 pub struct Command<'s> {
-    /// The command: tracking, or holding the last tracking command.
+    /// The command: tracking, attaching below the margin, or holding the last command that
+    /// moved the hand.
     pub command: HandCommand,
     /// Why it holds (also in the command's `reason`); `None` when it tracks.
     pub hold: Option<&'s str>,
@@ -331,7 +332,7 @@ struct Tracker<'a> {
     pressing: [u32; MAX_FINGERS],
     /// The body-frame forces of that contact set, one per contact.
     forces: Vec<Vec3>,
-    /// The last tracking command and when it was made.
+    /// The last command that moved the hand (tracking or attaching) and when it was made.
     last: Option<(HandCommand, u64)>,
     /// While a finger attaches below the margin: the command before, whose joint targets hold
     /// the other fingers, the centring then, and the plan step and the finger attached.
@@ -347,16 +348,6 @@ fn joints_of(c: &HandCommand, id: u32) -> Option<[f64; MAX_JOINTS]> {
     (0..m)
         .find(|&s| c.finger_ids[s] == id)
         .map(|s| c.joint_targets[s])
-}
-
-/// Whether the estimate the gate accepted has finger `id` touching the object.
-fn touching(gate: &Gate, id: u32) -> bool {
-    gate.grasp().is_some_and(|g| {
-        let n = (g.finger_count as usize).min(MAX_FINGERS);
-        g.fingers[..n]
-            .iter()
-            .any(|c| c.finger == id && c.in_contact == 1)
-    })
 }
 
 /// Joint targets toward `goal` (its first `joints`) along a straight line in joint space,
@@ -403,9 +394,9 @@ impl Tracker<'_> {
     /// The command that follows `plan` in the grasp the gate accepted, with `header`, at time
     /// `t`; or why there is none. With `attaching` (below the margin: the gate's
     /// `attach_below_margin`), only that finger moves toward the plan step; every other
-    /// finger keeps the joint targets of the last tracking command before (those in contact
-    /// moved together by the centring since), its forces those of the grasp without the
-    /// attaching finger until it touches, as in any attach.
+    /// finger keeps the joint targets of the last command that moved the hand before the
+    /// attach (those in contact moved together by the centring since), its forces those of the
+    /// grasp without the attaching finger until it touches, as in any attach.
     fn track(
         &mut self,
         plan: &PlanStepHeader,
@@ -457,7 +448,7 @@ impl Tracker<'_> {
                 continue;
             };
             let joints = (target.joint_count as usize).min(MAX_JOINTS).min(f.dof());
-            let touches = touching(gate, target.finger);
+            let touches = gate.touching(target.finger);
             let shift = if touches { self.centring } else { moved };
             // A held finger keeps its joints then, moved only by the centring since (the
             // grasp carried as a whole, so that the object's centre comes back to where the
@@ -527,7 +518,7 @@ impl Tracker<'_> {
         for (k, target) in plan.targets.iter().enumerate().take(n) {
             if target.in_contact == 1
                 && (target.candidate as usize) < cands.points.len()
-                && (self.pressing.contains(&target.finger) || touching(gate, target.finger))
+                && (self.pressing.contains(&target.finger) || gate.touching(target.finger))
             {
                 slots[count] = k;
                 set[count] = target.candidate;

@@ -234,10 +234,9 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
 /// 2-core VM, `config/allegro_ellipsoid_mujoco.toml` reached the goal in 2 of 8 runs (the CI's
 /// and 7 here on 2026-12-06; the others stalled below the margin or lost the grasp at 112-250
 /// deg, tilted up to 14.6 deg), on one in every run measured (BENCHMARKS.md; 8 of 8, tilted
-/// 1.44-2.35 deg),
-/// the plans themselves byte-identical. Not yet explained: the node is idle while the hand
-/// follows (its pool asleep, 0 % CPU), and three of the failures came before any plan was
-/// made again. Issue 38's notes.
+/// 1.44-2.35 deg), the plans themselves byte-identical. Not yet explained: the node is idle
+/// while the hand follows (its pool asleep, 0 % CPU), and three of the failures came before
+/// any plan was made again. Issue 38's notes.
 pub const THREADS: usize = 1;
 
 /// Runs the planner node: the adapter around [`Follower`].

@@ -279,6 +279,16 @@ impl Gate {
         self.grasp.as_ref()
     }
 
+    /// Whether the last accepted grasp state has finger `id` touching the object.
+    pub fn touching(&self, id: u32) -> bool {
+        self.grasp.as_ref().is_some_and(|g| {
+            let n = (g.finger_count as usize).min(MAX_FINGERS);
+            g.fingers[..n]
+                .iter()
+                .any(|c| c.finger == id && c.in_contact == 1)
+        })
+    }
+
     /// The quality alpha* of the last accepted wrench space (0 before any).
     pub fn quality(&self) -> f64 {
         self.wrench.as_ref().map_or(0.0, |w| w.quality)
@@ -362,17 +372,18 @@ impl Gate {
     /// force closure) and the plan step attaches a finger (`rendezvous_finger`; the step
     /// itself, or a way point of the finger's approach, where it is still free) to exactly the
     /// fingers the estimate has touching, the attach may go on with those fingers held where
-    /// the last tracking command put them (the caller's part): the grasp is the one the gate
+    /// the last command that moved the hand put them (the caller's part): the grasp is the one the gate
     /// judged, a free finger moves along its planned approach, and a contact is added to the
     /// grasp; the wrench space of more contacts contains that of fewer, so alpha* can only
-    /// grow once it touches. Holding instead leaves the grasp below the
-    /// margin for as long as the plan waits for that attach. The attaching finger and the
-    /// quality; `None` where the hold stands.
+    /// grow once it touches. Holding instead leaves the grasp below the margin for as long as
+    /// the plan waits for that attach. The attaching finger and the quality; `None` where the
+    /// hold stands.
     pub fn attach_below_margin(&self, hold: &Hold) -> Option<Attach> {
         let Hold::BelowMargin { quality, alpha } = *hold else {
             return None;
         };
         let (plan, grasp) = (self.plan.as_ref()?, self.grasp.as_ref()?);
+        let touching = |id: u32| self.touching(id);
         let finger = plan.rendezvous_finger;
         if plan.phase != PlanPhase::Attach as u32 || finger == 0 || quality <= 0.0 {
             return None;
@@ -383,11 +394,6 @@ impl Gate {
             return None;
         }
         let m = (grasp.finger_count as usize).min(MAX_FINGERS);
-        let touching = |id: u32| {
-            grasp.fingers[..m]
-                .iter()
-                .any(|c| c.finger == id && c.in_contact == 1)
-        };
         // The estimate's contacts are the plan step's without the attaching finger's: no
         // finger touching that the step has free, none of its others lost.
         let same = planned
