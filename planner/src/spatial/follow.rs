@@ -35,6 +35,10 @@ const PROJECTIONS: usize = 4;
 /// How near the surface a projected fingertip is left (m).
 const ON_SURFACE: Real = 1e-7;
 
+/// Where a plan's targets go as its steps are settled, with the margin it is planned at
+/// ([`replan_streamed`]).
+pub type HandOn<'f> = &'f mut dyn FnMut(&[Target], Real);
+
 /// The plan's `steps` of `scenario` cut into the targets a follower commands (the module's
 /// rules).
 pub fn targets(steps: &[Step], scenario: &SpatialScenario<'_>) -> Vec<Target> {
@@ -116,7 +120,7 @@ pub fn replan_streamed(
     commanded: Option<&Step>,
     first: usize,
     progress: &mut dyn FnMut(Real),
-    mut settled: Option<&mut dyn FnMut(&[Target], Real)>,
+    mut settled: Option<HandOn<'_>>,
 ) -> Result<Replan, ReplanError> {
     let turning = scenario.turning();
     let mut again = scenario.clone();

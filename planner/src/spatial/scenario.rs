@@ -18,6 +18,10 @@ struct Mapped<'s, 'a> {
     timing: Timing,
 }
 
+
+/// Where a plan's settled steps go ([`SpatialScenario::plan_streamed`]).
+type Settled<'f> = &'f mut dyn FnMut(&[Step]);
+
 impl Stepper for Mapped<'_, '_> {
     type Contact = Touch;
 
@@ -292,7 +296,7 @@ impl SpatialScenario<'_> {
     fn plan_handing(
         &self,
         progress: &mut dyn FnMut(Real),
-        mut settled: Option<&mut dyn FnMut(&[Step])>,
+        mut settled: Option<Settled<'_>>,
     ) -> Result<(Plan, PhaseTimes), PlanError> {
         let started = self.start()?;
         let mapped = Mapped {
