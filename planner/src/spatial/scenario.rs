@@ -18,7 +18,6 @@ struct Mapped<'s, 'a> {
     timing: Timing,
 }
 
-
 /// Where a plan's settled steps go ([`SpatialScenario::plan_streamed`]).
 type Settled<'f> = &'f mut dyn FnMut(&[Step]);
 
