@@ -296,6 +296,7 @@ pub fn run(ctx: &StaticContext) -> Result<()> {
     };
     planning(&mut health, 0.0, true)?;
     let scenario = setup.planning(config)?;
+    let started = now();
     let worker = worker::spawn(scenario.clone(), &setup.problem)?;
     let mut follower = Follower::waiting(scenario, CLEARANCE, tolerances);
     // The regions each target's messages carry, made with the targets.
@@ -361,15 +362,21 @@ pub fn run(ctx: &StaticContext) -> Result<()> {
                     regions,
                 } => {
                     if first {
-                        let again = follower.waiting_for() == Some(Wait::Again);
+                        let waited = follower.waiting_for();
+                        let again = waited == Some(Wait::Again);
                         follower.begin(targets, now());
                         step_regions = regions;
-                        if let Some((due, at)) = asked.as_ref().filter(|_| again) {
-                            eprintln!(
+                        match asked.as_ref().filter(|_| again) {
+                            Some((due, at)) => eprintln!(
                                 "icrflow-planner: re-plan {}: its first targets after {:.0} ms",
                                 due.count,
                                 now().saturating_sub(*at) as f64 * 1e-6
-                            );
+                            ),
+                            None if waited == Some(Wait::FirstPlan) => eprintln!(
+                                "icrflow-planner: the plan's first targets after {:.0} ms",
+                                now().saturating_sub(started) as f64 * 1e-6
+                            ),
+                            None => {}
                         }
                         // A plan made again: its first target at once.
                         if let Some(k) = follower.current() {
