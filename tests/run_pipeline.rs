@@ -62,8 +62,10 @@ fn said_what_it_did(err: &str, out: &str, s: &serde_json::Value) {
     assert!(at("run: the planner node is planning") < at("run: the plan's first steps came"));
     assert!(at("run: the plan's first steps came") < at("run: goal reached"));
     assert!(!err.contains("no plan step yet"), "{err}");
-    // The hand held its grasp while the planner node planned: start-up, not holds.
-    assert!(s["startup_holds"].as_u64().unwrap() > 0, "{s}");
+    // What the hand held while the planner node made the plan's first steps is start-up, not
+    // holds. (Since the node hands the plan on as it is made, the Allegro sphere's first steps
+    // come after ~0.15 s, before the command node holds at all: 0 start-up holds, where the
+    // whole plan made first gave thousands; the paper's still give some.)
     assert!(s["planned_after_s"].as_f64().unwrap() > 0.0, "{s}");
     let causes: u64 = s["hold_causes"]
         .as_object()
