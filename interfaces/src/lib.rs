@@ -684,8 +684,7 @@ pub enum CommandMode {
     /// Hold the last safe grasp (see `reason`).
     Hold = 1,
     /// Below the margin, hold the grasp's fingers where the last command that moved the hand
-    /// put them
-    /// and move the finger the plan step attaches onto the object (see `reason`): adding a
+    /// put them and move the finger the plan step attaches onto the object (see `reason`): adding a
     /// contact can only raise the grasp's quality (the command node's
     /// `Gate::attach_below_margin`). A plant follows it as it follows `Track`.
     Attach = 2,

@@ -174,8 +174,8 @@ impl<'a> Commander<'a> {
             header.source_time_ns = now;
             let decided = self.gate.decide(now).copied();
             // Below the margin, an attach that adds a finger to the grasp the gate judged goes
-            // on, the grasp's fingers held (the gate's `attach_below_margin`); only after a
-            // tracking command, whose targets they are held at.
+            // on, the grasp's fingers held (the gate's `attach_below_margin`); only where each
+            // has a command to be held at (`Tracker::can_hold`).
             let attach = match (&decided, self.gate.plan()) {
                 (Err(hold), Some(plan)) => self
                     .gate
@@ -666,7 +666,8 @@ impl Tracker<'_> {
         })
     }
 
-    /// A hold of the last tracking command (before any, no motion at all), saying `why`.
+    /// A hold of the last command that moved the hand (before any, no motion at all), saying
+    /// `why`.
     fn hold(&self, why: &str) -> HandCommand {
         let mut c = self.last.map_or_else(HandCommand::default, |(c, _)| c);
         c.header = Header::new(Kind::HandCommand, 0, 0, 0);

@@ -372,8 +372,8 @@ impl Gate {
     /// force closure) and the plan step attaches a finger (`rendezvous_finger`; the step
     /// itself, or a way point of the finger's approach, where it is still free) to exactly the
     /// fingers the estimate has touching, the attach may go on with those fingers held where
-    /// the last command that moved the hand put them (the caller's part): the grasp is the one the gate
-    /// judged, a free finger moves along its planned approach, and a contact is added to the
+    /// the last command that moved the hand put them (the caller's part): the grasp is the one
+    /// the gate judged, a free finger moves along its planned approach, and a contact is added to the
     /// grasp; the wrench space of more contacts contains that of fewer, so alpha* can only
     /// grow once it touches. Holding instead leaves the grasp below the margin for as long as
     /// the plan waits for that attach. The attaching finger and the quality; `None` where the
