@@ -343,6 +343,19 @@ pub struct JointState {
     pub positions: [[f64; MAX_JOINTS]; MAX_FINGERS],
 }
 
+impl JointState {
+    /// The slot of finger `finger` among the message's first `finger_count` (at most
+    /// [`MAX_FINGERS`]: a count beyond it, malformed, is read as that many).
+    pub fn slot_of(&self, finger: u32) -> Option<usize> {
+        slot_of(&self.finger_ids, self.finger_count, finger)
+    }
+}
+
+/// The slot of `finger` in `ids`, of which the first `count` are in use (at most all).
+fn slot_of(ids: &[u32; MAX_FINGERS], count: u32, finger: u32) -> Option<usize> {
+    ids.iter().take(count as usize).position(|&id| id == finger)
+}
+
 /// An object-pose measurement (e.g. from vision): noisy, delayed, lower rate.
 #[derive(
     Debug,
@@ -724,6 +737,22 @@ pub struct HandCommand {
     /// Why the hand holds, or attaches below the margin (UTF-8, zero-padded; empty when
     /// tracking).
     pub reason: [u8; TEXT_BYTES],
+}
+
+impl HandCommand {
+    /// Whether the command presses finger `finger` on the object: it is among the command's
+    /// fingers with a force target (a free, approaching or leaving finger has none). Only a
+    /// pressing finger rolls the object (the plant's rule, and the estimator's).
+    pub fn presses(&self, finger: u32) -> bool {
+        self.slot_of(finger)
+            .is_some_and(|k| self.forces[k].iter().any(|x| *x != 0.0))
+    }
+
+    /// The slot of finger `finger` among the command's first `finger_count` (at most
+    /// [`MAX_FINGERS`]).
+    pub fn slot_of(&self, finger: u32) -> Option<usize> {
+        slot_of(&self.finger_ids, self.finger_count, finger)
+    }
 }
 
 impl Default for HandCommand {

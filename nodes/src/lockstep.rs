@@ -384,6 +384,7 @@ impl<'s> Loop<'s> {
             self.attaches_below_margin += 1;
         }
         self.holding = why.clone();
+        self.estimator.on_command(&c);
         self.command = Some(c);
         Some((c, why))
     }

@@ -371,7 +371,7 @@ impl<'a> Plant<'a> {
             let mut before = [0.0; MAX_JOINTS];
             let n = q.len().min(MAX_JOINTS);
             before[..n].copy_from_slice(&q[..n]);
-            let Some(k) = (0..c.finger_count as usize).find(|&k| c.finger_ids[k] == f.id) else {
+            let Some(k) = c.slot_of(f.id) else {
                 continue;
             };
             // Along the straight line to the command in joint space, every joint scaled
@@ -387,7 +387,7 @@ impl<'a> Plant<'a> {
             for (j, a) in q.iter_mut().enumerate().take(MAX_JOINTS) {
                 *a += scale * (goal[j] - *a);
             }
-            let pressing = c.forces[k].iter().any(|x| *x != 0.0);
+            let pressing = c.presses(f.id);
             // The simulation lets a fingertip pass through the object; a real one would
             // hit it. Said on entering, always: it is a planning or tracking fault.
             // The fingertip's gap to the object (the object turns after every finger moved).
