@@ -1142,6 +1142,34 @@ pub mod topics {
 mod tests {
     use super::*;
 
+    /// A finger's slot is found among the fingers in use only; a malformed count over
+    /// MAX_FINGERS reads as MAX_FINGERS (no index out of bounds); a command presses a finger
+    /// with a force target only.
+    #[test]
+    fn a_finger_s_slot_and_whether_it_presses() {
+        let mut m = JointState {
+            finger_count: 2,
+            ..Default::default()
+        };
+        m.finger_ids[..3].copy_from_slice(&[4, 1, 2]);
+        assert_eq!(m.slot_of(1), Some(1));
+        assert_eq!(m.slot_of(2), None, "slot 2 is not in use");
+        m.finger_count = u32::MAX;
+        assert_eq!(m.slot_of(2), Some(2));
+        assert_eq!(m.slot_of(9), None);
+        let mut c = HandCommand {
+            finger_count: 2,
+            ..Default::default()
+        };
+        c.finger_ids[..2].copy_from_slice(&[4, 1]);
+        c.forces[1] = [0.0, 0.0, -1.5];
+        assert!(c.presses(1));
+        assert!(!c.presses(4), "no force target");
+        assert!(!c.presses(2), "not in the command");
+        c.finger_count = 1000;
+        assert!(!c.presses(7));
+    }
+
     #[test]
     fn header_checks_schema_kind_order_and_age() {
         let h = Header::new(Kind::JointState, 5, 0, 0);
