@@ -285,10 +285,15 @@ fn allegro_sphere(seed: u64) -> (lockstep::Ended, TruthWatch) {
 /// pipeline dropped it in 3 of 8 runs under load. In seed 25 the thumb rolled to within 24.0x mm
 /// of the index (24.00 needed) before the switch released it, and MuJoCo had the two touching
 /// for 359 integration steps while the middle finger attached, before the planner kept
-/// [`icrflow_plan::route::FINGER_GAP`] between fingers.
+/// [`icrflow_plan::route::FINGER_GAP`] between fingers. Since the estimator stopped counting
+/// fingers let go of (2026-12-06), seed 25's thumb no longer rolls up to the index (no clash
+/// to decide) and seed 14's does: of seeds 12-22 and 25, 12, 14, 15, 20 and 22 decide a clash,
+/// none has fingers touching. Each seed here is run, none may have fingers touching, and two
+/// of the three must decide a clash.
 #[test]
 fn the_allegro_keeps_its_pinch_through_plans_made_again() {
-    for seed in [12, 25] {
+    let mut decided = Vec::new();
+    for seed in [12, 14, 25] {
         let (ended, watch) = allegro_sphere(seed);
         let (integrated, touching) = (watch.integrated, watch.fingers_touching);
         let switches: Vec<&str> = ended
@@ -303,10 +308,9 @@ fn the_allegro_keeps_its_pinch_through_plans_made_again() {
             ended.replans
         );
         assert_eq!(touching, 0, "seed {seed}: fingers touching: {switches:#?}");
-        assert!(
-            switches.iter().any(|s| s.contains("would touch")),
-            "seed {seed}: no clash to decide: {switches:#?}"
-        );
+        if switches.iter().any(|s| s.contains("would touch")) {
+            decided.push(seed);
+        }
         for s in &switches {
             assert!(
                 !s.contains("finger 1 leaves") && !s.contains("finger 3 leaves"),
@@ -314,6 +318,10 @@ fn the_allegro_keeps_its_pinch_through_plans_made_again() {
             );
         }
     }
+    assert!(
+        decided.len() >= 2,
+        "a clash decided in seeds {decided:?} only"
+    );
 }
 
 /// Noise seeds never used to tune the Allegro sphere's config, the planner or the nodes (61-70;
@@ -349,14 +357,18 @@ fn the_allegro_turns_the_sphere_on_held_out_seeds() {
 }
 
 /// Below the margin at an attach, the one command that cannot lower it goes on. The Allegro's
-/// ellipsoid mesh planned at `plan.alpha` 0.12 (its config's 0.13 less 0.01 of headroom), the
-/// default noise seed: at the detach of step 44 (128 deg) the index slips 2 mm off its contact,
-/// and the grasp of index, middle and thumb keeps alpha* 0.08 < 0.1 where MuJoCo's fingertips
-/// touch; the gate held the hand at step 46, the ring finger's attach, for as long as the run
-/// lasted (90 s of simulated time, 2026-12-06, before the gate let such an attach through:
-/// the CI's "held 40 s at an attach" of the pipeline test, reproduced). Now the ring finger
-/// attaches with the others held, the margin comes back with it, and the ellipsoid turns to
-/// the goal, no finger touching another, no link on the object, no contact lost after.
+/// ellipsoid mesh planned at `plan.alpha` 0.12 (its config's 0.13 less 0.01 of headroom): at the
+/// detach of step 44 (128 deg) the index slips 2 mm off its contact, and the grasp of index,
+/// middle and thumb keeps alpha* 0.08 < 0.1 where MuJoCo's fingertips touch; the gate held the
+/// hand at step 46, the ring finger's attach, for as long as the run lasted (90 s of simulated
+/// time, 2026-12-06, before the gate let such an attach through: the CI's "held 40 s at an
+/// attach" of the pipeline test, reproduced). Now the ring finger attaches with the others
+/// held, and the margin comes back with it: in every noise seed of 1-6 where such an attach
+/// happens, the ellipsoid turns to the goal, no finger touching another, no link on the object,
+/// no contact lost after. The situation is a knife edge: in the other seeds the index's slip
+/// lets the ellipsoid spin out between two fingers (tilted 103 deg) before any attach, with the
+/// estimator that counted fingers let go of (attaches in seeds 1 and 5) and with the one that
+/// does not (4 and 6; 2026-12-06): issue 37's.
 #[test]
 fn below_the_margin_a_finger_attaching_to_the_grasp_held_restores_it() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config");
@@ -366,41 +378,53 @@ fn below_the_margin_a_finger_attaching_to_the_grasp_held_restores_it() {
         .as_table_mut()
         .unwrap()
         .insert("alpha".into(), toml::Value::Float(0.12));
-    let config = Config::from_table(table, &path).unwrap();
+    let mut config = Config::from_table(table, &path).unwrap();
     let setup = Setup::new(&config).unwrap();
-    let mut watch = TruthWatch::new(&config);
-    let mut first_attach = None;
-    let ended = lockstep::run(&config, &setup, 90.0, 0.5, 0.0, &mut |tick| {
-        watch.observe(tick);
-        if tick
-            .command
-            .is_some_and(|(c, _)| c.mode == CommandMode::Attach as u32)
-        {
-            first_attach.get_or_insert(tick.time);
-        }
-    })
-    .unwrap();
-    println!(
-        "{:.1} deg after {:.1} s, {} attach commands below the margin from {first_attach:?} s, {} holds, losses {:?}",
-        ended.rotation.to_degrees(),
-        ended.time,
-        ended.attaches_below_margin,
-        ended.holds,
-        watch.losses
-    );
-    let from = first_attach.expect("no attach below the margin: the situation was not met");
-    assert!(ended.attaches_below_margin > 0);
-    assert!(ended.done, "{ended:?}");
+    let mut met = Vec::new();
+    for seed in 1..=6 {
+        config.pipeline.seed = seed;
+        let mut watch = TruthWatch::new(&config);
+        let mut first_attach = None;
+        let ended = lockstep::run(&config, &setup, 90.0, 0.5, 0.0, &mut |tick| {
+            watch.observe(tick);
+            if tick
+                .command
+                .is_some_and(|(c, _)| c.mode == CommandMode::Attach as u32)
+            {
+                first_attach.get_or_insert(tick.time);
+            }
+        })
+        .unwrap();
+        println!(
+            "seed {seed}: {:.1} deg after {:.1} s, {} attach commands below the margin from {first_attach:?} s, {} holds, tilt at most {:.1} deg, losses {:?}",
+            ended.rotation.to_degrees(),
+            ended.time,
+            ended.attaches_below_margin,
+            ended.holds,
+            watch.max_tilt.0,
+            watch.losses
+        );
+        let Some(from) = first_attach else {
+            continue;
+        };
+        met.push(seed);
+        assert!(ended.attaches_below_margin > 0, "seed {seed}");
+        assert!(ended.done, "seed {seed}: {ended:?}");
+        assert!(
+            (ended.rotation.to_degrees() - 270.0).abs() <= 0.01 * 270.0,
+            "seed {seed}: {ended:?}"
+        );
+        assert_eq!(ended.holding, None, "seed {seed}: {ended:?}");
+        assert!(
+            watch.losses.iter().all(|l| l.time < from),
+            "seed {seed}: {:?}",
+            watch.losses
+        );
+        assert_eq!(watch.fingers_touching, 0, "seed {seed}");
+        assert_eq!(watch.links_on_object, 0, "seed {seed}");
+    }
     assert!(
-        (ended.rotation.to_degrees() - 270.0).abs() <= 0.01 * 270.0,
-        "{ended:?}"
+        !met.is_empty(),
+        "no attach below the margin in seeds 1-6: the situation was not met"
     );
-    assert_eq!(ended.holding, None, "{ended:?}");
-    assert!(
-        watch.losses.iter().all(|l| l.time < from),
-        "{:?}",
-        watch.losses
-    );
-    assert_eq!(watch.fingers_touching, 0);
-    assert_eq!(watch.links_on_object, 0);
 }
