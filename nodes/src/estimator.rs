@@ -5,15 +5,16 @@
 //! [`Estimator`] is the pure step (measurements and their times in, the grasp state out);
 //! [`run`] is the node around it (the bus, health, the checkpoint).
 //!
-//! **Rotation.** Between measurements the rotation follows the rolling of the fingertips in
-//! contact, except those the hand commands have let go of (pressed, then given no force: the
-//! contact schedule, as a legged robot's estimator stops trusting a leg that lifts off): such a
-//! finger leaves at once, though its fingertip stays within [`RELEASE`] of the surface for a
-//! few samples more, and its way off, partly along the surface, is not the object turning
-//! (counted, the four switches in a row of the Allegro ellipsoid's plan at 85 degrees put the
-//! estimate 1.2-3.4 degrees ahead of the kinematic plant's object, standing still). A finger
-//! that touches before it is pressed (one attaching) counts, as a real one rolls the object
-//! with whatever force its position control makes (MuJoCo's does). A pose
+//! **Rotation.** Between measurements the rotation follows the rolling of the fingertips that
+//! press on the object: in contact, and given a force by the newest moving hand command (the
+//! contact schedule, as a legged robot's estimator trusts the kinematics of the legs in stance
+//! only; the plant's rule too). A finger without a force does not roll the object, though its
+//! fingertip may stay within [`RELEASE`] of the surface for a few samples on its way off, and
+//! that way runs partly along the surface: counted, the four switches in a row of the Allegro
+//! ellipsoid's plan at 85 degrees put the estimate 1.2-3.4 degrees ahead of the kinematic
+//! plant's object, standing still (a finger let go of; one that touched while the hand held
+//! below the margin and left without ever being pressed). Before the first command every
+//! finger in contact counts. A pose
 //! measurement of the scene captured at time `t` (it arrives `pipeline.pose_latency_ms`
 //! later) is compared with the estimate *as it was at `t`, corrected by everything the filter
 //! has learnt since*: the innovation `nu = measured - (theta(t) + C - C(t))`, `C` the sum of
@@ -138,11 +139,9 @@ pub struct Estimator<'a> {
     /// How far the object's centre has moved (m; a planar hand's in the hand's plane), from
     /// the pose measurements' positions: the fingertips are taken about the moved centre.
     moved: [f64; 3],
-    /// Per finger slot, whether the newest moving hand command presses it.
-    pressing: [bool; MAX_FINGERS],
-    /// Per finger slot, whether the commands let go of it (pressed, then not) while it is
-    /// still in contact: it no longer rolls the object.
-    let_go: [bool; MAX_FINGERS],
+    /// Per finger slot, whether the newest moving hand command presses it (`None` before the
+    /// first).
+    pressing: Option<[bool; MAX_FINGERS]>,
 }
 
 impl<'a> Estimator<'a> {
@@ -167,8 +166,7 @@ impl<'a> Estimator<'a> {
             transitions: Vec::with_capacity(n),
             q: Vec::with_capacity(8),
             moved: [0.0; 3],
-            pressing: [false; MAX_FINGERS],
-            let_go: [false; MAX_FINGERS],
+            pressing: None,
         }
     }
 
@@ -255,22 +253,24 @@ impl<'a> Estimator<'a> {
         &self.transitions
     }
 
-    /// A hand command: a finger it no longer presses, that the one before did, is let go of
-    /// (it no longer rolls the object, until it leaves contact or is pressed again). A hold
-    /// moves nothing and changes nothing.
+    /// A hand command: the fingers it presses on the object, the only ones that roll it from
+    /// now on. A hold moves nothing and changes nothing.
     pub fn on_command(&mut self, c: &HandCommand) {
         if !CommandMode::moves(c.mode) {
             return;
         }
-        for (slot, f) in self.hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-            let now = c.presses(f.id);
-            if now {
-                self.let_go[slot] = false;
-            } else if self.pressing[slot] {
-                self.let_go[slot] = true;
-            }
-            self.pressing[slot] = now;
+        let mut pressing = [false; MAX_FINGERS];
+        for (p, f) in pressing.iter_mut().zip(&self.hand.fingers) {
+            *p = c.presses(f.id);
         }
+        self.pressing = Some(pressing);
+    }
+
+    /// Whether the finger of `slot` rolls the object: pressed by the newest moving command
+    /// (every finger before the first).
+    fn presses(&self, slot: usize) -> bool {
+        self.pressing
+            .is_none_or(|p| p.get(slot).copied().unwrap_or(false))
     }
 
     /// Fuses an object-pose measurement of rotation `measured` (rad) of the scene captured at
@@ -363,15 +363,11 @@ impl<'a> Estimator<'a> {
             if on != was {
                 self.transitions.push((f.id, on, gap));
             }
-            if !on && slot < MAX_FINGERS {
-                // Off the object: a finger let go of is done leaving.
-                self.let_go[slot] = false;
-            }
             self.contact[slot] = on;
             if let Some((before, before_gap)) = self.previous[slot]
                 && was
                 && on
-                && !self.let_go.get(slot).copied().unwrap_or(false)
+                && self.presses(slot)
                 && (gap - before_gap).abs() < RADIAL
             {
                 let (by, w) = self.turn(f, &before, &t);
@@ -774,10 +770,10 @@ mod tests {
         }
     }
 
-    /// A finger the hand commands let go of, sliding along the object's surface on its way off
-    /// (within [`RELEASE`] of it: in contact by the geometry all along), does not turn the
-    /// estimate, as the plant does not turn the object with it; without the commands (every
-    /// finger in contact counting), the same samples turn it.
+    /// A finger the hand commands no longer press, sliding along the object's surface on its
+    /// way off (within [`RELEASE`] of it: in contact by the geometry all along), does not turn
+    /// the estimate, as the plant does not turn the object with it; without the commands
+    /// (every finger in contact counting), the same samples turn it.
     #[test]
     fn a_finger_no_longer_pressed_does_not_turn_the_estimate_on_its_way_off() {
         let (mut config, setup) = crate::testing::allegro_sphere();

@@ -285,8 +285,8 @@ fn allegro_sphere(seed: u64) -> (lockstep::Ended, TruthWatch) {
 /// pipeline dropped it in 3 of 8 runs under load. In seed 25 the thumb rolled to within 24.0x mm
 /// of the index (24.00 needed) before the switch released it, and MuJoCo had the two touching
 /// for 359 integration steps while the middle finger attached, before the planner kept
-/// [`icrflow_plan::route::FINGER_GAP`] between fingers. Since the estimator stopped counting
-/// fingers let go of (2026-12-06), seed 25's thumb no longer rolls up to the index (no clash
+/// [`icrflow_plan::route::FINGER_GAP`] between fingers. Since the estimator rolls the object
+/// with the fingers pressed only (2026-12-06), seed 25's thumb no longer rolls up to the index (no clash
 /// to decide) and seed 14's does: of seeds 12-22 and 25, 12, 14, 15, 20 and 22 decide a clash,
 /// none has fingers touching. Each seed here is run, none may have fingers touching, and two
 /// of the three must decide a clash.
@@ -367,8 +367,9 @@ fn the_allegro_turns_the_sphere_on_held_out_seeds() {
 /// happens, the ellipsoid turns to the goal, no finger touching another, no link on the object,
 /// no contact lost after. The situation is a knife edge: in the other seeds the index's slip
 /// lets the ellipsoid spin out between two fingers (tilted 103 deg) before any attach, with the
-/// estimator that counted fingers let go of (attaches in seeds 1 and 5) and with the one that
-/// does not (4 and 6; 2026-12-06): issue 37's.
+/// estimator that rolled the object with every finger in contact (attaches in seeds 1 and 5)
+/// and with the one that rolls it with the fingers pressed only (4 and 6; 2026-12-06): issue
+/// 37's.
 #[test]
 fn below_the_margin_a_finger_attaching_to_the_grasp_held_restores_it() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config");
