@@ -1075,7 +1075,11 @@ pub mod topics {
         pub const fn reads(self) -> &'static [TopicId] {
             match self {
                 Self::Plant => &[TopicId::HandCommand],
-                Self::Estimator => &[TopicId::JointState, TopicId::ObjectPose],
+                Self::Estimator => &[
+                    TopicId::JointState,
+                    TopicId::ObjectPose,
+                    TopicId::HandCommand,
+                ],
                 Self::Wrench | Self::Planner => &[TopicId::GraspState],
                 Self::Command => &[TopicId::PlanStep, TopicId::GraspState, TopicId::WrenchSpace],
                 Self::Bridge | Self::Visualizer => &[],
@@ -1257,6 +1261,10 @@ mod tests {
         let plant = links(&["plant"]);
         assert_eq!(plant.export, [JointState, ObjectPose]);
         assert_eq!(plant.import, [HandCommand]);
+        // The estimator alone: the measurements and which fingers the commands press in.
+        let estimator = links(&["estimator"]);
+        assert_eq!(estimator.export, [GraspState]);
+        assert_eq!(estimator.import, [JointState, ObjectPose, HandCommand]);
     }
 
     #[test]

@@ -475,14 +475,13 @@ pub fn run(ctx: &Context) -> Result<()> {
                 Err(why) => health.refuse(why),
             }
         }
-        // Any command's: a restarted command node numbers its commands from 1 again.
-        if let Some(c) = commands.latest()? {
-            if c.header.check(Kind::HandCommand).is_ok() {
-                estimator.on_command(&c);
-            } else {
-                health.refuse("hand command of another schema or kind");
-            }
-        }
+        // Every command since the last wake-up, in order (a tracking one followed by a hold
+        // still says which fingers press); any command's: a restarted command node numbers
+        // its commands from 1 again.
+        commands.drain(|c| match c.header.check(Kind::HandCommand) {
+            Ok(()) => estimator.on_command(c),
+            Err(e) => health.refuse(format_args!("hand command: {e}")),
+        })?;
         let Some(m) = joints.latest()? else {
             return Ok(());
         };

@@ -364,8 +364,8 @@ fn the_allegro_turns_the_sphere_on_held_out_seeds() {
 /// time, 2026-12-06, before the gate let such an attach through: the CI's "held 40 s at an
 /// attach" of the pipeline test, reproduced). Now the ring finger attaches with the others
 /// held, and the margin comes back with it: in every noise seed of 1-6 where such an attach
-/// happens, the ellipsoid turns to the goal, no finger touching another, no link on the object,
-/// no contact lost after. The situation is a knife edge: in the other seeds the index's slip
+/// happens (at least two), the ellipsoid turns to the goal, no finger touching another, no link
+/// on the object, no contact lost after. The situation is a knife edge: in the other seeds the index's slip
 /// lets the ellipsoid spin out between two fingers (tilted 103 deg) before any attach, with the
 /// estimator that rolled the object with every finger in contact (attaches in seeds 1 and 5)
 /// and with the one that rolls it with the fingers pressed only (4 and 6; 2026-12-06): issue
@@ -424,8 +424,9 @@ fn below_the_margin_a_finger_attaching_to_the_grasp_held_restores_it() {
         assert_eq!(watch.fingers_touching, 0, "seed {seed}");
         assert_eq!(watch.links_on_object, 0, "seed {seed}");
     }
+    // Two of the six when this was written (4 and 6).
     assert!(
-        !met.is_empty(),
-        "no attach below the margin in seeds 1-6: the situation was not met"
+        met.len() >= 2,
+        "an attach below the margin in seeds {met:?} of 1-6 only: the situation was not met"
     );
 }
