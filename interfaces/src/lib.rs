@@ -744,8 +744,15 @@ impl HandCommand {
     /// fingers with a force target (a free, approaching or leaving finger has none). Only a
     /// pressing finger rolls the object (the plant's rule, and the estimator's).
     pub fn presses(&self, finger: u32) -> bool {
-        self.slot_of(finger)
-            .is_some_and(|k| self.forces[k].iter().any(|x| *x != 0.0))
+        self.slot_of(finger).is_some_and(|k| self.presses_slot(k))
+    }
+
+    /// Whether the command gives the finger of its slot `k` a force target (`false` beyond
+    /// [`MAX_FINGERS`]).
+    pub fn presses_slot(&self, k: usize) -> bool {
+        self.forces
+            .get(k)
+            .is_some_and(|f| f.iter().any(|x| *x != 0.0))
     }
 
     /// The slot of finger `finger` among the command's first `finger_count` (at most
@@ -1172,6 +1179,8 @@ mod tests {
         assert!(!c.presses(2), "not in the command");
         c.finger_count = 1000;
         assert!(!c.presses(7));
+        assert!(c.presses_slot(1) && !c.presses_slot(0));
+        assert!(!c.presses_slot(MAX_FINGERS), "beyond the slots");
     }
 
     #[test]

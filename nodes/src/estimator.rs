@@ -699,16 +699,9 @@ mod tests {
         let (config, setup) = crate::testing::allegro_sphere();
         let roller = setup.roller(&config).unwrap();
         let (steps, slots) = crate::testing::spatial_rolling(&config, &setup, 10);
-        let grip = setup.initial_grip(&config).unwrap();
         for with_poses in [false, true] {
             let t0 = 1_000_000_000_000;
-            let mut plant = crate::plant::Plant::new(
-                &setup.hand,
-                roller,
-                (grip.0.clone(), &grip.1),
-                &config.pipeline,
-                t0,
-            );
+            let mut plant = plant_at_grip(&config, &setup, t0);
             let mut e = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
             let dt = (1e9 / config.pipeline.rate_hz) as u64;
             let mut now = t0;
@@ -798,6 +791,18 @@ mod tests {
         );
     }
 
+    /// The kinematic plant holding `setup`'s initial grip at `t0`.
+    fn plant_at_grip<'a>(config: &'a Config, setup: &'a Setup, t0: u64) -> crate::plant::Plant<'a> {
+        let (joints, touching) = setup.initial_grip(config).unwrap();
+        crate::plant::Plant::new(
+            &setup.hand,
+            setup.roller(config).unwrap(),
+            (joints, &touching),
+            &config.pipeline,
+            t0,
+        )
+    }
+
     /// The grasp of `slots` pressed and settled at `steps[0]`; then its finger `k`, no longer
     /// pressed, goes where `steps[10]` has it (ten degrees of rolling over the still sphere);
     /// the estimates told the commands and not told (rad).
@@ -809,15 +814,8 @@ mod tests {
         k: usize,
     ) -> (f64, f64) {
         let roller = setup.roller(config).unwrap();
-        let grip = setup.initial_grip(config).unwrap();
         let t0 = 1_000_000_000_000;
-        let mut plant = crate::plant::Plant::new(
-            &setup.hand,
-            roller,
-            (grip.0.clone(), &grip.1),
-            &config.pipeline,
-            t0,
-        );
+        let mut plant = plant_at_grip(config, setup, t0);
         let mut told = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
         let mut blind = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
@@ -829,6 +827,15 @@ mod tests {
         off.forces[k] = [0.0; 3];
         let (mut touching, mut samples) = (0, 0);
         for (phase, joints) in [&steps[0], &away].into_iter().enumerate() {
+            if phase == 1 {
+                // A hold (no force targets) moves nothing and changes nothing.
+                let hold = HandCommand {
+                    mode: CommandMode::Hold as u32,
+                    ..off
+                };
+                told.on_command(&hold);
+                assert!(slots.iter().all(|&s| told.presses(s)), "a hold let go");
+            }
             let mut c = if phase == 0 {
                 crate::testing::command(setup, slots, joints, true, now)
             } else {

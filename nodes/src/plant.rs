@@ -387,7 +387,7 @@ impl<'a> Plant<'a> {
             for (j, a) in q.iter_mut().enumerate().take(MAX_JOINTS) {
                 *a += scale * (goal[j] - *a);
             }
-            let pressing = c.presses(f.id);
+            let pressing = c.presses_slot(k);
             // The simulation lets a fingertip pass through the object; a real one would
             // hit it. Said on entering, always: it is a planning or tracking fault.
             // The fingertip's gap to the object (the object turns after every finger moved).
