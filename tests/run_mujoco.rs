@@ -274,6 +274,17 @@ fn the_allegro_turns_the_ellipsoid_mesh_270_degrees_in_mujoco() {
         None,
     );
     assert_turn(&s, 270.0, 3, 0.1, 1);
+    // The plan-step stream never stopped: the planner node plans in a worker thread, plans
+    // made again included, and its loop (SCHED_FIFO) republishes the target it holds (before,
+    // the stream stopped for each plan made again, seconds, "plan step is stale": 9,267-13,455
+    // holds a run on 2026-12-06, 27,450 in the CI run of 5e3a135 that lost the grasp; now the
+    // hand holds until a plan made again has its first targets, saying so).
+    assert!(s["hold_causes"].get("plan step is stale").is_none(), "{s}");
+    let again = s["planner_waits"]["again_s"].as_array().unwrap();
+    assert!(
+        again.len() >= s["replans"].as_u64().unwrap() as usize,
+        "{s}"
+    );
     // At plan.alpha 0.13 on 2026-12-05: tilts of 1.4 and 3.5 deg, p01 0.116 both times (the
     // runs at 0.12 that lost the margin for seconds tilted 4.5-6.5 deg).
     assert_true_margin(&s, 0.1, 5.0);

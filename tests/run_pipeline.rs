@@ -50,7 +50,7 @@ fn said_what_it_did(err: &str, out: &str, s: &serde_json::Value) {
     for line in [
         "run: starting ",
         "run: the planner node is planning: 0 % (0 of 360 deg)",
-        "run: the plan is ready after ",
+        "run: the plan's first steps came after ",
         " of 360.0 deg | ",
         "run: goal reached: ",
     ] {
@@ -59,11 +59,13 @@ fn said_what_it_did(err: &str, out: &str, s: &serde_json::Value) {
     // In that order: starting, planning, the plan, the goal.
     let at = |t: &str| err.find(t).unwrap();
     assert!(at("run: starting ") < at("run: the planner node is planning"));
-    assert!(at("run: the planner node is planning") < at("run: the plan is ready"));
-    assert!(at("run: the plan is ready") < at("run: goal reached"));
+    assert!(at("run: the planner node is planning") < at("run: the plan's first steps came"));
+    assert!(at("run: the plan's first steps came") < at("run: goal reached"));
     assert!(!err.contains("no plan step yet"), "{err}");
-    // The hand held its grasp while the planner node planned: start-up, not holds.
-    assert!(s["startup_holds"].as_u64().unwrap() > 0, "{s}");
+    // What the hand held while the planner node made the plan's first steps is start-up, not
+    // holds. (Since the node hands the plan on as it is made, the Allegro sphere's first steps
+    // come after ~0.15 s, before the command node holds at all: 0 start-up holds, where the
+    // whole plan made first gave thousands; the paper's still give some.)
     assert!(s["planned_after_s"].as_f64().unwrap() > 0.0, "{s}");
     let causes: u64 = s["hold_causes"]
         .as_object()
@@ -149,17 +151,18 @@ fn the_paper_scenario_runs_to_its_goal_like_the_offline_plan() {
     for verbose in ["memory     ", "allocs     "] {
         assert!(!out.contains(verbose), "{out}");
     }
-    // The loops of the loop's nodes ran at the default real-time priority where this machine
-    // allows it (as root, or with CAP_SYS_NICE or an RLIMIT_RTPRIO), the others at normal
-    // priority; elsewhere all at normal priority, and the run said why.
+    // The loops of the loop's nodes (the planner's too: it plans in a worker thread) ran at
+    // the default real-time priority where this machine allows it (as root, or with
+    // CAP_SYS_NICE or an RLIMIT_RTPRIO), the others at normal priority; elsewhere all at
+    // normal priority, and the run said why.
     let allowed = icrflow_runtime::node::realtime_allowed(50).is_ok();
     let policy = |n: &str| s["scheduling"][n].as_str().unwrap_or("missing").to_string();
-    for n in ["plant", "estimator", "wrench", "command"] {
+    for n in ["plant", "estimator", "wrench", "planner", "command"] {
         let expected = if allowed { "fifo 50" } else { "normal" };
         assert_eq!(policy(n), expected, "{n}: {s}");
     }
     assert!(!err.contains("the loop runs at normal priority"), "{err}");
-    for n in ["planner", "bridge", "visualizer"] {
+    for n in ["bridge", "visualizer"] {
         assert_eq!(policy(n), "normal", "{n}: {s}");
     }
     assert_eq!(

@@ -445,7 +445,11 @@ fn cutting_the_link_holds_the_hand_safely_and_restoring_it_resumes() {
     // Mid-run, the link goes down for 4 s: 2 s after the robot's hand has started to follow
     // the plan (the pair takes ~15 s uncut; how long the workstation takes to plan depends on
     // the machine's load, so the cut is timed from the run, not from the start).
-    if !hosts.said(0, "run: the plan is ready", Duration::from_secs(120)) {
+    if !hosts.said(
+        0,
+        "run: the plan's first steps came",
+        Duration::from_secs(120),
+    ) {
         let (_, robot_err) = hosts.wait(0);
         let (_, ws_err) = hosts.wait(0);
         panic!("the robot's hand never started\nrobot: {robot_err}\nworkstation: {ws_err}");

@@ -10,7 +10,7 @@
 
 use icrflow_interfaces::{
     CommandMode, FingerContact, GraspState, HandCommand, Header, JointState, MAX_FINGERS,
-    NodeHealth, NodeState, PlanPhase, PlanStepHeader, WrenchSpaceHeader, read_text,
+    NodeHealth, NodeState, PlanPhase, PlanStepHeader, PlanWait, WrenchSpaceHeader, read_text,
 };
 use serde::{Deserialize, Serialize};
 
@@ -147,6 +147,20 @@ pub struct PlanStepJson {
     /// In an attach step: the finger that attaches and the size of its rendezvous region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rendezvous: Option<RendezvousJson>,
+    /// Whether the hand holds this target waiting for the planner: `ahead` (the rest of the
+    /// plan being made) or `again` (a plan made again from the estimate), and for how long so
+    /// far (ms); absent when it does not wait.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planning: Option<PlanningJson>,
+}
+
+/// The hand waiting for the planner at a plan step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanningJson {
+    /// `ahead` or `again` (`PlanWait`).
+    pub wait: String,
+    /// How long so far (ms).
+    pub ms: u32,
 }
 
 /// The rendezvous region of an attach step.
@@ -309,6 +323,10 @@ pub fn plan_step(rig: &str, p: &PlanStepHeader) -> PlanStepJson {
             finger: p.rendezvous_finger,
             size: p.rendezvous_length,
         }),
+        planning: (p.planning != PlanWait::None as u32).then(|| PlanningJson {
+            wait: PlanWait::name_of(p.planning).into(),
+            ms: p.planning_ms,
+        }),
     }
 }
 
@@ -424,6 +442,25 @@ mod tests {
         for (mode, name) in [(0, "track"), (1, "hold"), (2, "attach"), (7, "hold")] {
             c.mode = mode;
             assert_eq!(hand_command("lab", &c).mode, name, "{mode}");
+        }
+    }
+
+    #[test]
+    fn a_plan_step_says_whether_the_hand_waits_for_the_planner() {
+        let mut p = PlanStepHeader {
+            header: Header::new(Kind::PlanStep, 3, 0, 0),
+            phase: PlanPhase::Rolling as u32,
+            ..Default::default()
+        };
+        let text = serde_json::to_string(&plan_step("lab", &p)).unwrap();
+        assert!(!text.contains("planning"), "{text}");
+        for (wait, name) in [(PlanWait::Ahead, "ahead"), (PlanWait::Again, "again")] {
+            p.planning = wait as u32;
+            p.planning_ms = 1234;
+            let text = serde_json::to_vec(&plan_step("lab", &p)).unwrap();
+            let back: PlanStepJson = serde_json::from_slice(&text).unwrap();
+            let planning = back.planning.unwrap();
+            assert_eq!((planning.wait.as_str(), planning.ms), (name, 1234));
         }
     }
 

@@ -26,7 +26,7 @@ pub mod wire;
 
 /// Version of the message schema. A node refuses messages with another version, and the type
 /// names carry it, so that iceoryx2 refuses to connect mismatched ports at all.
-pub const SCHEMA_VERSION: u32 = 7;
+pub const SCHEMA_VERSION: u32 = 8;
 
 /// Largest number of fingers a message carries.
 pub const MAX_FINGERS: usize = 8;
@@ -44,7 +44,7 @@ pub fn now_ns() -> u64 {
         .map_or(0, |d| d.as_nanos() as u64)
 }
 
-/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v7`).
+/// The type name iceoryx2 compares when ports connect (e.g. `icrflow.JointState.v8`).
 pub fn type_name<T: ZeroCopySend>() -> &'static str {
     // SAFETY: `ZeroCopySend::type_name` is unsafe to *implement* (the name must identify the
     // layout); calling it only reads a static string.
@@ -87,7 +87,7 @@ pub enum Kind {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Header.v7")]
+#[type_name("icrflow.Header.v8")]
 #[repr(C)]
 pub struct Header {
     /// [`SCHEMA_VERSION`] of the sender.
@@ -131,7 +131,7 @@ pub const TRACE_STAMPS: usize = 7;
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Trace.v7")]
+#[type_name("icrflow.Trace.v8")]
 #[repr(C)]
 pub struct Trace {
     /// The stamps (the first `len`).
@@ -326,7 +326,7 @@ messages!(
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.JointState.v7")]
+#[type_name("icrflow.JointState.v8")]
 #[repr(C)]
 pub struct JointState {
     /// Header ([`Kind::JointState`]).
@@ -369,7 +369,7 @@ fn slot_of(ids: &[u32; MAX_FINGERS], count: u32, finger: u32) -> Option<usize> {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.ObjectPose.v7")]
+#[type_name("icrflow.ObjectPose.v8")]
 #[repr(C)]
 pub struct ObjectPose {
     /// Header ([`Kind::ObjectPose`]); `source_time_ns` is when it was published.
@@ -397,7 +397,7 @@ pub struct ObjectPose {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlantTruth.v7")]
+#[type_name("icrflow.PlantTruth.v8")]
 #[repr(C)]
 pub struct PlantTruth {
     /// Header ([`Kind::PlantTruth`]); `source_time_ns` is the time of the state it gives.
@@ -465,7 +465,7 @@ pub enum PlantEngine {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerContact.v7")]
+#[type_name("icrflow.FingerContact.v8")]
 #[repr(C)]
 pub struct FingerContact {
     /// Finger number.
@@ -497,7 +497,7 @@ pub struct FingerContact {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.GraspState.v7")]
+#[type_name("icrflow.GraspState.v8")]
 #[repr(C)]
 pub struct GraspState {
     /// Header ([`Kind::GraspState`]).
@@ -544,7 +544,7 @@ pub struct GraspState {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.WrenchSpaceHeader.v7")]
+#[type_name("icrflow.WrenchSpaceHeader.v8")]
 #[repr(C)]
 pub struct WrenchSpaceHeader {
     /// Header ([`Kind::WrenchSpace`]).
@@ -574,7 +574,7 @@ pub struct WrenchSpaceHeader {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.Facet.v7")]
+#[type_name("icrflow.Facet.v8")]
 #[repr(C)]
 pub struct Facet {
     /// Unit outward normal (the first `dim` components).
@@ -627,7 +627,7 @@ impl PlanPhase {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.FingerTarget.v7")]
+#[type_name("icrflow.FingerTarget.v8")]
 #[repr(C)]
 pub struct FingerTarget {
     /// Finger number.
@@ -661,7 +661,7 @@ pub struct FingerTarget {
     Immutable,
     KnownLayout,
 )]
-#[type_name("icrflow.PlanStepHeader.v7")]
+#[type_name("icrflow.PlanStepHeader.v8")]
 #[repr(C)]
 pub struct PlanStepHeader {
     /// Header ([`Kind::PlanStep`]).
@@ -686,6 +686,40 @@ pub struct PlanStepHeader {
     /// attaching finger keeps the grasp's quality at or above alpha, among which its contact
     /// was chosen), after the fingers' regions in the payload; 0 otherwise.
     pub rendezvous_length: u32,
+    /// [`PlanWait`] as `u32`: whether the hand waits for the planner at this target.
+    pub planning: u32,
+    /// How long the hand has waited for the planner at this target so far (ms; 0 when
+    /// `planning` is [`PlanWait::None`]).
+    pub planning_ms: u32,
+}
+
+/// What the hand waits for the planner for, in [`PlanStepHeader::planning`]: the planner node
+/// plans in a worker thread and hands the plan on a part at a time, so the target it
+/// publishes may be the last one planned so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum PlanWait {
+    /// Nothing: the target is the plan's, with more after it (or the last of a plan made).
+    None = 0,
+    /// The target is the last one planned so far: the hand tracks it (and stays there) while
+    /// the rest of the plan is made.
+    Ahead = 1,
+    /// The object stopped off the plan: the hand holds (the command node's gate) while a plan
+    /// is made again from the estimate.
+    Again = 2,
+}
+
+impl PlanWait {
+    /// The name of wait `w` as [`PlanStepHeader::planning`] carries it (`""`, `"ahead"`,
+    /// `"again"`; `"unknown"` for any other number).
+    pub const fn name_of(w: u32) -> &'static str {
+        match w {
+            0 => "",
+            1 => "ahead",
+            2 => "again",
+            _ => "unknown",
+        }
+    }
 }
 
 /// Hand command modes in [`HandCommand::mode`].
@@ -716,7 +750,7 @@ impl CommandMode {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.HandCommand.v7")]
+#[type_name("icrflow.HandCommand.v8")]
 #[repr(C)]
 pub struct HandCommand {
     /// Header ([`Kind::HandCommand`]).
@@ -795,7 +829,7 @@ pub enum NodeState {
 #[derive(
     Debug, Clone, Copy, PartialEq, ZeroCopySend, FromBytes, IntoBytes, Immutable, KnownLayout,
 )]
-#[type_name("icrflow.NodeHealth.v7")]
+#[type_name("icrflow.NodeHealth.v8")]
 #[repr(C)]
 pub struct NodeHealth {
     /// Header ([`Kind::NodeHealth`]).
@@ -1246,12 +1280,12 @@ mod tests {
 
     #[test]
     fn type_names_carry_the_schema_version() {
-        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v7");
-        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v7");
-        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v7");
-        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v7");
-        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v7");
-        assert_eq!(SCHEMA_VERSION, 7);
+        assert_eq!(type_name::<JointState>(), "icrflow.JointState.v8");
+        assert_eq!(type_name::<HandCommand>(), "icrflow.HandCommand.v8");
+        assert_eq!(type_name::<PlanStepHeader>(), "icrflow.PlanStepHeader.v8");
+        assert_eq!(type_name::<Trace>(), "icrflow.Trace.v8");
+        assert_eq!(type_name::<PlantTruth>(), "icrflow.PlantTruth.v8");
+        assert_eq!(SCHEMA_VERSION, 8);
     }
 
     #[test]
@@ -1338,7 +1372,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<FingerTarget>(), 112);
         assert_eq!(
             std::mem::size_of::<PlanStepHeader>(),
-            104 + 32 + 8 * 112 + 8 * 4 + 8
+            104 + 32 + 8 * 112 + 8 * 4 + 16
         );
     }
 }

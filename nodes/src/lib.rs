@@ -29,6 +29,26 @@ pub fn main(
     icrflow_runtime::node::main(name, icrflow_scenario::Loaded::load, body)
 }
 
+/// The context of a loop node whose threads outlive the loop's borrows (the planner node's
+/// worker): its config and setup loaded once and kept for the life of the process.
+pub type StaticContext = icrflow_runtime::node::Context<&'static icrflow_scenario::Loaded>;
+
+/// Runs loop node `name` as [`main`] does, its config and setup kept for the life of the
+/// process ([`StaticContext`]).
+pub fn main_static(
+    name: &'static str,
+    body: fn(&StaticContext) -> anyhow::Result<()>,
+) -> std::process::ExitCode {
+    icrflow_runtime::node::main(
+        name,
+        |path| {
+            let loaded = icrflow_scenario::Loaded::load(path)?;
+            Ok(&*Box::leak(Box::new(loaded)))
+        },
+        body,
+    )
+}
+
 /// What the steps' unit tests share.
 #[cfg(test)]
 mod testing {

@@ -5,7 +5,7 @@
 
 use icrflow_interfaces::{
     GraspState, Header, HeaderError, Kind, MAX_FINGERS, MAX_JOINTS, PlanPhase, PlanStepHeader,
-    WrenchSpaceHeader,
+    PlanWait, WrenchSpaceHeader,
 };
 
 /// Why the hand holds.
@@ -33,6 +33,14 @@ pub enum Hold {
         age_ms: f64,
         /// The limit (ms).
         limit_ms: f64,
+    },
+    /// The planner node makes the plan again from the estimate (the object stopped off its
+    /// target, [`PlanWait::Again`]): the hand holds rather than track a target of the plan
+    /// the object has left (its joints were solved for the object where the plan had it).
+    #[error("the planner plans again from the estimate: {ms} ms so far")]
+    Replanning {
+        /// How long the planner has planned so far (ms, as the plan step says).
+        ms: u32,
     },
     /// A value is not finite or out of range.
     #[error("{topic}: invalid {what}")]
@@ -323,6 +331,11 @@ impl Gate {
                 });
             }
         }
+        if plan.planning == PlanWait::Again as u32 {
+            return Err(Hold::Replanning {
+                ms: plan.planning_ms,
+            });
+        }
         // End to end: the joint measurement the grasp state was estimated from must be fresh
         // too, not only the estimate.
         let origin = grasp.header.origin_time_ns;
@@ -451,6 +464,31 @@ mod tests {
         g.offer_grasp(&s, now_ns()).unwrap();
         g.offer_wrench(&w, now_ns()).unwrap();
         assert!(g.decide(now_ns()).is_ok());
+    }
+
+    /// While the planner makes the plan again from the estimate the hand holds, saying for how
+    /// long; a target that is the last planned so far (the rest of the plan to come) is
+    /// followed.
+    #[test]
+    fn the_hand_holds_while_the_plan_is_made_again() {
+        let now = now_ns();
+        let mut g = Gate::new(AGE, 0.1, EstimateBounds::NONE);
+        let (mut p, s, w) = inputs(1);
+        p.planning = PlanWait::Again as u32;
+        p.planning_ms = 40;
+        g.offer_plan(&p, now).unwrap();
+        g.offer_grasp(&s, now).unwrap();
+        g.offer_wrench(&w, now).unwrap();
+        let hold = g.decide(now).unwrap_err();
+        assert_eq!(hold, Hold::Replanning { ms: 40 });
+        assert_eq!(
+            hold.to_string(),
+            "the planner plans again from the estimate: 40 ms so far"
+        );
+        let (mut ahead, _, _) = inputs(2);
+        ahead.planning = PlanWait::Ahead as u32;
+        g.offer_plan(&ahead, now).unwrap();
+        assert!(g.decide(now).is_ok());
     }
 
     #[test]

@@ -13,7 +13,7 @@ use icrflow_nodes::estimator::RELEASE;
 use icrflow_nodes::planner::CLEARANCE;
 use icrflow_plan::follow::{
     Estimate, EstimatedFinger, Event, Follower, LEAD, REPLAN_HORIZON, REPLAN_NS, SETTLED_NS,
-    STANDOFFS, Target, Tolerances, replan, targets,
+    STANDOFFS, Target, Tolerances, Wait, replan, targets,
 };
 use icrflow_plan::planner::{Phase, Plan, Step};
 use icrflow_plan::rolling::{Surface, tip};
@@ -816,4 +816,209 @@ fn no_finger_crosses_another_on_the_way() {
             least.1
         );
     }
+}
+
+/// A follower of a plan made elsewhere (the planner node's worker thread) waits for its first
+/// targets, follows those it has and waits at the last of them while the plan is being made,
+/// goes on as more come, and, where the object stops off the plan, asks for a plan made again
+/// (holding meanwhile) instead of making it; the plan made again, handed on as it would be,
+/// gives it the targets the follower that plans itself gets, and it follows them.
+#[test]
+fn a_follower_of_a_plan_made_elsewhere_waits_for_it_and_asks_for_plans_made_again() {
+    let config = config("paper_sphere.toml");
+    let setup = Setup::new(&config).unwrap();
+    let tol = Tolerances::new(config.pipeline.joint_noise);
+    let planning = setup.planning(&config).unwrap();
+    // The plan handed on (a planar plan: all at once), and the follower that plans itself.
+    let mut parts: Vec<(Vec<Target>, f64)> = Vec::new();
+    let plan = planning
+        .plan_streamed(CLEARANCE, &mut |_| {}, &mut |_| {}, &mut |t, a| {
+            parts.push((t.to_vec(), a))
+        })
+        .unwrap();
+    let mut inline = follower(&config, &setup);
+    assert_eq!(parts.len(), 1);
+    assert_eq!(parts[0], (inline.targets().to_vec(), config.plan.alpha));
+    let all = parts.remove(0).0;
+    let mut f = Follower::waiting(planning.clone(), CLEARANCE, tol);
+    assert_eq!(f.waiting_for(), Some(Wait::FirstPlan));
+    let e = at_joints_of(&all[0].step, 0.0);
+    let out = f.on_estimate(&e, 0, &mut || {});
+    assert!(
+        out.event.is_none() && out.commands().count() == 0,
+        "{out:?}"
+    );
+    assert_eq!(f.current(), None);
+    // The first 30 targets: followed to the last, which is reached but not passed (held,
+    // the follower waiting for the rest only once it is there).
+    f.begin(all[..30].to_vec(), 0);
+    let mut now = follow_to(&mut f, 29, 0);
+    assert_eq!(f.waiting_for(), None);
+    let at_last = at_joints_of(&all[29].step, all[29].step.rotation.to_degrees());
+    for _ in 0..3 {
+        let out = f.on_estimate(&at_last, now, &mut || {});
+        assert!(out.event.is_none(), "{out:?}");
+        now += TICK;
+    }
+    assert_eq!(f.current(), Some(29));
+    assert_eq!(f.waiting_for(), Some(Wait::Ahead));
+    // The rest: on at once.
+    f.extend(&all[30..]);
+    assert_eq!(f.waiting_for(), None);
+    let out = f.on_estimate(&at_last, now, &mut || {});
+    assert!(matches!(out.event, Some(Event::Advanced(30))), "{out:?}");
+    f.finish(plan.summary.completed);
+    assert_eq!(f.targets(), inline.targets());
+    // The object slips 12 deg ahead of a rolling target past 100 deg: after REPLAN_NS the
+    // follower asks for a plan made again, as the inline follower makes it.
+    let (k, _) = to_a_rolling_target_past(&mut inline, 100.0);
+    now = follow_to(&mut f, k, now + TICK);
+    let step = f.targets()[k].step.clone();
+    let e = at_joints_of(&step, step.rotation.to_degrees() + 12.0);
+    let (start, mut t) = (now, now);
+    let due = loop {
+        let out = f.on_estimate(&e, t, &mut || {});
+        if let Some(Event::ReplanDue(due)) = out.event {
+            break due;
+        }
+        assert!(out.event.is_none(), "{out:?}");
+        assert!(t - start <= REPLAN_NS, "no re-plan asked for");
+        t += TICK;
+    };
+    assert_eq!(t - start, REPLAN_NS);
+    assert_eq!((due.first, due.count, &due.held), (step.step + 1, 1, &step));
+    assert_eq!(f.waiting_for(), Some(Wait::Again));
+    // Meanwhile nothing: the target is held.
+    let out = f.on_estimate(&e, t + TICK, &mut || {});
+    assert!(
+        out.event.is_none() && out.commands().count() == 0,
+        "{out:?}"
+    );
+    let again = planning
+        .replan_streamed(&due, CLEARANCE, &mut |_| {}, &mut |t, a| {
+            parts.push((t.to_vec(), a))
+        })
+        .unwrap();
+    let expected = replan(
+        &setup.scenario(&config),
+        &e,
+        setup.surface().unwrap(),
+        step.step + 1,
+        CLEARANCE,
+        &mut || {},
+    )
+    .unwrap();
+    assert_eq!(again.targets, expected.targets);
+    assert_eq!(parts.len(), 1);
+    f.begin(parts.remove(0).0, t + 2 * TICK);
+    f.finish(again.at_goal);
+    assert_eq!((f.replans(), f.current()), (1, Some(0)));
+    assert_eq!(f.targets(), &expected.targets[..]);
+    follow_to(&mut f, 3, t + 3 * TICK);
+    // A follower started again (a restarted node) while its plan is being made resumes only
+    // within what has been made: not before the estimate's target is there (here a rolling
+    // target past 100 deg), nor at the last target made.
+    let mut r = Follower::waiting(planning.clone(), CLEARANCE, tol);
+    let late = at_joints_of(&all[k].step, all[k].step.rotation.to_degrees());
+    r.begin(all[..30].to_vec(), 0);
+    let out = r.on_estimate(&late, 0, &mut || {});
+    assert!(out.resumed.is_none() && r.current().is_none(), "{out:?}");
+    r.extend(&all[30..=k]);
+    let out = r.on_estimate(&late, TICK, &mut || {});
+    assert!(out.resumed.is_none() && r.current().is_none(), "{out:?}");
+    r.extend(&all[k + 1..]);
+    let out = r.on_estimate(&late, 2 * TICK, &mut || {});
+    assert_eq!(out.resumed, Some(k));
+    // A plan made again that fails: the target held, asked for again after REPLAN_NS.
+    let mut g = Follower::waiting(planning, CLEARANCE, tol);
+    g.begin(all.clone(), 0);
+    g.finish(true);
+    now = follow_to(&mut g, k, 0);
+    let mut t = now;
+    while !matches!(
+        g.on_estimate(&e, t, &mut || {}).event,
+        Some(Event::ReplanDue(_))
+    ) {
+        t += TICK;
+    }
+    g.replan_failed();
+    assert_eq!(g.waiting_for(), None);
+    let (from, mut asked) = (t + TICK, None);
+    for i in 0..=(REPLAN_NS / TICK + 1) {
+        let at = from + i * TICK;
+        if let Some(Event::ReplanDue(_)) = g.on_estimate(&e, at, &mut || {}).event {
+            asked = Some(at - from);
+            break;
+        }
+    }
+    assert_eq!(asked, Some(REPLAN_NS));
+}
+
+/// A spatial plan handed on as its steps are settled: in several parts, the first of them
+/// before the plan's first switch was found, their targets together the whole plan's, and
+/// the plan the same as made at once; a plan made again from the estimate, handed on, gives
+/// the targets the follower that plans itself gets.
+#[test]
+fn a_spatial_plan_is_handed_on_a_part_at_a_time_as_it_is_made() {
+    let config = config("allegro_sphere_mujoco.toml");
+    let setup = Setup::new(&config).unwrap();
+    let scenario = setup.spatial_scenario(&config).unwrap();
+    let planning = setup.planning(&config).unwrap();
+    let whole = scenario.plan(&mut |_| {}).unwrap();
+    let expected = icrflow_plan::spatial::follow::targets(&whole.steps, &scenario);
+    let mut parts: Vec<(Vec<Target>, f64)> = Vec::new();
+    let plan = planning
+        .plan_streamed(CLEARANCE, &mut |_| {}, &mut |_| {}, &mut |t, a| {
+            parts.push((t.to_vec(), a))
+        })
+        .unwrap();
+    assert_eq!(plan, whole);
+    assert!(whole.summary.switches >= 2, "{:?}", whole.summary);
+    assert!(
+        parts.len() > whole.summary.switches,
+        "{} parts for {} switches",
+        parts.len(),
+        whole.summary.switches
+    );
+    let first_switch = whole
+        .steps
+        .iter()
+        .position(|s| s.phase == Phase::Attach)
+        .unwrap();
+    assert!(
+        parts[0].0.iter().all(|t| t.step.step < first_switch),
+        "the first part reaches the first switch"
+    );
+    let joined: Vec<Target> = parts.iter().flat_map(|p| p.0.clone()).collect();
+    assert_eq!(joined, expected);
+    assert!(parts.iter().all(|p| p.1 == config.plan.alpha));
+    // Planned again from a rolling step past 60 deg, the object 2 deg ahead of it.
+    let step = whole
+        .steps
+        .iter()
+        .find(|s| s.phase == Phase::Rolling && s.rotation.to_degrees() >= 60.0)
+        .unwrap();
+    let e = at_joints_of(step, step.rotation.to_degrees() + 2.0);
+    let due = icrflow_plan::follow::ReplanDue {
+        estimate: e.clone(),
+        held: step.clone(),
+        first: step.step + 1,
+        target: step.rotation,
+        count: 1,
+    };
+    let mut handed: Vec<Target> = Vec::new();
+    let mut count = 0;
+    let again = planning
+        .replan_streamed(&due, CLEARANCE, &mut |_| {}, &mut |t, _| {
+            count += 1;
+            handed.extend_from_slice(t);
+        })
+        .unwrap();
+    let inline =
+        icrflow_plan::spatial::follow::replan(&scenario, &e, Some(step), step.step + 1, &mut || {})
+            .unwrap();
+    assert_eq!(again.plan, inline.plan);
+    assert_eq!(handed, inline.targets);
+    assert_eq!(again.targets, inline.targets);
+    assert!(count > 1, "{count} parts");
 }

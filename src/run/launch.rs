@@ -22,14 +22,20 @@ use super::track::Hangup;
 /// coreutils' `nice`, which starts the visualizer at a lower CPU priority.
 const NICE: &str = "/usr/bin/nice";
 
-/// The nodes on the measurement-to-command path, whose loops run under SCHED_FIFO at
-/// `pipeline.realtime_priority`: the plant (it stands for the hand's driver), the estimator,
-/// the wrench-space node and the hand command node. The planner works beside the path, and
-/// may take milliseconds.
-const REALTIME_NODES: [NodeRole; 4] = [
+/// The nodes whose loops run under SCHED_FIFO at `pipeline.realtime_priority`: those on the
+/// measurement-to-command path (the plant, which stands for the hand's driver, the estimator,
+/// the wrench-space node and the hand command node), and the planner node's loop, which leads
+/// the hand from target to target (the command node holds the hand on a plan step older than
+/// `pipeline.max_input_age_ms`). The planner's planning runs in a worker thread of its own at
+/// normal priority (`icrflow_nodes::planner`), so its loop takes microseconds per message as
+/// the others' do. With the planner's loop at normal priority, two processes busy beside the
+/// run (a build) kept its plan steps from the command node long enough for 27,450 holds in a
+/// CI run of the Allegro ellipsoid in MuJoCo, which lost its grasp (issue 38's notes).
+const REALTIME_NODES: [NodeRole; 5] = [
     NodeRole::Plant,
     NodeRole::Estimator,
     NodeRole::Wrench,
+    NodeRole::Planner,
     NodeRole::Command,
 ];
 

@@ -20,6 +20,7 @@ pub(crate) mod hold_cause;
 pub(crate) mod launch;
 pub(crate) mod measure;
 pub(crate) mod physics;
+pub(crate) mod planner_waits;
 pub(crate) mod status;
 pub(crate) mod stop;
 pub(crate) mod summary;

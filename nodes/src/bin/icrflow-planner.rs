@@ -6,5 +6,5 @@ static ALLOCATOR: &icrflow_runtime::health::CountingAllocator =
     &icrflow_runtime::health::COUNTING_ALLOCATOR;
 
 fn main() -> std::process::ExitCode {
-    icrflow_nodes::main("planner", icrflow_nodes::planner::run)
+    icrflow_nodes::main_static("planner", icrflow_nodes::planner::run)
 }

@@ -6,7 +6,7 @@ use std::fmt;
 use icrflow_grasp::math::Real;
 
 use super::{Estimate, ReplanError, Target, replan, targets};
-use crate::planner::{Plan, PlanError, Scenario};
+use crate::planner::{Plan, PlanError, Scenario, Step};
 use crate::rolling::Surface;
 
 /// How close the estimated rotation must come to a step's target (rad).
@@ -119,6 +119,11 @@ pub enum Event {
     /// The object stood still off the plan: it was planned again from the estimate, and its
     /// first target is commanded.
     Replanned(Box<Replanned>),
+    /// The object stood still off the plan, and a follower that plans nothing itself
+    /// ([`Follower::waiting`]) asks for a plan made again from the estimate: the target is held
+    /// until [`Follower::begin`] starts the new plan (or [`Follower::replan_failed`] says there
+    /// is none).
+    ReplanDue(Box<ReplanDue>),
     /// The object stood still off the plan and planning again failed: the target is held, and
     /// planning is tried again after another [`REPLAN_NS`].
     ReplanFailed {
@@ -129,6 +134,23 @@ pub enum Event {
         /// Why planning failed.
         error: ReplanError,
     },
+}
+
+/// A plan to be made again from the estimate ([`Event::ReplanDue`]): what
+/// [`Planning::replan_streamed`] is given.
+#[derive(Debug, Clone)]
+pub struct ReplanDue {
+    /// The estimate to plan from.
+    pub estimate: Estimate,
+    /// The step of the target held (its fingers' commanded joints are where a plan made
+    /// again starts them: [`crate::spatial::follow::replan`]).
+    pub held: Step,
+    /// The number of the new plan's first step.
+    pub first: usize,
+    /// The rotation of the target the object stopped short of (rad).
+    pub target: Real,
+    /// Re-plans so far, this one included.
+    pub count: u32,
 }
 
 /// A re-plan ([`Event::Replanned`]), for the record.
@@ -183,6 +205,15 @@ impl fmt::Display for Event {
         match self {
             Event::Advanced(k) => write!(f, "on to target {k}"),
             Event::Replanned(r) => r.fmt(f),
+            Event::ReplanDue(r) => write!(
+                f,
+                "the object stopped at {:.1} deg, {:+.1} deg off the target {:.1} deg: planning \
+                 again from the estimate (re-plan {})",
+                r.estimate.rotation.to_degrees(),
+                (r.estimate.rotation - r.target).to_degrees(),
+                r.target.to_degrees(),
+                r.count
+            ),
             Event::ReplanFailed {
                 rotation,
                 target,
@@ -208,7 +239,97 @@ pub enum Planning<'a> {
     Spatial(crate::spatial::SpatialScenario<'a>),
 }
 
+/// What a follower waits for the planner for ([`Follower::waiting_for`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wait {
+    /// The plan's first targets: the hand holds its initial grasp.
+    FirstPlan,
+    /// The targets after the last one made: the hand holds there while the plan goes on.
+    Ahead,
+    /// A plan made again from the estimate: the hand holds the target it stopped short of.
+    Again,
+}
+
 impl Planning<'_> {
+    /// The margin plans are made at (`plan.alpha`).
+    pub fn alpha(&self) -> Real {
+        match self {
+            Self::Planar(scenario, _) => scenario.settings.alpha,
+            Self::Spatial(scenario) => scenario.settings.alpha,
+        }
+    }
+
+    /// The plan, its targets handed to `settled` a part at a time, in order, with the margin
+    /// planned at: a spatial plan's as its steps are settled
+    /// ([`crate::spatial::SpatialScenario::plan_streamed`]), so that the hand follows them while
+    /// the rest is planned; a planar plan's (made in a fraction of a second) all at once when
+    /// it is made. Where the plan fails after a part was handed on, the error says why; the
+    /// parts handed on stay valid (each checked as the whole plan is).
+    pub fn plan_streamed(
+        &self,
+        clearance: Real,
+        note: &mut dyn FnMut(String),
+        progress: &mut dyn FnMut(Real),
+        settled: &mut dyn FnMut(&[Target], Real),
+    ) -> Result<Plan, PlanError> {
+        let alpha = self.alpha();
+        match self {
+            Self::Planar(..) => {
+                let (plan, targets) = self.plan(clearance, note, progress)?;
+                settled(&targets, alpha);
+                Ok(plan)
+            }
+            Self::Spatial(scenario) => {
+                let (mut made, mut prev) = (Vec::new(), None::<Step>);
+                scenario.plan_streamed(progress, &mut |part| {
+                    let from = made.len();
+                    crate::spatial::follow::targets_after(
+                        prev.as_ref(),
+                        part,
+                        scenario,
+                        &mut made,
+                        &mut || {},
+                    );
+                    prev = part.last().cloned();
+                    settled(&made[from..], alpha);
+                })
+            }
+        }
+    }
+
+    /// A plan made again as `due` asks ([`replan`], [`crate::spatial::follow::replan`]),
+    /// its targets handed to `settled` as [`Self::plan_streamed`] hands them on.
+    pub fn replan_streamed(
+        &self,
+        due: &ReplanDue,
+        clearance: Real,
+        progress: &mut dyn FnMut(Real),
+        settled: &mut dyn FnMut(&[Target], Real),
+    ) -> Result<super::Replan, ReplanError> {
+        match self {
+            Self::Planar(scenario, surface) => {
+                let again = replan(
+                    scenario,
+                    &due.estimate,
+                    surface,
+                    due.first,
+                    clearance,
+                    &mut || {},
+                )?;
+                settled(&again.targets, again.plan.summary.alpha);
+                Ok(again)
+            }
+            Self::Spatial(scenario) => crate::spatial::follow::replan_streamed(
+                scenario,
+                &due.estimate,
+                Some(&due.held),
+                due.first,
+                progress,
+                Some(settled),
+            ),
+        }
+    }
+
     /// The plan and its targets ([`targets`], [`crate::spatial::follow::targets`]).
     fn plan(
         &self,
@@ -250,6 +371,16 @@ pub struct Follower<'a> {
     /// The target being commanded; chosen from the first estimate (a restart resumes).
     current: Option<usize>,
     stopped: Stopped,
+    /// Whether it plans nothing itself ([`Follower::waiting`]): a plan made again is asked
+    /// for ([`Event::ReplanDue`]).
+    deferred: bool,
+    /// Whether the plan followed is still being made (more targets to come).
+    pending: bool,
+    /// A plan made again asked for and not yet begun: the estimated rotation it is planned
+    /// from.
+    awaiting: Option<Real>,
+    /// Whether the hand holds the last target made, reached, while the plan is being made.
+    held_ahead: bool,
 }
 
 impl<'a> Follower<'a> {
@@ -285,14 +416,28 @@ impl<'a> Follower<'a> {
         progress: &mut dyn FnMut(Real),
     ) -> Result<Self, PlanError> {
         let (plan, targets) = planning.plan(clearance, note, progress)?;
-        Ok(Self {
+        let mut follower = Self::waiting(planning, clearance, tolerances);
+        follower.deferred = false;
+        follower.begin(targets, 0);
+        follower.finish(plan.summary.completed);
+        Ok(follower)
+    }
+
+    /// A follower of a plan made elsewhere (the planner node's worker thread): no targets
+    /// until [`Self::begin`] gives the plan's first ones, more with [`Self::extend`] while the
+    /// hand follows, its end with [`Self::finish`]; it plans nothing itself: where the object
+    /// stops off the plan it asks for a plan made again ([`Event::ReplanDue`]), which comes
+    /// the same way (or [`Self::replan_failed`]). Meanwhile it holds where it is
+    /// ([`Self::waiting_for`]).
+    pub fn waiting(planning: Planning<'a>, clearance: Real, tolerances: Tolerances) -> Self {
+        Self {
             planning,
             clearance,
             tolerances,
-            plan_from: targets.first().map_or(0.0, |t| t.step.rotation),
+            plan_from: 0.0,
             at_end: None,
-            targets,
-            ends_at_goal: plan.summary.completed,
+            targets: Vec::new(),
+            ends_at_goal: false,
             replans: 0,
             current: None,
             stopped: Stopped {
@@ -300,7 +445,70 @@ impl<'a> Follower<'a> {
                 rotation: f64::NAN,
                 target: usize::MAX,
             },
-        })
+            deferred: true,
+            pending: true,
+            awaiting: None,
+            held_ahead: false,
+        }
+    }
+
+    /// The first targets of a plan being made, at `now_ns`: the first plan's (the first
+    /// estimate picks the target to start at), or the plan made again that
+    /// [`Event::ReplanDue`] asked for (followed from its first target on).
+    pub fn begin(&mut self, targets: Vec<Target>, now_ns: u64) {
+        self.plan_from = targets.first().map_or(0.0, |t| t.step.rotation);
+        self.targets = targets;
+        self.ends_at_goal = false;
+        self.pending = true;
+        self.held_ahead = false;
+        self.at_end = None;
+        if let Some(rotation) = self.awaiting.take() {
+            self.replans += 1;
+            self.plan_from = rotation;
+            self.current = Some(0);
+            self.stopped = Stopped {
+                since: Some(now_ns),
+                rotation,
+                target: usize::MAX,
+            };
+        }
+    }
+
+    /// More targets of the plan being made, after the last.
+    pub fn extend(&mut self, targets: &[Target]) {
+        self.targets.extend_from_slice(targets);
+        self.held_ahead = false;
+    }
+
+    /// The plan being made is complete (`at_goal`: its last target is the goal; not: a leg
+    /// of [`REPLAN_HORIZON`], or a plan that stopped short, at whose end the follower plans
+    /// on).
+    pub fn finish(&mut self, at_goal: bool) {
+        self.pending = false;
+        self.ends_at_goal = at_goal;
+    }
+
+    /// The plan made again that [`Event::ReplanDue`] asked for could not be made: the
+    /// target is held, and planning is asked for again after another [`REPLAN_NS`] (as
+    /// [`Event::ReplanFailed`]).
+    pub fn replan_failed(&mut self) {
+        self.awaiting = None;
+        self.pending = false;
+        self.stopped.since = None;
+        self.at_end = None;
+    }
+
+    /// What the follower waits for the planner for, if anything.
+    pub fn waiting_for(&self) -> Option<Wait> {
+        if self.awaiting.is_some() {
+            Some(Wait::Again)
+        } else if self.targets.is_empty() {
+            Some(Wait::FirstPlan)
+        } else if self.pending && self.held_ahead {
+            Some(Wait::Ahead)
+        } else {
+            None
+        }
     }
 
     /// Whether the plan followed ends at the goal (not: a leg of a plan made again, or a plan
@@ -348,10 +556,24 @@ impl<'a> Follower<'a> {
     /// object has stopped off the plan for good (`beat` is called as that planning goes on).
     pub fn on_estimate(&mut self, e: &Estimate, now_ns: u64, beat: &mut dyn FnMut()) -> Followed {
         let mut out = Followed::default();
+        // No plan yet, or a plan made again asked for: the hand holds where it is.
+        if self.targets.is_empty() || self.awaiting.is_some() {
+            return out;
+        }
         let k = match self.current {
             Some(k) => k,
             None => {
                 let k = self.nearest(e);
+                // While the plan is being made, the target to start (or resume) at must lie
+                // within what has been made: not its last target, and where the estimate is
+                // (a restarted node's plan reaches the object's rotation only later).
+                if self.pending
+                    && (k + 1 >= self.targets.len()
+                        || (e.rotation - self.targets[k].step.rotation).abs() > SETTLED_TOLERANCE
+                        || !e.same_contacts(&self.targets[k].step))
+                {
+                    return out;
+                }
                 self.current = Some(k);
                 out.resumed = Some(k);
                 k
@@ -410,18 +632,34 @@ impl<'a> Follower<'a> {
         };
         let leg_done = k >= n
             && n > 0
+            && !self.pending
             && !self.ends_at_goal
             && end_ns >= REPLAN_NS
             && e.touching().count() >= 2
             && (e.rotation - self.plan_from).abs() >= MIN_PROGRESS;
+        // (While the plan is being made, the follower waits at the last target made.)
         if leg_done
-            || (k < n && !at_target && self.targets[k].stalled(e, stopped_ns, tol.joint, short))
+            || (k < n
+                && !self.pending
+                && !at_target
+                && self.targets[k].stalled(e, stopped_ns, tol.joint, short))
         {
             // Stuck short of the target, or at the end of the plan: plan again from the
             // estimate.
             let k = k.min(n - 1);
             let target = self.targets[k].step.rotation;
             let first = self.targets[k].step.step + 1;
+            if self.deferred {
+                self.awaiting = Some(e.rotation);
+                out.event = Some(Event::ReplanDue(Box::new(ReplanDue {
+                    estimate: e.clone(),
+                    held: self.targets[k].step.clone(),
+                    first,
+                    target,
+                    count: self.replans + 1,
+                })));
+                return out;
+            }
             let again = match &self.planning {
                 Planning::Planar(scenario, surface) => {
                     replan(scenario, e, surface, first, self.clearance, beat)
@@ -469,7 +707,10 @@ impl<'a> Follower<'a> {
                 }
             }
         }
-        if at_target {
+        // The last target made is not passed while the plan is being made: it is held.
+        if at_target && self.pending && k + 1 >= n {
+            self.held_ahead = true;
+        } else if at_target {
             self.current = Some(k + 1);
             out.event = Some(Event::Advanced(k + 1));
         }

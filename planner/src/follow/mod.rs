@@ -41,8 +41,8 @@ mod targets;
 pub use estimate::{Estimate, EstimatedFinger, fingers_in_contact};
 pub use follower::{
     Event, Followed, Follower, GOAL_TOLERANCE, HAND_AT_TARGET, LEAD, MIN_PROGRESS, Planning,
-    REPLAN_HORIZON, REPLAN_NS, ROTATION_TOLERANCE, Replanned, SETTLED_NS, SETTLED_TOLERANCE,
-    STOPPED, Tolerances, WAY_POINT_TOLERANCE,
+    REPLAN_HORIZON, REPLAN_NS, ROTATION_TOLERANCE, ReplanDue, Replanned, SETTLED_NS,
+    SETTLED_TOLERANCE, STOPPED, Tolerances, WAY_POINT_TOLERANCE, Wait,
 };
 pub use replan::{Replan, ReplanError, replan};
 pub(crate) use replan::{at_the_gate, leg};

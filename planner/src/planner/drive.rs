@@ -88,6 +88,16 @@ impl NoSwitch {
     }
 }
 
+/// How many of the planning loop's first steps no later step can drop, of `steps` made:
+/// those up to the earliest rolling step an earlier switch may go back to (at most
+/// [`EARLY_SWITCH_STEPS`] before the last one `rolled`, none before the run that began at
+/// `run_start`, the last switch); all of them where the run has no rolling step to go back
+/// to.
+fn settled_len<C>(steps: usize, rolled: &[(usize, Real, C)], run_start: usize) -> usize {
+    let earliest = run_start.max(rolled.len().saturating_sub(1 + EARLY_SWITCH_STEPS));
+    rolled.get(earliest).map_or(steps, |r| r.0 + 1)
+}
+
 /// The steps the planning loop made and where it stopped.
 pub(crate) struct Driven {
     /// The steps, the start's first.
@@ -114,7 +124,10 @@ pub const EARLY_SWITCH_STEPS: usize = 6;
 /// can take over from the blocked one, the switch is tried up to [`EARLY_SWITCH_STEPS`]
 /// rolling steps earlier (the latest that serves is kept, the steps after it dropped).
 /// `progress` is called with the rotation after every step (and during a switch, as `s`
-/// does), `moved` with the contacts of every rolling step kept.
+/// does), `moved` with the contacts of every rolling step kept, and `settled` with the steps,
+/// in order and each once, as soon as no later step can drop them ([`settled_len`]): a hand
+/// may follow those while the rest is planned (the receding horizon of
+/// [`crate::follow::Follower`]'s node).
 pub(crate) fn drive<S: Stepper>(
     s: &S,
     settings: &Settings,
@@ -122,6 +135,7 @@ pub(crate) fn drive<S: Stepper>(
     started: (Vec<S::Contact>, Real),
     progress: &mut dyn FnMut(Real),
     moved: &mut dyn FnMut(&[S::Contact]),
+    settled: &mut dyn FnMut(&[Step]),
 ) -> Result<Driven, PlanError>
 where
     S::Contact: Clone,
@@ -137,7 +151,14 @@ where
     // the run since the last switch begins (an earlier switch may be tried within it).
     let mut rolled: Vec<(usize, Real, Vec<S::Contact>)> = Vec::new();
     let mut run_start = 0;
+    // The steps handed to `settled` so far.
+    let mut sent = 0;
     while theta < settings.goal - 1e-9 {
+        let now = settled_len(steps.len(), &rolled, run_start);
+        if now > sent {
+            settled(&steps[sent..now]);
+            sent = now;
+        }
         if steps.len() >= settings.max_steps {
             stop_reason = Some(format!(
                 "stopped after plan.max_steps = {} steps",
@@ -223,6 +244,9 @@ where
                 }
             }
         }
+    }
+    if steps.len() > sent {
+        settled(&steps[sent..]);
     }
     for (_, _, c) in &rolled {
         moved(c);
@@ -399,6 +423,7 @@ pub(crate) mod tests {
             step,
         };
         let mut moved = 0;
+        let mut settled: Vec<Step> = Vec::new();
         let driven = drive(
             &toy,
             &settings(0.1, 0.1, step, 10),
@@ -406,9 +431,32 @@ pub(crate) mod tests {
             (vec![1, 2, 3], 1.0),
             &mut |_| {},
             &mut |_| moved += 1,
+            &mut |s| settled.extend_from_slice(s),
         )
         .unwrap();
+        // The settled steps, handed on as they were made, are the plan's, each once: none
+        // of them was dropped for an earlier switch.
+        assert_eq!(settled, driven.steps);
         (driven, moved)
+    }
+
+    /// The steps are settled while the plan is made: after a switch at once, while rolling
+    /// up to [`EARLY_SWITCH_STEPS`] rolling steps behind the last.
+    #[test]
+    fn steps_are_settled_as_soon_as_no_earlier_switch_can_drop_them() {
+        // Six rolling steps made, the run from the start: a switch may go back to the first
+        // (released five steps early), which is kept with the start.
+        let rolled: Vec<(usize, Real, ())> = (1..=6).map(|k| (k, 0.0, ())).collect();
+        assert_eq!(settled_len(7, &rolled, 0), 2);
+        // Eight: to the second at the earliest (EARLY_SWITCH_STEPS before the last).
+        let rolled: Vec<(usize, Real, ())> = (1..=8).map(|k| (k, 0.0, ())).collect();
+        assert_eq!(settled_len(9, &rolled, 0), 3);
+        // Right after a switch (its two steps after rolling step 8): all of them.
+        assert_eq!(settled_len(11, &rolled, 8), 11);
+        // One rolling step since that switch (step 11): still all (none earlier to go back to).
+        let mut after = rolled.clone();
+        after.push((11, 0.0, ()));
+        assert_eq!(settled_len(12, &after, 8), 12);
     }
 
     #[test]

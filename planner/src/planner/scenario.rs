@@ -294,6 +294,7 @@ impl Scenario<'_> {
             started,
             progress,
             &mut |_| {},
+            &mut |_| {},
         )?;
         let closest = link_clearance(self, &driven.steps);
         if closest.clearance < 0.0 {

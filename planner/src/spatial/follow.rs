@@ -35,6 +35,10 @@ const PROJECTIONS: usize = 4;
 /// How near the surface a projected fingertip is left (m).
 const ON_SURFACE: Real = 1e-7;
 
+/// Where a plan's targets go as its steps are settled, with the margin it is planned at
+/// ([`replan_streamed`]).
+pub type HandOn<'f> = &'f mut dyn FnMut(&[Target], Real);
+
 /// The plan's `steps` of `scenario` cut into the targets a follower commands (the module's
 /// rules).
 pub fn targets(steps: &[Step], scenario: &SpatialScenario<'_>) -> Vec<Target> {
@@ -48,20 +52,38 @@ pub fn targets_with(
     scenario: &SpatialScenario<'_>,
     beat: &mut dyn FnMut(),
 ) -> Vec<Target> {
-    let turning = scenario.turning();
     let mut out = Vec::with_capacity(steps.len() * 12);
+    targets_after(None, steps, scenario, &mut out, beat);
+    out
+}
+
+/// The targets of `steps`, a plan's steps after `prev` (the step before them, whose targets
+/// were made; `None`: the plan's first steps), onto `out`: [`targets`] of a plan handed on a
+/// part at a time (the parts' targets, one after the other, are the whole plan's).
+pub fn targets_after(
+    prev: Option<&Step>,
+    steps: &[Step],
+    scenario: &SpatialScenario<'_>,
+    out: &mut Vec<Target>,
+    beat: &mut dyn FnMut(),
+) {
+    let turning = scenario.turning();
     for (k, step) in steps.iter().enumerate() {
         beat();
-        if k > 0 && matches!(step.phase, Phase::Attach | Phase::Detach) {
-            way_points(&steps[k - 1], step, &mut out);
+        let before = if k == 0 { prev } else { Some(&steps[k - 1]) };
+        let Some(before) = before else {
+            out.push(Target::at(step.clone()));
+            continue;
+        };
+        if matches!(step.phase, Phase::Attach | Phase::Detach) {
+            way_points(before, step, out);
         }
-        if k == 0 || step.phase != Phase::Rolling {
+        if step.phase != Phase::Rolling {
             out.push(Target::at(step.clone()));
             continue;
         }
-        rolling(&steps[k - 1], step, scenario, &turning, &mut out);
+        rolling(before, step, scenario, &turning, out);
     }
-    out
 }
 
 /// A spatial plan made again from the estimate `e` for `scenario` (its goal, settings and
@@ -84,6 +106,21 @@ pub fn replan(
     commanded: Option<&Step>,
     first: usize,
     beat: &mut dyn FnMut(),
+) -> Result<Replan, ReplanError> {
+    replan_streamed(scenario, e, commanded, first, &mut |_| beat(), None)
+}
+
+/// [`replan`], with `progress` called with the rotation planned so far, and, if given,
+/// `settled` handed the new plan's targets a part at a time as its steps are settled
+/// ([`SpatialScenario::plan_streamed`]), with the margin it is planned at (the plan's, or the
+/// gate's: [`crate::follow::Replan::notes`]); the [`Replan`]'s targets are then those parts'.
+pub fn replan_streamed(
+    scenario: &SpatialScenario<'_>,
+    e: &Estimate,
+    commanded: Option<&Step>,
+    first: usize,
+    progress: &mut dyn FnMut(Real),
+    mut settled: Option<HandOn<'_>>,
 ) -> Result<Replan, ReplanError> {
     let turning = scenario.turning();
     let mut again = scenario.clone();
@@ -124,10 +161,30 @@ pub fn replan(
     again.settings.goal = goal;
     let mut notes = Vec::new();
     let settings = again.settings.clone();
+    // The targets handed on, when they are.
+    let mut streamed: Vec<Target> = Vec::new();
     let mut plan = crate::follow::at_the_gate(&settings, &mut notes, |alpha| {
         again.settings.alpha = alpha;
         again.settings.neighbour_alpha = settings.neighbour_alpha.map(|n| n.min(alpha));
-        again.plan(&mut |_| beat())
+        let Some(out) = settled.as_deref_mut() else {
+            return again.plan(progress);
+        };
+        // (A plan refused at the plan's margin is refused at its start, before any step.)
+        streamed.clear();
+        let mut prev: Option<Step> = None;
+        again.plan_streamed(progress, &mut |part| {
+            let steps: Vec<Step> = part
+                .iter()
+                .map(|s| Step {
+                    step: s.step + first,
+                    ..s.clone()
+                })
+                .collect();
+            let from = streamed.len();
+            targets_after(prev.as_ref(), &steps, &again, &mut streamed, &mut || {});
+            prev = steps.last().cloned();
+            out(&streamed[from..], alpha);
+        })
     })
     .map_err(|error| ReplanError::Planning {
         from: e.rotation,
@@ -138,7 +195,11 @@ pub fn replan(
     for step in &mut plan.steps {
         step.step += first;
     }
-    let targets = targets_with(&plan.steps, &again, beat);
+    let targets = if settled.is_some() {
+        streamed
+    } else {
+        targets_with(&plan.steps, &again, &mut || {})
+    };
     Ok(Replan {
         at_goal: whole && plan.summary.completed,
         targets,

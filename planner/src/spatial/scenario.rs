@@ -18,6 +18,9 @@ struct Mapped<'s, 'a> {
     timing: Timing,
 }
 
+/// Where a plan's settled steps go ([`SpatialScenario::plan_streamed`]).
+type Settled<'f> = &'f mut dyn FnMut(&[Step]);
+
 impl Stepper for Mapped<'_, '_> {
     type Contact = Touch;
 
@@ -269,6 +272,31 @@ impl SpatialScenario<'_> {
         &self,
         progress: &mut dyn FnMut(Real),
     ) -> Result<(Plan, PhaseTimes), PlanError> {
+        self.plan_handing(progress, None)
+    }
+
+    /// [`Self::plan`], handing `settled` the plan's steps a part at a time, in order, as soon
+    /// as no later step can drop them (the planning loop's settled steps): a hand may follow
+    /// them while the rest is planned. Each part is checked first as the whole plan is, the
+    /// links along the moves from the step before it ([`Self::plan_link_clearance`]); from a
+    /// part that fails it, nothing more is handed on, and the plan fails as [`Self::plan`]
+    /// does. The plan returned is [`Self::plan`]'s.
+    pub fn plan_streamed(
+        &self,
+        progress: &mut dyn FnMut(Real),
+        settled: &mut dyn FnMut(&[Step]),
+    ) -> Result<Plan, PlanError> {
+        self.plan_handing(progress, Some(settled))
+            .map(|(plan, _)| plan)
+    }
+
+    /// [`Self::plan_timed`], handing the settled steps to `settled` if given
+    /// ([`Self::plan_streamed`]).
+    fn plan_handing(
+        &self,
+        progress: &mut dyn FnMut(Real),
+        mut settled: Option<Settled<'_>>,
+    ) -> Result<(Plan, PhaseTimes), PlanError> {
         let started = self.start()?;
         let mapped = Mapped {
             scenario: self,
@@ -276,6 +304,23 @@ impl SpatialScenario<'_> {
             timing: Timing::default(),
         };
         let mut slip: Real = 0.0;
+        // The last step handed on (the moves from it are checked with the next part), and
+        // whether a part failed the links' check.
+        let (mut last, mut refused): (Option<Step>, bool) = (None, false);
+        let mut hand_on = |part: &[Step]| {
+            let Some(out) = settled.as_mut().filter(|_| !refused) else {
+                return;
+            };
+            let mut checked = Vec::with_capacity(part.len() + 1);
+            checked.extend(last.take());
+            checked.extend_from_slice(part);
+            if self.plan_link_clearance(&checked).0 < 0.0 {
+                refused = true;
+                return;
+            }
+            out(part);
+            last = part.last().cloned();
+        };
         let driven = drive(
             &mapped,
             &self.settings,
@@ -283,6 +328,7 @@ impl SpatialScenario<'_> {
             started,
             progress,
             &mut |next: &[Touch]| slip = next.iter().map(|t| t.slip).fold(slip, Real::max),
+            &mut hand_on,
         )?;
         let clearance = self.plan_link_clearance(&driven.steps);
         if clearance.0 < 0.0 {

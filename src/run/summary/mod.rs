@@ -74,8 +74,11 @@ pub struct RunSummary {
     /// and do not count towards `pipeline.max_hold_s`.
     pub startup_holds: u64,
     /// Seconds from the start of the loop's processes to the first plan step (`None`: none
-    /// came).
+    /// came): the start-up's wait for the planner.
     pub planned_after_s: Option<f64>,
+    /// The hand's waits for the planner after that: at the last target planned so far while
+    /// the rest was made, and for each plan made again from the estimate.
+    pub planner_waits: crate::run::planner_waits::PlannerWaits,
     /// Hand commands sent (one per joint measurement that reached the command node; holds
     /// when none came for three periods).
     pub commands: u64,
@@ -234,6 +237,7 @@ impl RunSummary {
             hold_figures: seen.hold_figures,
             startup_holds: seen.startup_holds,
             planned_after_s: seen.planned_after,
+            planner_waits: seen.planner_waits,
             commands: seen.sent,
             measurements: seen.measurements,
             measurement_rate_hz: seen.measurement_rate_hz,

@@ -120,6 +120,22 @@ impl RunSummary {
                 s.startup_holds
             )?,
         }
+        let w = &s.planner_waits;
+        if w.ahead.count > 0 {
+            writeln!(
+                o,
+                "planner    the hand waited {} times for the rest of the plan: {:.1} s, at most {:.1} s",
+                w.ahead.count, w.ahead.total_s, w.ahead.max_s
+            )?;
+        }
+        if let Some(most) = w.again_s.iter().copied().reduce(f64::max) {
+            writeln!(
+                o,
+                "re-plans   the hand waited {:.2} s in all for {} plans made again, at most {most:.2} s",
+                w.again_s.iter().sum::<f64>(),
+                w.again_s.len()
+            )?;
+        }
         writeln!(o, "restarts   {}", s.restarts)?;
         let l = &s.latency_us;
         writeln!(

@@ -34,6 +34,7 @@ use super::hold_cause::HoldCause;
 use super::launch::{VisualizerStart, report, start_visualizer};
 use super::measure::{AllocationTrack, Rate, Timing};
 use super::physics::{PhysicsSummary, PhysicsTrack};
+use super::planner_waits::{PlannerWaits, WaitTrack};
 use super::status::{Status, say};
 use super::stop::StopReason;
 use super::summary::{Allocations, BelowMarginAttaches, Latencies, Memory, PlanStream};
@@ -67,6 +68,7 @@ pub(super) struct Seen {
     /// The holds' causes with their numbers as the reasons had them, by cause.
     pub hold_figures: BTreeMap<String, String>,
     pub planned_after: Option<f64>,
+    pub planner_waits: PlannerWaits,
     pub sent: u64,
     pub measurements: u64,
     pub measurement_rate_hz: f64,
@@ -222,6 +224,8 @@ pub(super) struct Watch {
     progress: Option<(u64, Instant)>,
     /// When the first plan step came.
     first_plan: Option<Instant>,
+    /// The hand waiting for the planner after that.
+    waits: WaitTrack,
     /// The planner node's last word while it plans (its `Starting` health report).
     planning: Option<String>,
     /// Whether the planner node has planned (it reports that it runs).
@@ -389,6 +393,7 @@ impl Watch {
             hold_reason: [0; TEXT_BYTES],
             progress: None,
             first_plan: None,
+            waits: WaitTrack::default(),
             planning: None,
             planned: false,
             arrived: BTreeSet::new(),
@@ -526,6 +531,7 @@ impl Watch {
             planned_after: self
                 .first_plan
                 .map(|t| t.duration_since(self.limits.started).as_secs_f64()),
+            planner_waits: self.waits.summary(Instant::now()),
             sent: self.sent,
             measurements: self.measurements,
             stale_tracked: self.stale_tracked,

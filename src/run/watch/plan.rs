@@ -27,10 +27,17 @@ impl Watch {
             self.first_plan = Some(now);
             self.status.clear();
             say!(
-                "run: the plan is ready after {:.1} s (the hand held the initial grasp meanwhile); the hand follows it",
+                "run: the plan's first steps came after {:.1} s (the hand held the initial grasp meanwhile); the hand follows them",
                 now.duration_since(self.limits.started).as_secs_f64()
             );
             self.show(true);
+        }
+        // The hand waiting for the planner (no stall); once it no longer waits, the step it
+        // waited at is timed afresh.
+        let (now, was) = (Instant::now(), self.waits.waiting());
+        self.waits.see(p.planning, now);
+        if was && !self.waits.waiting() {
+            self.progress = Some((p.step, now));
         }
         if p.phase == PlanPhase::Done as u32 {
             self.done = true;
@@ -67,7 +74,13 @@ impl Watch {
         // Before the first plan step the planner node plans: however long that takes, it is
         // no stall (a planner node that fails is the supervisor's, and said).
         let (step, since) = self.progress.map(|(step, t)| (step, t.elapsed()))?;
-        if (!self.done || short) && self.holding.is_none() && since >= l.max_hold {
+        // Nor is a hand that holds its target while the planner makes the rest of the plan or
+        // a plan made again (the plan-step messages say so; `TIMEOUT` bounds the run).
+        if (!self.done || short)
+            && self.holding.is_none()
+            && !self.waits.waiting()
+            && since >= l.max_hold
+        {
             return Some(if self.done {
                 StopReason::PlanEndedShort {
                     step,

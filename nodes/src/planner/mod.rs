@@ -3,29 +3,49 @@
 //! through it step by step, closed loop, with [`icrflow_plan::follow::Follower`]: a step is
 //! published as the target until the estimated grasp has reached it, then the next; after the
 //! last step it publishes `Done`. Restarted after a crash, it plans again and resumes at the
-//! step nearest to the estimated state. When the object stops short of a rolling step for
-//! good (it slipped), the follower plans again from the estimate; the plan-step stream pauses
-//! while it plans, so the hand command node holds the grasp, and the new plan's steps are
-//! numbered on from the last one, its first step a `Start`.
+//! step nearest to the estimated state.
+//!
+//! The plan is made in a [`worker`] thread, at normal priority, and handed on a part at a time
+//! as its steps are settled (a receding horizon: the rolling steps up to where a later switch
+//! could no longer reach back, then each switch as it is found; a planar plan, made in a
+//! fraction of a second, at once): the hand follows the first steps while the rest is made,
+//! and waits at the last target made when it gets there first. When the object stops short of
+//! a rolling step for good (it slipped), the follower asks the worker for a plan made again
+//! from the estimate, which comes the same way (the command node holds the hand meanwhile:
+//! the targets it had were solved for the object where the plan had it); its steps are
+//! numbered on from the last one, its first step a `Start`. Meanwhile the node's loop keeps serving: it republishes the
+//! target it holds, says in each plan-step message whether the hand waits for the planner and
+//! for how long (`planning`, `planning_ms`), and reports its health; nothing of the planning's
+//! progress is passed into the math to keep the node alive. The loop runs under SCHED_FIFO
+//! with the loop's other nodes (`icrflow run`).
 //!
 //! [`run`] is the adapter: the grasp state into an [`Estimate`], the follower's step, the
-//! plan-step messages (each with its grasp's ICRs, computed with the plan: `Regions`),
-//! health. The geometry and the step are the planner crate's ([`icrflow_plan::follow`]).
+//! plan-step messages (each with its grasp's ICRs, computed with the plan in the worker:
+//! `Regions`), health. The geometry and the step are the planner crate's
+//! ([`icrflow_plan::follow`]).
 
+use std::sync::mpsc::TryRecvError;
 use std::time::Duration;
 
-use anyhow::{Context as _, Result};
+use anyhow::{Context as _, Result, anyhow, bail};
 use icrflow_interfaces::{
     FingerTarget, GraspState, Header, Kind, MAX_FINGERS, MAX_JOINTS, MAX_REGION_POINTS, PlanPhase,
-    PlanStepHeader, topics,
+    PlanStepHeader, PlanWait, topics,
 };
-use icrflow_plan::follow::{Estimate, Event, Follower, Target, Tolerances, fingers_in_contact};
+use icrflow_plan::follow::{
+    Estimate, Event, Followed, Follower, ReplanDue, Replanned, Target, Tolerances, Wait,
+    fingers_in_contact,
+};
 use icrflow_plan::hand::Hand;
 use icrflow_plan::planner::{Phase, Step};
 use icrflow_runtime::event::serve;
 use icrflow_runtime::health::{Health, Sequence, now};
 
-use crate::Context;
+use crate::StaticContext;
+
+mod worker;
+
+use worker::Made;
 
 /// Period of the plan-step stream (s): the current target is published at least this often
 /// (100 Hz), and at once when the estimate reaches it.
@@ -119,7 +139,6 @@ fn regions(
     steps: &[Target],
     problem: &icrflow_grasp::quality::GraspProblem,
     alpha: f64,
-    beat: &mut dyn FnMut(),
 ) -> (Vec<Regions>, Vec<usize>) {
     let same = |a: &Step, b: &Step| {
         a.switch == b.switch
@@ -133,8 +152,7 @@ fn regions(
     for (k, t) in steps.iter().enumerate() {
         if k == 0 || !same(&steps[k - 1].step, &t.step) {
             // A spatial plan's contacts change candidates at most sub-targets: hundreds of
-            // 6D regions, a second's work, during which the node's heartbeat goes on.
-            beat();
+            // 6D regions, a second's work (in the worker thread, with the plan).
             distinct.push(Regions::of(&t.step, problem, alpha));
         }
         of_target.push(distinct.len() - 1);
@@ -207,7 +225,9 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
                 );
             }
         }
-        Some(e @ Event::ReplanFailed { .. }) => eprintln!("icrflow-planner: {e}"),
+        Some(e @ (Event::ReplanFailed { .. } | Event::ReplanDue(_))) => {
+            eprintln!("icrflow-planner: {e}")
+        }
         Some(Event::Advanced(k))
             if log
                 && let Some(next) = targets.get(*k)
@@ -234,13 +254,17 @@ fn log(followed: &icrflow_plan::follow::Followed, targets: &[Target], log: bool)
 /// 2-core VM, `config/allegro_ellipsoid_mujoco.toml` reached the goal in 2 of 8 runs (the CI's
 /// and 7 here on 2026-12-06; the others stalled below the margin or lost the grasp at 112-250
 /// deg, tilted up to 14.6 deg), on one in every run measured (BENCHMARKS.md; 8 of 8, tilted
-/// 1.44-2.35 deg), the plans themselves byte-identical. Not yet explained: the node is idle
-/// while the hand follows (its pool asleep, 0 % CPU), and three of the failures came before
-/// any plan was made again. Issue 38's notes.
+/// 1.44-2.35 deg), the plans themselves byte-identical. Not explained by the planning itself:
+/// the node is idle while the hand follows (its pool asleep, 0 % CPU), and three of the
+/// failures came before any plan was made again. The CI run of 5e3a135, on one thread, failed
+/// the same way with a build running beside it: 27,450 of the command node's holds for plan
+/// steps gone stale, the node's loop (then planning itself, at normal priority) kept off the
+/// CPU. Its loop now runs under SCHED_FIFO and plans nothing ([`worker`]). Issue 38's notes.
 pub const THREADS: usize = 1;
 
-/// Runs the planner node: the adapter around [`Follower`].
-pub fn run(ctx: &Context) -> Result<()> {
+/// Runs the planner node: the adapter around [`Follower`], the plan made in a [`worker`]
+/// thread and followed a part at a time as it comes.
+pub fn run(ctx: &StaticContext) -> Result<()> {
     if std::env::var_os("RAYON_NUM_THREADS").is_none()
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(THREADS)
@@ -252,11 +276,13 @@ pub fn run(ctx: &Context) -> Result<()> {
         "icrflow-planner: planning on {} thread(s)",
         rayon::current_num_threads()
     );
-    let (setup, config) = (&ctx.scenario.setup, &ctx.scenario.config);
+    let loaded: &'static icrflow_scenario::Loaded = ctx.scenario;
+    let (setup, config) = (&loaded.setup, &loaded.config);
     let log_steps = ctx.launch.log.contacts;
     let tolerances = Tolerances::new(config.pipeline.joint_noise);
-    // Health first: its `Starting` reports say how far the plan has got (`icrflow run` shows
-    // them), every HEALTH_PERIOD while it plans.
+    let hung_restart_s = config.pipeline.hung_restart;
+    // Health first: its `Starting` reports say how far the first plan has got (`icrflow run`
+    // shows them), every HEALTH_PERIOD until its first part comes.
     let mut health = Health::new(ctx)?;
     let goal = config.plan.goal.to_degrees();
     let planning = |health: &mut Health, theta: f64, now: bool| {
@@ -270,21 +296,16 @@ pub fn run(ctx: &Context) -> Result<()> {
         )
     };
     planning(&mut health, 0.0, true)?;
-    let mut follower = Follower::new_with(
-        setup.planning(config)?,
-        CLEARANCE,
-        tolerances,
-        &mut |note| eprintln!("icrflow-planner: {note}"),
-        &mut |theta| {
-            let _ = planning(&mut health, theta, false);
-        },
-    )
-    .context("planning")?;
-    let (problem, alpha) = (&setup.problem, config.plan.alpha);
-    // The regions each target's messages carry, computed now rather than per step.
-    let mut step_regions = regions(follower.targets(), problem, alpha, &mut || {
-        let _ = planning(&mut health, goal.to_radians(), false);
-    });
+    let scenario = setup.planning(config)?;
+    let started = now();
+    let worker = worker::spawn(scenario.clone(), &setup.problem)?;
+    let mut follower = Follower::waiting(scenario, CLEARANCE, tolerances);
+    // The regions each target's messages carry, made with the targets.
+    let mut step_regions: (Vec<Regions>, Vec<usize>) = Default::default();
+    // The plan made again that was asked for, and when (ns).
+    let mut asked: Option<(Box<ReplanDue>, u64)> = None;
+    // What the follower waits for the planner for, and since when (ns).
+    let mut waited: Option<(Wait, u64)> = None;
     let grasps = ctx.bus.subscriber(topics::GRASP_STATE)?;
     let out = ctx.bus.slice_publisher(topics::PLAN_STEP)?;
     let mut seq = Sequence::default();
@@ -295,21 +316,150 @@ pub fn run(ctx: &Context) -> Result<()> {
     let mut publish = |targets: &[Target],
                        regions: &(Vec<Regions>, Vec<usize>),
                        k: usize,
-                       input: Option<(Header, u64)>| {
+                       input: Option<(Header, u64)>,
+                       waited: Option<(Wait, u64)>| {
         let at = k.min(targets.len() - 1);
         let header = match input {
             Some((h, received)) => Header::after(Kind::PlanStep, seq.advance(), &h, received),
             None => Header::new(Kind::PlanStep, seq.advance(), 0, 0),
         };
         let r = &regions.0[regions.1[at]];
-        out.publish(
-            message(&targets[at], k >= targets.len(), r, header),
-            &r.members,
-        )
+        let mut m = message(&targets[at], k >= targets.len(), r, header);
+        if let Some((wait, since)) = waited {
+            m.planning = plan_wait(wait) as u32;
+            m.planning_ms =
+                (now().saturating_sub(since) / 1_000_000).min(u64::from(u32::MAX)) as u32;
+        }
+        out.publish(m, &r.members)
     };
     let tick = Some(Duration::from_secs_f64(REPUBLISH));
     serve(ctx, &[grasps.listener()], tick, |ticked| {
-        health.tick()?;
+        if follower.targets().is_empty() {
+            planning(&mut health, worker.planned(), false)?;
+        } else {
+            health.tick()?;
+        }
+        // A planning thread that shows no progress for as long as a hung node may take is
+        // taken for hung: the node stops, and the supervisor starts it again.
+        let silent = worker.silent_ns(now()) as f64 * 1e-9;
+        if silent > hung_restart_s {
+            bail!(
+                "the planning thread has shown no progress for {silent:.1} s (pipeline.hung_restart_s = {hung_restart_s}): stopped, to be started again"
+            );
+        }
+        // What the worker made since.
+        loop {
+            let made = match worker.made.try_recv() {
+                Ok(made) => made,
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    bail!("the planning thread stopped (see its panic above)")
+                }
+            };
+            match made {
+                Made::Targets {
+                    first,
+                    targets,
+                    regions,
+                } => {
+                    if first {
+                        let waited = follower.waiting_for();
+                        let again = waited == Some(Wait::Again);
+                        follower.begin(targets, now());
+                        step_regions = regions;
+                        match asked.as_ref().filter(|_| again) {
+                            Some((due, at)) => eprintln!(
+                                "icrflow-planner: re-plan {}: its first targets after {:.0} ms",
+                                due.count,
+                                now().saturating_sub(*at) as f64 * 1e-6
+                            ),
+                            None if waited == Some(Wait::FirstPlan) => eprintln!(
+                                "icrflow-planner: the plan's first targets after {:.0} ms",
+                                now().saturating_sub(started) as f64 * 1e-6
+                            ),
+                            None => {}
+                        }
+                        // A plan made again: its first target at once.
+                        if let Some(k) = follower.current() {
+                            publish(follower.targets(), &step_regions, k, last_input, None)?;
+                        }
+                    } else {
+                        let base = step_regions.0.len();
+                        step_regions.0.extend(regions.0);
+                        step_regions.1.extend(regions.1.iter().map(|r| r + base));
+                        follower.extend(&targets);
+                    }
+                }
+                Made::Planned(Ok(plan)) => {
+                    follower.finish(plan.summary.completed);
+                    if let Some(why) = plan.summary.stop_reason.as_deref() {
+                        eprintln!("icrflow-planner: the plan stops short of the goal: {why}");
+                    }
+                }
+                Made::Planned(Err(error)) => {
+                    if follower.targets().is_empty() {
+                        return Err(error).context("planning");
+                    }
+                    eprintln!(
+                        "icrflow-planner: the plan stops after its first {} targets: {error}",
+                        follower.targets().len()
+                    );
+                    follower.finish(false);
+                }
+                Made::Replanned(again) => {
+                    let Some((due, at)) = asked.take() else {
+                        continue;
+                    };
+                    let took = now().saturating_sub(at) as f64 * 1e-9;
+                    let begun = follower.waiting_for() != Some(Wait::Again);
+                    let event = match *again {
+                        Ok(r) if begun => {
+                            follower.finish(r.at_goal);
+                            Event::Replanned(Box::new(Replanned {
+                                rotation: due.estimate.rotation,
+                                target: due.target,
+                                count: due.count,
+                                first: due.first,
+                                plan: r.plan,
+                                delta: r.delta,
+                                notes: r.notes,
+                                at_goal: r.at_goal,
+                            }))
+                        }
+                        Ok(_) => {
+                            follower.replan_failed();
+                            eprintln!("icrflow-planner: a plan made again came without targets");
+                            continue;
+                        }
+                        Err(error) if begun => {
+                            follower.finish(false);
+                            eprintln!(
+                                "icrflow-planner: the plan made again stops after its first {} targets: {error}",
+                                follower.targets().len()
+                            );
+                            continue;
+                        }
+                        Err(error) => {
+                            follower.replan_failed();
+                            Event::ReplanFailed {
+                                rotation: due.estimate.rotation,
+                                target: due.target,
+                                error,
+                            }
+                        }
+                    };
+                    let followed = Followed {
+                        resumed: None,
+                        event: Some(event),
+                    };
+                    log(&followed, follower.targets(), log_steps);
+                    eprintln!(
+                        "icrflow-planner: re-plan {}: made in {took:.2} s",
+                        due.count
+                    );
+                }
+            }
+        }
         if let Some(g) = grasps.latest()? {
             if !health.accept("grasp state", &g.header, Kind::GraspState, &mut last_grasp) {
                 // Refused and counted.
@@ -319,31 +469,49 @@ pub fn run(ctx: &Context) -> Result<()> {
                 last_input = Some((g.header, now()));
                 health.processed += 1;
                 estimate(&g, &setup.hand, &mut e);
-                // The planner's progress is the node's heartbeat while it plans again.
-                let followed = follower.on_estimate(&e, now(), &mut || {
-                    let _ = health.tick();
-                });
+                let followed = follower.on_estimate(&e, now(), &mut || {});
                 log(&followed, follower.targets(), log_steps);
-                if let Some(Event::Replanned(r)) = &followed.event {
-                    // At the new plan's margin: the plan's, or the gate's where the estimated
-                    // grasp kept less (`follow::at_the_gate`).
-                    let alpha = r.plan.summary.alpha;
-                    step_regions = regions(follower.targets(), problem, alpha, &mut || {
-                        let _ = health.tick();
-                    });
+                if let Some(Event::ReplanDue(due)) = &followed.event {
+                    asked = Some((due.clone(), now()));
+                    worker
+                        .jobs
+                        .send(worker::Job(due.clone()))
+                        .map_err(|_| anyhow!("the planning thread stopped"))?;
                 }
+                let w = wait_since(&mut waited, follower.waiting_for(), now());
                 for k in followed.commands() {
-                    publish(follower.targets(), &step_regions, k, last_input)?;
+                    publish(follower.targets(), &step_regions, k, last_input, w)?;
                 }
             }
         }
+        let w = wait_since(&mut waited, follower.waiting_for(), now());
         if ticked && let Some(k) = follower.current() {
             // Taken up again now: the trace's last stage is this publication alone.
             let input = last_input.map(|(h, _)| (h, now()));
-            publish(follower.targets(), &step_regions, k, input)?;
+            publish(follower.targets(), &step_regions, k, input, w)?;
         }
         Ok(())
     })
+}
+
+/// What the hand waits for the planner for, as the plan-step message says it.
+fn plan_wait(w: Wait) -> PlanWait {
+    match w {
+        Wait::Ahead => PlanWait::Ahead,
+        Wait::Again => PlanWait::Again,
+        // (No target is published before the first plan's.)
+        Wait::FirstPlan => PlanWait::None,
+    }
+}
+
+/// The follower's wait `now` (`w`), and since when (ns): kept in `waited` from the wake-up it
+/// began.
+fn wait_since(waited: &mut Option<(Wait, u64)>, w: Option<Wait>, now: u64) -> Option<(Wait, u64)> {
+    *waited = match (*waited, w) {
+        (Some((was, since)), Some(w)) if was == w => Some((w, since)),
+        (_, w) => w.map(|w| (w, now)),
+    };
+    *waited
 }
 
 #[cfg(test)]
@@ -376,7 +544,7 @@ mod tests {
     fn regions_computed_with_the_plan_are_each_targets_own() {
         let (setup, plan, list) = planned("paper_sphere.toml");
         let alpha = config("paper_sphere.toml").plan.alpha;
-        let (distinct, of_target) = regions(&list, &setup.problem, alpha, &mut || {});
+        let (distinct, of_target) = regions(&list, &setup.problem, alpha);
         assert_eq!(of_target.len(), list.len());
         // Shared: one per grasp and switch, not one per sub-target.
         assert!(
