@@ -69,6 +69,7 @@ fn scenario(s: &Setup) -> Scenario<'_> {
             neighbour_alpha: None,
             neighbour_rings: 1,
             max_steps: 10_000,
+            max_plan: None,
             attach_resolution: 2f64.to_radians(),
         },
     }

@@ -47,6 +47,7 @@ fn settings(alpha: Real) -> Settings {
         neighbour_alpha: None,
         neighbour_rings: 1,
         max_steps: 10_000,
+        max_plan: None,
         attach_resolution: 2f64.to_radians(),
     }
 }

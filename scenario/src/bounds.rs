@@ -348,6 +348,13 @@ pub const MAX_STEPS: Count = Count::new(
     1_000_000,
     "a trajectory is kept in memory and written out step by step",
 );
+/// `plan.max_plan_s`.
+pub const MAX_PLAN: Range = Range::above(
+    0.0,
+    3600.0,
+    "s",
+    "a plan stops when its time has run out, short of its goal; the 5,040-triangle ellipsoid's 270 deg take about 28 s on one core",
+);
 /// Cap-angle grid of an attaching finger.
 pub const ATTACH_RESOLUTION: Range = Range::closed(
     0.5,
@@ -594,6 +601,7 @@ pub const KEYS: &[(&str, Bound)] = &[
     ("plan.min_manipulability", Bound::Range(MANIPULABILITY)),
     ("plan.min_mobility_mm", Bound::Range(MOBILITY)),
     ("plan.max_steps", Bound::Count(MAX_STEPS)),
+    ("plan.max_plan_s", Bound::Range(MAX_PLAN)),
     (
         "plan.attach_resolution_deg",
         Bound::Range(ATTACH_RESOLUTION),

@@ -187,6 +187,7 @@ pub struct RawPlan {
     pub cap_margin_deg: Option<f64>,
     pub min_manipulability: Option<f64>,
     pub max_steps: Option<usize>,
+    pub max_plan_s: Option<f64>,
     pub attach_resolution_deg: Option<f64>,
     pub squeeze_reserve_mm: Option<f64>,
     pub region_erosion: Option<usize>,

@@ -3,7 +3,7 @@
 
 use icrflow_grasp::math::Real;
 
-use super::{Contact, Phase, Plan, PlanError, Settings, Step, Summary, Switch};
+use super::{Contact, Deadline, Phase, Plan, PlanError, Settings, Step, Summary, Switch};
 
 /// What a rolling step found (of the planar planner's [`Contact`]s, or the spatial
 /// planner's [`crate::spatial::Touch`]es).
@@ -36,7 +36,7 @@ pub(crate) trait Stepper {
     ) -> Result<Roll<Self::Contact>, PlanError>;
     /// A free finger taking over from contact `k`, blocked for `why`: the grasp with it
     /// attached, the grasp after the release, the switch and the two grasps' qualities; or
-    /// why there is none.
+    /// why there is none (also where the search stopped because `deadline` passed).
     fn switch(
         &self,
         contacts: &[Self::Contact],
@@ -44,6 +44,7 @@ pub(crate) trait Stepper {
         theta: Real,
         why: &str,
         progress: &mut dyn FnMut(Real),
+        deadline: &Deadline,
     ) -> Result<Result<Switched<Self::Contact>, NoSwitch>, PlanError>;
     /// Step `step` of phase `phase` at `theta` with `contacts` of quality `quality`.
     fn record(
@@ -117,6 +118,20 @@ pub(crate) struct Driven {
 /// object's and the other fingers' positions leave a free finger other candidates.
 pub const EARLY_SWITCH_STEPS: usize = 6;
 
+/// Why a plan stopped when its time ran out ([`Settings::max_plan`]): at `theta` (rad) with
+/// `steps` steps made, searching for a finger to take over from `switching` if it was.
+fn out_of_time(deadline: &Deadline, theta: Real, steps: usize, switching: Option<u32>) -> String {
+    let during = switching.map_or(String::new(), |f| {
+        format!(", searching for a finger to take over from finger {f}")
+    });
+    let plural = if steps == 1 { "" } else { "s" };
+    format!(
+        "stopped after plan.max_plan_s = {} s, at {:.1} deg with {steps} step{plural} made{during} (raise plan.max_plan_s to plan on)",
+        deadline.budget.map_or(0.0, |b| b.as_secs_f64()),
+        theta.to_degrees()
+    )
+}
+
 /// The planning loop of `s` under `settings`, from the grasp `started` (its contacts and
 /// quality) at rotation `theta` (rad): rolling steps toward the goal; where a contact is
 /// blocked, a finger switch, unless the blocked finger has just attached or every finger has
@@ -133,6 +148,7 @@ pub(crate) fn drive<S: Stepper>(
     settings: &Settings,
     mut theta: Real,
     started: (Vec<S::Contact>, Real),
+    deadline: &Deadline,
     progress: &mut dyn FnMut(Real),
     moved: &mut dyn FnMut(&[S::Contact]),
     settled: &mut dyn FnMut(&[Step]),
@@ -166,6 +182,10 @@ where
             ));
             break;
         }
+        if deadline.passed() {
+            stop_reason = Some(out_of_time(deadline, theta, steps.len(), None));
+            break;
+        }
         let step = settings.step.min(settings.goal - theta);
         match s.roll(&contacts, theta, step)? {
             Roll::Stuck(reason) => {
@@ -189,7 +209,11 @@ where
                     ));
                     break;
                 }
-                let mut found = s.switch(&contacts, k, theta, &why, progress)?;
+                let mut found = s.switch(&contacts, k, theta, &why, progress, deadline)?;
+                if found.is_err() && deadline.passed() {
+                    stop_reason = Some(out_of_time(deadline, theta, steps.len(), Some(finger)));
+                    break;
+                }
                 if let Some(NoSwitch { reason, defect }) = found.as_ref().err().cloned() {
                     // Released earlier, the latest first (not in place of a defect).
                     let mut tried = 0;
@@ -211,7 +235,10 @@ where
                             "released {back} steps early: {} deg on, no free finger could take over ({why})",
                             (theta - at).to_degrees().round()
                         );
-                        if let Ok(sw) = s.switch(earlier, j, at, &early, progress)? {
+                        if deadline.passed() {
+                            break;
+                        }
+                        if let Ok(sw) = s.switch(earlier, j, at, &early, progress, deadline)? {
                             steps.truncate(rolled[r].0 + 1);
                             contacts = earlier.clone();
                             rolled.truncate(r + 1);
@@ -219,6 +246,10 @@ where
                             found = Ok(sw);
                             break;
                         }
+                    }
+                    if found.is_err() && deadline.passed() {
+                        stop_reason = Some(out_of_time(deadline, theta, steps.len(), Some(finger)));
+                        break;
                     }
                     if found.is_err() {
                         stop_reason = Some(match tried {
@@ -354,7 +385,12 @@ pub(crate) mod tests {
             theta: Real,
             why: &str,
             _: &mut dyn FnMut(Real),
+            deadline: &Deadline,
         ) -> Result<Result<Switched<u32>, NoSwitch>, PlanError> {
+            // (As the spatial search: it stops when the time has run out.)
+            if deadline.passed() {
+                return Ok(Err(NoSwitch::none("stopped: out of time".into())));
+            }
             let done = (theta / self.step).round() as usize;
             if self.defect == Some(done) {
                 return Ok(Err(NoSwitch::defect(format!("a defect at {done} steps"))));
@@ -406,6 +442,7 @@ pub(crate) mod tests {
             neighbour_alpha: None,
             neighbour_rings: 1,
             max_steps: 1000,
+            max_plan: None,
             attach_resolution: 0.01,
         }
     }
@@ -415,6 +452,15 @@ pub(crate) mod tests {
     }
 
     fn plan_with(limit: usize, reach: Option<usize>, defect: Option<usize>) -> (Driven, usize) {
+        plan_until(limit, reach, defect, &Deadline::after(None))
+    }
+
+    fn plan_until(
+        limit: usize,
+        reach: Option<usize>,
+        defect: Option<usize>,
+        deadline: &Deadline,
+    ) -> (Driven, usize) {
         let step = 5f64.to_radians();
         let toy = Toy {
             limit,
@@ -429,6 +475,7 @@ pub(crate) mod tests {
             &settings(0.1, 0.1, step, 10),
             0.0,
             (vec![1, 2, 3], 1.0),
+            deadline,
             &mut |_| {},
             &mut |_| moved += 1,
             &mut |s| settled.extend_from_slice(s),
@@ -527,5 +574,35 @@ pub(crate) mod tests {
         assert_eq!(d.switches, 0);
         assert_eq!(moved, 6);
         assert_eq!(d.stop_reason.as_deref(), Some("a defect at 6 steps"));
+    }
+
+    /// A plan whose time runs out stops where it is, short of its goal, and says where:
+    /// before a step, or in a switch search (no earlier switch tried then).
+    #[test]
+    fn a_plan_whose_time_runs_out_stops_where_it_is_and_says_so() {
+        // Asked before each of the 6 rolling steps and before the 7th, which is blocked: the
+        // switch search asks once more and finds the time run out.
+        let (d, moved) = plan_until(6, Some(4), None, &Deadline::after_asking(7));
+        assert_eq!((d.switches, moved, d.steps.len()), (0, 6, 7));
+        assert_eq!(
+            d.stop_reason.as_deref(),
+            Some(
+                "stopped after plan.max_plan_s = 0 s, at 30.0 deg with 7 steps made, searching for a finger to take over from finger 1 (raise plan.max_plan_s to plan on)"
+            )
+        );
+        // Before the third step.
+        let (d, moved) = plan_until(6, Some(4), None, &Deadline::after_asking(2));
+        assert_eq!((d.switches, moved, d.steps.len()), (0, 2, 3));
+        assert_eq!(
+            d.stop_reason.as_deref(),
+            Some(
+                "stopped after plan.max_plan_s = 0 s, at 10.0 deg with 3 steps made (raise plan.max_plan_s to plan on)"
+            )
+        );
+        // Time enough: the whole plan, as without a bound.
+        let hour = Deadline::after(Some(std::time::Duration::from_secs(3600)));
+        let (d, _) = plan_until(6, Some(4), None, &hour);
+        let unbounded = plan(6, Some(4)).0;
+        assert_eq!((d.steps, d.stop_reason), (unbounded.steps, None));
     }
 }

@@ -51,6 +51,7 @@
 //! detach finger `k` (the remaining grasp is verified), and `k` becomes a free finger.
 
 mod checks;
+mod deadline;
 mod drive;
 mod error;
 mod plan;
@@ -60,6 +61,7 @@ mod settings;
 mod switch;
 
 pub use checks::{LINK_SPACING, LinkClearance, link_clearance, rolling_residuals};
+pub(crate) use deadline::Deadline;
 pub use drive::{EARLY_SWITCH_STEPS, Roll};
 pub(crate) use drive::{NoSwitch, Stepper, Switched, drive};
 pub use error::PlanError;

@@ -6,8 +6,8 @@ use icrflow_grasp::quality::{GraspError, GraspProblem};
 use super::plan::vertical;
 use super::roll::degrees;
 use super::{
-    FingerState, MAX_STEP, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, Roll, Settings, Start,
-    Step, Stepper, Switched, drive, link_clearance, rolling_residuals,
+    Deadline, FingerState, MAX_STEP, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, Roll,
+    Settings, Start, Step, Stepper, Switched, drive, link_clearance, rolling_residuals,
 };
 use crate::hand::{Finger, Hand};
 
@@ -66,7 +66,10 @@ impl Stepper for Scenario<'_> {
         theta: Real,
         why: &str,
         _progress: &mut dyn FnMut(Real),
+        _deadline: &Deadline,
     ) -> Result<Result<Switched<Contact>, NoSwitch>, PlanError> {
+        // (A planar switch search takes milliseconds: the loop's check before every step
+        // bounds it.)
         Scenario::switch(self, contacts, k, theta, why)
     }
 
@@ -286,12 +289,14 @@ impl Scenario<'_> {
     /// Plans the scenario. `progress` is called after every step with the rotation done
     /// (rad).
     pub fn plan(&self, progress: &mut dyn FnMut(Real)) -> Result<Plan, PlanError> {
+        let deadline = Deadline::after(self.settings.max_plan);
         let started = self.start()?;
         let driven = drive(
             self,
             &self.settings,
             self.start.rotation,
             started,
+            &deadline,
             progress,
             &mut |_| {},
             &mut |_| {},

@@ -46,6 +46,10 @@ pub struct Settings {
     pub neighbour_rings: usize,
     /// Upper bound on planner steps (rolling, attach and detach together).
     pub max_steps: usize,
+    /// The wall-clock time a plan may take (`plan.max_plan_s`): a plan still being made when
+    /// it has run out stops there, short of its goal, and says where it was (checked before
+    /// every step and between the batches of a switch search). `None`: no bound.
+    pub max_plan: Option<std::time::Duration>,
     /// Resolution of the search over the cap angle when a finger attaches (rad).
     pub attach_resolution: Real,
 }

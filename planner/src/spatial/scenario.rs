@@ -7,7 +7,8 @@ use icrflow_grasp::quality::GraspError;
 use super::times::{PhaseTimes, Timing};
 use super::{ReachMap, Roll, SpatialScenario, Touch};
 use crate::planner::{
-    FingerState, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, Step, Stepper, Switched, drive,
+    Deadline, FingerState, NoSwitch, Phase, Plan, PlanError, QUALITY_SLACK, Step, Stepper,
+    Switched, drive,
 };
 
 /// A spatial scenario with its fingers' reach maps (the seeds of a switch's placements): what
@@ -45,10 +46,19 @@ impl Stepper for Mapped<'_, '_> {
         theta: Real,
         why: &str,
         progress: &mut dyn FnMut(Real),
+        deadline: &Deadline,
     ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
         self.timing.switches.time(|| {
-            self.scenario
-                .switch(touches, k, theta, why, &self.maps, progress, &self.timing)
+            self.scenario.switch(
+                touches,
+                k,
+                theta,
+                why,
+                &self.maps,
+                progress,
+                deadline,
+                &self.timing,
+            )
         })
     }
 
@@ -297,6 +307,7 @@ impl SpatialScenario<'_> {
         progress: &mut dyn FnMut(Real),
         mut settled: Option<Settled<'_>>,
     ) -> Result<(Plan, PhaseTimes), PlanError> {
+        let deadline = Deadline::after(self.settings.max_plan);
         let started = self.start()?;
         let mapped = Mapped {
             scenario: self,
@@ -329,6 +340,7 @@ impl SpatialScenario<'_> {
             &self.settings,
             self.start_rotation,
             started,
+            &deadline,
             progress,
             &mut |next: &[Touch]| slip = next.iter().map(|t| t.slip).fold(slip, Real::max),
             &mut hand_on,

@@ -12,7 +12,7 @@ use super::reach::REACH_MAP_GAP;
 use super::times::{Counter, Timing};
 use super::{LIFTS, ReachMap, Roll, STEERS, SpatialScenario, Touch, segment_surface_distance};
 use crate::hand::Finger;
-use crate::planner::{NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
+use crate::planner::{Deadline, NoSwitch, PlanError, QUALITY_SLACK, Switch, Switched};
 
 /// Per way of [`LIFTS`], a finger's lifted poses off its contact, or why it cannot lift so;
 /// found once, when first needed (by any thread).
@@ -305,7 +305,8 @@ impl SpatialScenario<'_> {
 
     /// Switches finger `touches[k]` for the best free finger; `progress(theta)` is called as
     /// the search goes on (per [`PLACE_CHUNK`] candidates placed, per batch of placements
-    /// checked: a search that takes a second still reports); `timing` counts its phases.
+    /// checked: a search that takes a second still reports); `timing` counts its phases. A
+    /// search still going when `deadline` passes stops between two batches (no switch).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn switch(
         &self,
@@ -315,6 +316,7 @@ impl SpatialScenario<'_> {
         why: &str,
         maps: &[ReachMap],
         progress: &mut dyn FnMut(Real),
+        deadline: &Deadline,
         timing: &Timing,
     ) -> Result<Result<Switched<Touch>, NoSwitch>, PlanError> {
         let released = touches[k].finger;
@@ -377,7 +379,12 @@ impl SpatialScenario<'_> {
             }
             Some((f.limit_margin(&t.q), t))
         };
-        // Every reachable placement of a tier, ranked.
+        let out_of_time = || {
+            Ok(Err(NoSwitch::none(format!(
+                "the search for a finger to take over from finger {released} ({why}) was stopped: its time had run out"
+            ))))
+        };
+        // Every reachable placement of a tier, ranked (none: the time ran out).
         let placements = |tier: &[usize], progress: &mut dyn FnMut(Real)| {
             // Every free finger at every candidate of the tier, on every core (rayon), a
             // chunk at a time with the progress said between, kept in order.
@@ -388,6 +395,9 @@ impl SpatialScenario<'_> {
             let mut options: Vec<(Real, Touch)> = Vec::new();
             for chunk in pairs.chunks(PLACE_CHUNK) {
                 progress(theta);
+                if deadline.passed() {
+                    return None;
+                }
                 let placed: Vec<Option<(Real, Touch)>> =
                     chunk.par_iter().map(|&(f, c)| place_at(f, c)).collect();
                 options.extend(placed.into_iter().flatten());
@@ -414,7 +424,7 @@ impl SpatialScenario<'_> {
                     .then(x.1.candidate.cmp(&y.1.candidate))
             });
             ranked.extend(rest.into_iter().map(|(_, t)| (None, t)));
-            (ranked, limit)
+            Some((ranked, limit))
         };
         let floor = self.settings.alpha * (1.0 - QUALITY_SLACK);
         let mut rejected = Vec::new();
@@ -426,7 +436,9 @@ impl SpatialScenario<'_> {
             without: free.iter().map(|f| (f.id, OnceLock::new())).collect(),
         };
         'tiers: for tier in [&ahead, &behind] {
-            let (ranked, limit) = placements(tier, progress);
+            let Some((ranked, limit)) = placements(tier, progress) else {
+                return out_of_time();
+            };
             tried += ranked.len();
             // The placements in their order, a batch at a time on every core (rayon), the
             // batch growing while none passes: the first that passes is chosen, and the
@@ -437,6 +449,9 @@ impl SpatialScenario<'_> {
                 let (now, later) = rest.split_at(batch.min(rest.len()));
                 rest = later;
                 progress(theta);
+                if deadline.passed() {
+                    return out_of_time();
+                }
                 let results: Vec<(Vec<String>, Result<Attempt, PlanError>)> = now
                     .par_iter()
                     .map(|(_, t)| {

@@ -15,6 +15,9 @@ pub const DEFAULT_ROTATION_DEG: Real = 360.0;
 pub const DEFAULT_SQUEEZE_RESERVE_MM: Real = 2.0;
 /// Default object rotation per rolling step (deg).
 pub const DEFAULT_STEP_DEG: Real = 5.0;
+/// `plan.max_plan_s` when not given (s): ten times the longest shipped plan on one core (the
+/// mesh ellipsoid's ~28 s), so that a machine under load still plans them whole.
+pub const DEFAULT_MAX_PLAN_S: Real = 300.0;
 
 /// What the object turns about, and the spatial planner's own limits (`[plan]`).
 #[derive(Debug, Clone, PartialEq)]
@@ -126,6 +129,7 @@ pub(crate) fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         cap_margin_deg: None,
         min_manipulability: None,
         max_steps: None,
+        max_plan_s: None,
         attach_resolution_deg: None,
         squeeze_reserve_mm: None,
         region_erosion: None,
@@ -176,6 +180,11 @@ pub(crate) fn plan_spec(raw: Option<RawPlan>, alpha: Real) -> Result<Settings> {
         cap_margin: cap_margin.to_radians(),
         min_manipulability: m,
         max_steps,
+        max_plan: Some(std::time::Duration::from_secs_f64(bounds::MAX_PLAN.or(
+            "plan.max_plan_s",
+            raw.max_plan_s,
+            DEFAULT_MAX_PLAN_S,
+        )?)),
         attach_resolution: bounds::ATTACH_RESOLUTION
             .or("plan.attach_resolution_deg", raw.attach_resolution_deg, 2.0)?
             .to_radians(),
