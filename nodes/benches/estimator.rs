@@ -1,8 +1,9 @@
 //! The estimator's step on a joint measurement (`Estimator::on_joints`, once per plant period
 //! in the pipeline): the planar paper hand on its sphere against the spatial Allegro on its
 //! sphere and on the ellipsoid mesh, each hand at its initial grip with every planned contact
-//! made, the encoders read with the pipeline's noise (so the contacts roll a little each
-//! step, as a still hand's do).
+//! made and pressed by a tracking command (the contact schedule the estimator rolls the
+//! object with), the encoders read with the pipeline's noise (so the contacts roll a little
+//! each step, as a still hand's do).
 //!
 //! `cargo bench -p icrflow-nodes --bench estimator`
 
@@ -16,7 +17,7 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use icrflow_interfaces::{Header, JointState, Kind};
+use icrflow_interfaces::{CommandMode, HandCommand, Header, JointState, Kind};
 use icrflow_nodes::estimator::Estimator;
 use icrflow_nodes::noise::Noise;
 use icrflow_scenario::{Config, Setup};
@@ -34,6 +35,20 @@ fn steps(c: &mut Criterion) {
         let (joints, touching) = setup.initial_grip(&config).unwrap();
         let roller = setup.roller(&config).unwrap();
         let mut estimator = Estimator::new(&setup.hand, roller, &setup.problem, 0.0);
+        // A tracking command pressing the planned contacts (as in a run, after the first).
+        let mut command = HandCommand {
+            header: Header::new(Kind::HandCommand, 0, 0, 0),
+            mode: CommandMode::Track as u32,
+            finger_count: setup.hand.fingers.len() as u32,
+            ..Default::default()
+        };
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            command.finger_ids[slot] = f.id;
+            if touching.contains(&f.id) {
+                command.forces[slot] = [0.0, 0.0, 1.0];
+            }
+        }
+        estimator.on_command(&command);
         let mut noise = Noise::new(1);
         let sigma = config.pipeline.joint_noise;
         let mut t = 1_000_000_000_u64;
