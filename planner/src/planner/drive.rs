@@ -143,6 +143,7 @@ fn out_of_time(deadline: &Deadline, theta: Real, steps: usize, switching: Option
 /// in order and each once, as soon as no later step can drop them ([`settled_len`]): a hand
 /// may follow those while the rest is planned (the receding horizon of
 /// [`crate::follow::Follower`]'s node).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn drive<S: Stepper>(
     s: &S,
     settings: &Settings,
