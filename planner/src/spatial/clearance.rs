@@ -2,6 +2,7 @@
 //! capsules, segment distances, and a plan's smallest link clearance and squeeze reserve.
 
 use icrflow_grasp::math::{Real, Vec3};
+use rayon::prelude::*;
 
 use super::surface::Convex;
 use super::{SpatialScenario, Touch};
@@ -198,53 +199,67 @@ impl SpatialScenario<'_> {
     /// ([`Switch::approach`](crate::planner::Switch::approach),
     /// [`Switch::retreat`](crate::planner::Switch::retreat)): (distance m, finger, link, step).
     pub fn plan_link_clearance(&self, steps: &[Step]) -> (Real, u32, usize, usize) {
+        // Each step's move on every core (rayon), the closest taken in the steps' order: the
+        // same as one step after the other, at any thread count.
+        let per_step: Vec<(Real, u32, usize, usize)> = (0..steps.len())
+            .into_par_iter()
+            .map(|k| self.move_link_clearance(steps, k))
+            .collect();
+        per_step
+            .into_iter()
+            .fold((Real::INFINITY, 0, 0, 0), |closest, here| {
+                if here.0 < closest.0 { here } else { closest }
+            })
+    }
+
+    /// [`Self::plan_link_clearance`] of the move into `steps[k]` alone.
+    fn move_link_clearance(&self, steps: &[Step], k: usize) -> (Real, u32, usize, usize) {
         let mut closest = (Real::INFINITY, 0, 0, 0);
-        for (k, step) in steps.iter().enumerate() {
-            let previous = if k > 0 { &steps[k - 1] } else { step };
-            let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
-            // The switch this move belongs to: attaching at `step`, or detaching after it.
-            let switch = match step.phase {
-                Phase::Attach => step.switch.as_ref(),
-                Phase::Detach => previous.switch.as_ref(),
-                _ => None,
-            };
-            for (a, b) in previous.fingers.iter().zip(&step.fingers) {
-                let f = self.finger(b.finger);
-                let vias: &[Vec<Real>] = match (switch, step.phase) {
-                    (Some(w), Phase::Attach) if w.attached == b.finger => {
-                        w.approach.as_deref().unwrap_or_default()
-                    }
-                    (Some(w), Phase::Detach) if w.released == b.finger => {
-                        w.retreat.as_deref().unwrap_or_default()
-                    }
-                    _ => &[],
-                };
-                // The way from a's joints to b's: an approach runs home -> vias -> contact, a
-                // retreat the same way back (its vias listed from home).
-                let mut way: Vec<&[Real]> = vec![&a.joints];
-                if step.phase == Phase::Detach {
-                    way.extend(vias.iter().rev().map(Vec::as_slice));
-                } else {
-                    way.extend(vias.iter().map(Vec::as_slice));
+        let step = &steps[k];
+        let previous = if k > 0 { &steps[k - 1] } else { step };
+        let samples = if k > 0 { crate::route::SAMPLES } else { 1 };
+        // The switch this move belongs to: attaching at `step`, or detaching after it.
+        let switch = match step.phase {
+            Phase::Attach => step.switch.as_ref(),
+            Phase::Detach => previous.switch.as_ref(),
+            _ => None,
+        };
+        for (a, b) in previous.fingers.iter().zip(&step.fingers) {
+            let f = self.finger(b.finger);
+            let vias: &[Vec<Real>] = match (switch, step.phase) {
+                (Some(w), Phase::Attach) if w.attached == b.finger => {
+                    w.approach.as_deref().unwrap_or_default()
                 }
-                way.push(&b.joints);
-                for pair in way.windows(2) {
-                    for i in 0..samples {
-                        let s = if samples > 1 {
-                            i as Real / (samples - 1) as Real
-                        } else {
-                            1.0
-                        };
-                        let q: Vec<Real> = pair[0]
-                            .iter()
-                            .zip(pair[1])
-                            .map(|(x, y)| x + s * (y - x))
-                            .collect();
-                        let theta = previous.rotation + s * (step.rotation - previous.rotation);
-                        let (d, link) = self.link_clearance(f, &q, theta);
-                        if d < closest.0 {
-                            closest = (d, b.finger, link, step.step);
-                        }
+                (Some(w), Phase::Detach) if w.released == b.finger => {
+                    w.retreat.as_deref().unwrap_or_default()
+                }
+                _ => &[],
+            };
+            // The way from a's joints to b's: an approach runs home -> vias -> contact, a
+            // retreat the same way back (its vias listed from home).
+            let mut way: Vec<&[Real]> = vec![&a.joints];
+            if step.phase == Phase::Detach {
+                way.extend(vias.iter().rev().map(Vec::as_slice));
+            } else {
+                way.extend(vias.iter().map(Vec::as_slice));
+            }
+            way.push(&b.joints);
+            for pair in way.windows(2) {
+                for i in 0..samples {
+                    let s = if samples > 1 {
+                        i as Real / (samples - 1) as Real
+                    } else {
+                        1.0
+                    };
+                    let q: Vec<Real> = pair[0]
+                        .iter()
+                        .zip(pair[1])
+                        .map(|(x, y)| x + s * (y - x))
+                        .collect();
+                    let theta = previous.rotation + s * (step.rotation - previous.rotation);
+                    let (d, link) = self.link_clearance(f, &q, theta);
+                    if d < closest.0 {
+                        closest = (d, b.finger, link, step.step);
                     }
                 }
             }
