@@ -34,10 +34,7 @@ use std::f64::consts::PI;
 
 pub use capsules::{Capsule, gap, segment_segment_distance};
 pub use planar::{PlanarChain, planar_finger};
-pub use spatial::{
-    CENTRING_STEP, CENTRING_STEPS, SHIFT_JOINTS, SHIFT_LEVER, SHIFT_STEPS, STALL_FRACTION,
-    STALL_ITERATIONS,
-};
+pub use spatial::{CENTRING_STEP, CENTRING_STEPS, SHIFT_JOINTS, SHIFT_LEVER, SHIFT_STEPS};
 
 /// Steps along which [`Finger::reach_along`] and [`Finger::reach_along_planar`] follow a path
 /// to measure a reserve.

@@ -22,17 +22,6 @@ const SHIFT_DAMPING: Real = 1e-9;
 pub const CENTRING_STEPS: usize = 30;
 /// Largest joint motion of one such step (rad).
 pub const CENTRING_STEP: Real = 0.05;
-/// A damped-least-squares descent whose fingertip centre has come less than
-/// [`STALL_FRACTION`] of its distance closer to the target over the last this many iterations
-/// has stalled short of it, and gives up. A descent that reaches its target does so within 17
-/// iterations on every shipped spatial plan (their ~1.3 million descents that converged,
-/// counted 2026-12-06); one that does not crawls toward the nearest pose it can reach (a
-/// target just out of reach, joints held at their limits) and took all 500 iterations, 9 of its
-/// fingertip positions each in the line search: 97 % of the mesh ellipsoid's inverse
-/// kinematics.
-pub const STALL_ITERATIONS: usize = 20;
-/// See [`STALL_ITERATIONS`].
-pub const STALL_FRACTION: Real = 0.01;
 
 impl Finger {
     /// How far (m, at most `probe`) the fingertip centre of the finger at `q` can move along
@@ -139,8 +128,7 @@ impl Finger {
         Ok(q)
     }
 
-    /// One damped-least-squares descent from `q0` (given up where it stalls:
-    /// [`STALL_ITERATIONS`]).
+    /// One damped-least-squares descent from `q0`.
     fn dls(&self, target: &Vec3, q0: &[Real]) -> Result<Vec<Real>, IkError> {
         const ITERATIONS: usize = 500;
         const DAMPING: Real = 1e-3;
@@ -154,21 +142,10 @@ impl Finger {
         q.resize(n, 0.0);
         clamp(&mut q);
         let mut e = target - self.tip_centre(&q);
-        // The distance to the target at the start of each of the last STALL_ITERATIONS
-        // iterations (the slot of this one: STALL_ITERATIONS iterations ago).
-        let mut history = [0.0; STALL_ITERATIONS];
         for iteration in 0..ITERATIONS {
             if e.norm() <= 1e-10 {
                 return Ok(q);
             }
-            let then = &mut history[iteration % STALL_ITERATIONS];
-            if iteration >= STALL_ITERATIONS && *then - e.norm() < STALL_FRACTION * *then {
-                return Err(IkError::NoConvergence {
-                    residual: e.norm(),
-                    iterations: iteration,
-                });
-            }
-            *then = e.norm();
             let full = self.jacobian6(&q).rows(0, 3).into_owned();
             let mut frozen = vec![false; n];
             let mut dq = DVector::zeros(n);
