@@ -353,7 +353,7 @@ pub const MAX_PLAN: Range = Range::above(
     0.0,
     3600.0,
     "s",
-    "a plan stops when its time has run out, short of its goal; the 5,040-triangle ellipsoid's 270 deg take about 28 s on one core",
+    "a plan stops when its time has run out, short of its goal; the 5,040-triangle ellipsoid's 270 deg take about 24 s on two cores (42 s of CPU)",
 );
 /// Cap-angle grid of an attaching finger.
 pub const ATTACH_RESOLUTION: Range = Range::closed(

@@ -1,7 +1,7 @@
 //! When a plan's time runs out ([`Settings::max_plan`](super::Settings::max_plan),
 //! `plan.max_plan_s`): the planning loop asks before every step, a spatial switch search
-//! between its batches. The only clock the planner reads; a plan that ends within its time is
-//! the same whatever the machine's speed.
+//! between its batches. The only clock that affects a plan (the planner's phase timings only
+//! measure); a plan that ends within its time is the same whatever the machine's speed.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};

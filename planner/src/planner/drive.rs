@@ -69,6 +69,9 @@ pub(crate) struct NoSwitch {
     /// Whether it is a defect of the planner (a region that is exact failed verification):
     /// the plan stops there, no earlier switch tried in its place.
     pub defect: bool,
+    /// Whether the search was stopped because the plan's time ran out
+    /// ([`Settings::max_plan`]) before it found one: the plan stops there.
+    pub out_of_time: bool,
 }
 
 impl NoSwitch {
@@ -77,6 +80,7 @@ impl NoSwitch {
         Self {
             reason,
             defect: false,
+            out_of_time: false,
         }
     }
 
@@ -85,6 +89,16 @@ impl NoSwitch {
         Self {
             reason,
             defect: true,
+            out_of_time: false,
+        }
+    }
+
+    /// The search stopped when the plan's time ran out, `reason`.
+    pub(crate) fn out_of_time(reason: String) -> Self {
+        Self {
+            reason,
+            defect: false,
+            out_of_time: true,
         }
     }
 }
@@ -211,13 +225,17 @@ where
                     break;
                 }
                 let mut found = s.switch(&contacts, k, theta, &why, progress, deadline)?;
-                if found.is_err() && deadline.passed() {
+                // (What the search says, not the clock: a search that ended with its answer,
+                // no switch or a defect, as the time ran out keeps that answer.)
+                if found.as_ref().is_err_and(|e| e.out_of_time) {
                     stop_reason = Some(out_of_time(deadline, theta, steps.len(), Some(finger)));
                     break;
                 }
-                if let Some(NoSwitch { reason, defect }) = found.as_ref().err().cloned() {
-                    // Released earlier, the latest first (not in place of a defect).
+                if let Some(NoSwitch { reason, defect, .. }) = found.as_ref().err().cloned() {
+                    // Released earlier, the latest first (not in place of a defect), while
+                    // the plan has time.
                     let mut tried = 0;
+                    let mut timed_out = false;
                     for back in (1..=EARLY_SWITCH_STEPS).filter(|_| !defect) {
                         // The current grasp is the last rolled (if any since the switch).
                         let Some(r) = rolled
@@ -237,18 +255,26 @@ where
                             (theta - at).to_degrees().round()
                         );
                         if deadline.passed() {
+                            timed_out = true;
                             break;
                         }
-                        if let Ok(sw) = s.switch(earlier, j, at, &early, progress, deadline)? {
-                            steps.truncate(rolled[r].0 + 1);
-                            contacts = earlier.clone();
-                            rolled.truncate(r + 1);
-                            theta = at;
-                            found = Ok(sw);
-                            break;
+                        match s.switch(earlier, j, at, &early, progress, deadline)? {
+                            Ok(sw) => {
+                                steps.truncate(rolled[r].0 + 1);
+                                contacts = earlier.clone();
+                                rolled.truncate(r + 1);
+                                theta = at;
+                                found = Ok(sw);
+                                break;
+                            }
+                            Err(e) if e.out_of_time => {
+                                timed_out = true;
+                                break;
+                            }
+                            Err(_) => {}
                         }
                     }
-                    if found.is_err() && deadline.passed() {
+                    if found.is_err() && timed_out {
                         stop_reason = Some(out_of_time(deadline, theta, steps.len(), Some(finger)));
                         break;
                     }
@@ -388,13 +414,13 @@ pub(crate) mod tests {
             _: &mut dyn FnMut(Real),
             deadline: &Deadline,
         ) -> Result<Result<Switched<u32>, NoSwitch>, PlanError> {
-            // (As the spatial search: it stops when the time has run out.)
-            if deadline.passed() {
-                return Ok(Err(NoSwitch::none("stopped: out of time".into())));
-            }
             let done = (theta / self.step).round() as usize;
             if self.defect == Some(done) {
                 return Ok(Err(NoSwitch::defect(format!("a defect at {done} steps"))));
+            }
+            // (As the spatial search: it stops when the time has run out.)
+            if deadline.passed() {
+                return Ok(Err(NoSwitch::out_of_time("stopped".into())));
             }
             if self.reach.is_none_or(|r| done > r) {
                 return Ok(Err(NoSwitch::none(format!(
@@ -600,6 +626,10 @@ pub(crate) mod tests {
                 "stopped after plan.max_plan_s = 0 s, at 10.0 deg with 3 steps made (raise plan.max_plan_s to plan on)"
             )
         );
+        // A search that ends with its own answer (a defect) as the time runs out keeps it: the
+        // answer is the search's, not the clock's (the next ask would find the time gone).
+        let (d, _) = plan_until(6, Some(4), Some(6), &Deadline::after_asking(7));
+        assert_eq!(d.stop_reason.as_deref(), Some("a defect at 6 steps"));
         // Time enough: the whole plan, as without a bound.
         let hour = Deadline::after(Some(std::time::Duration::from_secs(3600)));
         let (d, _) = plan_until(6, Some(4), None, &hour);

@@ -380,7 +380,7 @@ impl SpatialScenario<'_> {
             Some((f.limit_margin(&t.q), t))
         };
         let out_of_time = || {
-            Ok(Err(NoSwitch::none(format!(
+            Ok(Err(NoSwitch::out_of_time(format!(
                 "the search for a finger to take over from finger {released} ({why}) was stopped: its time had run out"
             ))))
         };

@@ -15,8 +15,8 @@ pub const DEFAULT_ROTATION_DEG: Real = 360.0;
 pub const DEFAULT_SQUEEZE_RESERVE_MM: Real = 2.0;
 /// Default object rotation per rolling step (deg).
 pub const DEFAULT_STEP_DEG: Real = 5.0;
-/// `plan.max_plan_s` when not given (s): ten times the longest shipped plan on one core (the
-/// mesh ellipsoid's ~28 s), so that a machine under load still plans them whole.
+/// `plan.max_plan_s` when not given (s): seven times the longest shipped plan's CPU time (the
+/// mesh ellipsoid's ~42 s), so that a machine under load still plans them whole.
 pub const DEFAULT_MAX_PLAN_S: Real = 300.0;
 
 /// What the object turns about, and the spatial planner's own limits (`[plan]`).
