@@ -67,6 +67,14 @@ fn said_what_it_did(err: &str, out: &str, s: &serde_json::Value) {
     // come after ~0.15 s, before the command node holds at all: 0 start-up holds, where the
     // whole plan made first gave thousands; the paper's still give some.)
     assert!(s["planned_after_s"].as_f64().unwrap() > 0.0, "{s}");
+    // The summary shows the start-up hold, with its count (none where the first steps came
+    // before the command node held).
+    let startup = format!(
+        "start-up   the plan came after {:.1} s; the hand held its grasp meanwhile ({} commands)",
+        s["planned_after_s"].as_f64().unwrap(),
+        s["startup_holds"].as_u64().unwrap()
+    );
+    assert!(out.contains(&startup), "{startup:?} not in {out}");
     let causes: u64 = s["hold_causes"]
         .as_object()
         .unwrap()
