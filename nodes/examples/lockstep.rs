@@ -2,10 +2,13 @@
 //! per plan phase, for tuning the plant's controls.
 //!
 //!     cargo run --release -p icrflow-nodes --example lockstep -- CONFIG [--seconds S]
-//!         [--every-s S] [--replan-s S] [SECTION.KEY=VALUE ...]
+//!         [--every-s S] [--replan-s S] [--stall-ms MS --stall-every-ms MS]
+//!         [SECTION.KEY=VALUE ...]
 //!
 //! `--seconds`: simulated seconds to run (40); `--every-s`: the interval of the lines (0.5 s);
-//! `--replan-s`: simulated seconds a re-plan takes (`lockstep::run`'s `replan_s`, 0).
+//! `--replan-s`: simulated seconds a re-plan takes (`lockstep::run`'s `replan_s`, 0);
+//! `--stall-ms`, `--stall-every-ms`: the loop upstream of the command node stalled that many
+//! milliseconds of every period (`lockstep::Stall`; none by default).
 //! `SECTION.KEY=VALUE`: a config key set over the file's, the value in TOML (e.g. `plant.kp=5
 //! pipeline.seed=2 pipeline.push_nm=[0,0,0.05]`), validated with the file as `run` validates
 //! it (a value out of its bounds is refused by its key). Prints a line every `--every-s` of
@@ -71,6 +74,13 @@ struct Cli {
     /// Simulated seconds a re-plan takes.
     #[arg(long, default_value_t = 0.0)]
     replan_s: f64,
+    /// Milliseconds of every `--stall-every-ms` the loop upstream of the command node is
+    /// stalled (`lockstep::Stall`).
+    #[arg(long, default_value_t = 0.0)]
+    stall_ms: f64,
+    /// The period of the stalls (ms).
+    #[arg(long, default_value_t = 1.0)]
+    stall_every_ms: f64,
     /// A config key set over the file's, its value in TOML: `plant.kp=5`.
     #[arg(value_name = "SECTION.KEY=VALUE", value_parser = setting)]
     set: Vec<Setting>,
@@ -128,6 +138,7 @@ fn main() -> Result<()> {
     let config = configured(&cli.config, &cli.set)?;
     let (seconds, every, replan_s) = (cli.seconds, cli.every_s, cli.replan_s);
     let setup = Setup::new(&config)?;
+    let stall = lockstep::Stall::of_ms(cli.stall_ms, cli.stall_every_ms, config.pipeline.rate_hz)?;
     let mu = config.grasp.model.mu();
     let mut stats: BTreeMap<&'static str, PhaseStats> = BTreeMap::new();
     let mut next_line = 0.0;
@@ -143,182 +154,190 @@ fn main() -> Result<()> {
     let mut off_ticks = [0usize; MAX_FINGERS];
     let mut gaps = [0u64; 12];
     let started = std::time::Instant::now();
-    let ended = lockstep::run(&config, &setup, seconds, 0.5, replan_s, &mut |tick| {
-        if let Some(plan) = tick.plan.filter(|p| p.phase == PlanPhase::Rolling as u32) {
-            let n = (plan.finger_count as usize).min(MAX_FINGERS);
-            for (slot, f) in setup.hand.fingers.iter().enumerate().take(MAX_FINGERS) {
-                let planned = plan.targets[..n]
-                    .iter()
-                    .any(|t| t.finger == f.id && t.in_contact == 1);
-                let on = tick.plant.sim().contact(slot).is_some();
-                if planned && !on {
-                    off_ticks[slot] += 1;
-                } else {
-                    if planned && off_ticks[slot] > 0 {
-                        gaps[off_ticks[slot].min(gaps.len() - 1)] += 1;
-                    }
-                    off_ticks[slot] = 0;
-                }
-            }
-        }
-        watch.observe(tick);
-        let Some(truth) = tick.truth else {
-            return;
-        };
-        let q = TruthWatch::orientation(truth);
-        let off_axis = last_pose.replace(q).map_or(0.0, |last| {
-            tilt_of(&(q * last.inverse()), &axis).to_degrees()
-        });
-        let plan = tick.plan;
-        let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));
-        let s = stats.entry(phase).or_default();
-        s.ticks += 1;
-        s.off_axis += off_axis;
-        if let Some(plan) = plan {
-            let n = (plan.finger_count as usize).min(MAX_FINGERS);
-            for k in 0..n {
-                let target = &plan.targets[k];
-                if target.in_contact != 1 {
-                    continue;
-                }
-                let Some(slot) = (0..truth.finger_count as usize)
-                    .find(|&s| truth.finger_ids[s] == target.finger)
-                else {
-                    continue;
-                };
-                if truth.in_contact[slot] == 0 {
-                    s.lost += 1;
-                    continue;
-                }
-                let (fn_, u) = pressing(truth, slot, mu);
-                s.slip = s.slip.max(truth.slip_speeds[slot]);
-                s.friction_use = s.friction_use.max(u);
-                if truth.slip_speeds[slot] > 0.01
-                    && worst
-                        .as_ref()
-                        .is_none_or(|(w, _)| truth.slip_speeds[slot] > *w)
-                {
-                    worst = Some((
-                        truth.slip_speeds[slot],
-                        format!(
-                            "t {:.2} s, step {} {phase}, finger {}: slip {:.1} mm/s, f_n {:.2} N, use {:.2}",
-                            tick.time,
-                            plan.step,
-                            target.finger,
-                            truth.slip_speeds[slot] * 1e3,
-                            fn_,
-                            u
-                        ),
-                    ));
-                }
-            }
-        }
-        if tick.time >= next_line {
-            next_line += every;
-            let c = tick.plant.sim().object_centre();
-            let mut forces = String::new();
-            for slot in 0..truth.finger_count as usize {
-                if truth.in_contact[slot] == 1 {
-                    let (fn_, u) = pressing(truth, slot, mu);
-                    // The commanded force's magnitude beside the true normal force.
-                    let commanded = tick.command.and_then(|(c, _)| {
-                        (0..c.finger_count as usize)
-                            .find(|&k| c.finger_ids[k] == truth.finger_ids[slot])
-                            .map(|k| c.forces[k].iter().map(|x| x * x).sum::<f64>().sqrt())
-                    });
-                    forces += &format!(
-                        " {:.1}({:.1})/{:.2}/{:.0}",
-                        fn_,
-                        commanded.unwrap_or(f64::NAN),
-                        u,
-                        truth.slip_speeds[slot] * 1e3
-                    );
-                } else {
-                    forces += " -";
-                }
-            }
-            let mut errors = String::new();
-            if let (Some((c, _)), Some(g)) = (tick.command, tick.grasp) {
-                for slot in 0..c.finger_count as usize {
-                    let Some(f) = setup.hand.finger(c.finger_ids[slot]) else {
-                        continue;
-                    };
-                    let n = f.dof();
-                    let target = f.tip_centre(&c.joint_targets[slot][..n]);
-                    let d = f.tip_centre(&g.joints[slot][..n]) - target;
-                    let radial = (target - setup.object.centre_of_mass).normalize();
-                    let along = d.dot(&radial);
-                    errors += &format!(
-                        " {:.2}/{:+.2}",
-                        (d - radial * along).norm() * 1e3,
-                        along * 1e3
-                    );
-                }
-            }
-            // Each finger's contact candidate, estimated / planned ("-": none).
-            let mut cands = String::new();
-            if let (Some(g), Some(plan)) = (tick.grasp, plan) {
-                for slot in 0..g.finger_count as usize {
-                    let e = &g.fingers[slot];
-                    let planned = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
+    let ended = lockstep::run_stalled(
+        &config,
+        &setup,
+        seconds,
+        0.5,
+        replan_s,
+        stall,
+        &mut |tick| {
+            if let Some(plan) = tick.plan.filter(|p| p.phase == PlanPhase::Rolling as u32) {
+                let n = (plan.finger_count as usize).min(MAX_FINGERS);
+                for (slot, f) in setup.hand.fingers.iter().enumerate().take(MAX_FINGERS) {
+                    let planned = plan.targets[..n]
                         .iter()
-                        .find(|t| t.finger == e.finger && t.in_contact == 1);
-                    let est = if e.in_contact == 1 {
-                        e.candidate.to_string()
+                        .any(|t| t.finger == f.id && t.in_contact == 1);
+                    let on = tick.plant.sim().contact(slot).is_some();
+                    if planned && !on {
+                        off_ticks[slot] += 1;
                     } else {
-                        "-".into()
-                    };
-                    let pl = planned.map_or("-".into(), |t| t.candidate.to_string());
-                    cands += &format!(" {est}/{pl}");
+                        if planned && off_ticks[slot] > 0 {
+                            gaps[off_ticks[slot].min(gaps.len() - 1)] += 1;
+                        }
+                        off_ticks[slot] = 0;
+                    }
                 }
             }
-            // Each finger's largest joint error from the plan step's target (deg).
-            let mut joint_errors = String::new();
-            if let (Some(g), Some(plan)) = (tick.grasp, plan) {
-                for slot in 0..g.finger_count as usize {
-                    let finger = g.fingers[slot].finger;
-                    let Some(t) = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
-                        .iter()
-                        .find(|t| t.finger == finger)
+            watch.observe(tick);
+            let Some(truth) = tick.truth else {
+                return;
+            };
+            let q = TruthWatch::orientation(truth);
+            let off_axis = last_pose.replace(q).map_or(0.0, |last| {
+                tilt_of(&(q * last.inverse()), &axis).to_degrees()
+            });
+            let plan = tick.plan;
+            let phase = plan.map_or("none", |p| PlanPhase::name_of(p.phase));
+            let s = stats.entry(phase).or_default();
+            s.ticks += 1;
+            s.off_axis += off_axis;
+            if let Some(plan) = plan {
+                let n = (plan.finger_count as usize).min(MAX_FINGERS);
+                for k in 0..n {
+                    let target = &plan.targets[k];
+                    if target.in_contact != 1 {
+                        continue;
+                    }
+                    let Some(slot) = (0..truth.finger_count as usize)
+                        .find(|&s| truth.finger_ids[s] == target.finger)
                     else {
                         continue;
                     };
-                    let n = t.joint_count as usize;
-                    let e = (0..n).fold(0.0_f64, |m, j| {
-                        m.max((t.joints[j] - g.joints[slot][j]).abs())
-                    });
-                    joint_errors += &format!(" {:.1}", e.to_degrees());
+                    if truth.in_contact[slot] == 0 {
+                        s.lost += 1;
+                        continue;
+                    }
+                    let (fn_, u) = pressing(truth, slot, mu);
+                    s.slip = s.slip.max(truth.slip_speeds[slot]);
+                    s.friction_use = s.friction_use.max(u);
+                    if truth.slip_speeds[slot] > 0.01
+                        && worst
+                            .as_ref()
+                            .is_none_or(|(w, _)| truth.slip_speeds[slot] > *w)
+                    {
+                        worst = Some((
+                            truth.slip_speeds[slot],
+                            format!(
+                                "t {:.2} s, step {} {phase}, finger {}: slip {:.1} mm/s, f_n {:.2} N, use {:.2}",
+                                tick.time,
+                                plan.step,
+                                target.finger,
+                                truth.slip_speeds[slot] * 1e3,
+                                fn_,
+                                u
+                            ),
+                        ));
+                    }
                 }
             }
-            forces += &format!(
-                " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b} | tilt {:.2} deg",
-                tick.plant.sim().collisions().links_on_object,
-                tick.plant.sim().collisions().fingers_touching,
-                watch.tilt_deg
-            );
-            eprintln!(
-                "t {:5.2} s  true {:7.2} est {:7.2} plan {:7.2} deg  step {:4} {:8} fn/use/slip{forces}  centre [{:+.1} {:+.1} {:+.1}] mm{}",
-                tick.time,
-                truth.rotation.to_degrees(),
-                tick.grasp.map_or(f64::NAN, |g| g.rotation.to_degrees()),
-                plan.map_or(f64::NAN, |p| p.rotation.to_degrees()),
-                plan.map_or(0, |p| p.step),
-                phase,
-                c.x * 1e3,
-                c.y * 1e3,
-                c.z * 1e3,
-                tick.command
-                    .and_then(|(c, why)| match why {
-                        Some(w) => Some(format!("  HOLD {w}")),
-                        None if c.mode == CommandMode::Attach as u32 => {
-                            Some(format!("  ATTACH {}", read_text(&c.reason)))
-                        }
-                        None => None,
-                    })
-                    .unwrap_or_default()
-            );
-        }
-    })?;
+            if tick.time >= next_line {
+                next_line += every;
+                let c = tick.plant.sim().object_centre();
+                let mut forces = String::new();
+                for slot in 0..truth.finger_count as usize {
+                    if truth.in_contact[slot] == 1 {
+                        let (fn_, u) = pressing(truth, slot, mu);
+                        // The commanded force's magnitude beside the true normal force.
+                        let commanded = tick.command.and_then(|(c, _)| {
+                            (0..c.finger_count as usize)
+                                .find(|&k| c.finger_ids[k] == truth.finger_ids[slot])
+                                .map(|k| c.forces[k].iter().map(|x| x * x).sum::<f64>().sqrt())
+                        });
+                        forces += &format!(
+                            " {:.1}({:.1})/{:.2}/{:.0}",
+                            fn_,
+                            commanded.unwrap_or(f64::NAN),
+                            u,
+                            truth.slip_speeds[slot] * 1e3
+                        );
+                    } else {
+                        forces += " -";
+                    }
+                }
+                let mut errors = String::new();
+                if let (Some((c, _)), Some(g)) = (tick.command, tick.grasp) {
+                    for slot in 0..c.finger_count as usize {
+                        let Some(f) = setup.hand.finger(c.finger_ids[slot]) else {
+                            continue;
+                        };
+                        let n = f.dof();
+                        let target = f.tip_centre(&c.joint_targets[slot][..n]);
+                        let d = f.tip_centre(&g.joints[slot][..n]) - target;
+                        let radial = (target - setup.object.centre_of_mass).normalize();
+                        let along = d.dot(&radial);
+                        errors += &format!(
+                            " {:.2}/{:+.2}",
+                            (d - radial * along).norm() * 1e3,
+                            along * 1e3
+                        );
+                    }
+                }
+                // Each finger's contact candidate, estimated / planned ("-": none).
+                let mut cands = String::new();
+                if let (Some(g), Some(plan)) = (tick.grasp, plan) {
+                    for slot in 0..g.finger_count as usize {
+                        let e = &g.fingers[slot];
+                        let planned = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
+                            .iter()
+                            .find(|t| t.finger == e.finger && t.in_contact == 1);
+                        let est = if e.in_contact == 1 {
+                            e.candidate.to_string()
+                        } else {
+                            "-".into()
+                        };
+                        let pl = planned.map_or("-".into(), |t| t.candidate.to_string());
+                        cands += &format!(" {est}/{pl}");
+                    }
+                }
+                // Each finger's largest joint error from the plan step's target (deg).
+                let mut joint_errors = String::new();
+                if let (Some(g), Some(plan)) = (tick.grasp, plan) {
+                    for slot in 0..g.finger_count as usize {
+                        let finger = g.fingers[slot].finger;
+                        let Some(t) = plan.targets[..(plan.finger_count as usize).min(MAX_FINGERS)]
+                            .iter()
+                            .find(|t| t.finger == finger)
+                        else {
+                            continue;
+                        };
+                        let n = t.joint_count as usize;
+                        let e = (0..n).fold(0.0_f64, |m, j| {
+                            m.max((t.joints[j] - g.joints[slot][j]).abs())
+                        });
+                        joint_errors += &format!(" {:.1}", e.to_degrees());
+                    }
+                }
+                forces += &format!(
+                    " | cand est/plan{cands} | tip across/along{errors} mm | joints off plan{joint_errors} deg | links on object {:#b} fingers touching {:#b} | tilt {:.2} deg",
+                    tick.plant.sim().collisions().links_on_object,
+                    tick.plant.sim().collisions().fingers_touching,
+                    watch.tilt_deg
+                );
+                eprintln!(
+                    "t {:5.2} s  true {:7.2} est {:7.2} plan {:7.2} deg  step {:4} {:8} fn/use/slip{forces}  centre [{:+.1} {:+.1} {:+.1}] mm{}",
+                    tick.time,
+                    truth.rotation.to_degrees(),
+                    tick.grasp.map_or(f64::NAN, |g| g.rotation.to_degrees()),
+                    plan.map_or(f64::NAN, |p| p.rotation.to_degrees()),
+                    plan.map_or(0, |p| p.step),
+                    phase,
+                    c.x * 1e3,
+                    c.y * 1e3,
+                    c.z * 1e3,
+                    tick.command
+                        .and_then(|(c, why)| match why {
+                            Some(w) => Some(format!("  HOLD {w}")),
+                            None if c.mode == CommandMode::Attach as u32 => {
+                                Some(format!("  ATTACH {}", read_text(&c.reason)))
+                            }
+                            None => None,
+                        })
+                        .unwrap_or_default()
+                );
+            }
+        },
+    )?;
     eprintln!(
         "ended after {:.2} s simulated ({:.1} s computed): done {}, true {:.2} deg, estimated {:.2} deg, {} holds, {} attach commands below the margin, {} replans{}",
         ended.time,

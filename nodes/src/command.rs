@@ -113,6 +113,7 @@ impl<'a> Commander<'a> {
                 last: None,
                 held: None,
                 centring: [0.0; 3],
+                gated: false,
             },
             watchdog_ns: (WATCHDOG_PERIODS * (1.0 / p.rate_hz) * 1e9) as u64,
             last_sent: now,
@@ -192,7 +193,7 @@ impl<'a> Commander<'a> {
                 }
             }
         }
-        self.hold(now)
+        self.hold(now, true)
     }
 
     /// The command that tracks `plan` at `now` with `header` (attaching `attach` below the
@@ -230,7 +231,7 @@ impl<'a> Commander<'a> {
             }
             Err(e) => {
                 let _ = write!(self.reason, "forces: {e}");
-                self.hold(now)
+                self.hold(now, true)
             }
         }
     }
@@ -245,16 +246,18 @@ impl<'a> Commander<'a> {
         let quiet = Hold::Quiet {
             ms: quiet_ns as f64 * 1e-6,
         };
-        let hold = self.gate.decide(now).err().unwrap_or(quiet);
+        let refused = self.gate.decide(now).err();
+        let gated = refused.is_some();
         self.reason.clear();
-        let _ = write!(self.reason, "{hold}");
-        Some(self.hold(now))
+        let _ = write!(self.reason, "{}", refused.unwrap_or(quiet));
+        Some(self.hold(now, gated))
     }
 
-    /// A hold at `now` for the reason in `reason`.
-    fn hold(&mut self, now: u64) -> Command<'_> {
+    /// A hold at `now` for the reason in `reason`: `gated` when something refused to track
+    /// (the gate, the forces), not when the inputs were only late (the watchdog's own).
+    fn hold(&mut self, now: u64, gated: bool) -> Command<'_> {
         self.last_sent = now;
-        let mut c = self.tracker.hold(&self.reason);
+        let mut c = self.tracker.hold(&self.reason, gated);
         c.header.source_time_ns = now;
         Command {
             command: c,
@@ -340,6 +343,9 @@ struct Tracker<'a> {
     /// How far the fingers in contact are moved together to hold the object's centre where
     /// the plan has it (m; a planar hand's in the hand's plane).
     centring: [f64; 3],
+    /// Whether a hold refused to track since the last tracking command (the gate's or the
+    /// forces'; not the watchdog's, whose inputs were only late).
+    gated: bool,
 }
 
 /// Finger `id`'s joint targets in command `c`, if it has the finger.
@@ -475,9 +481,20 @@ impl Tracker<'_> {
             // was estimated from: where the hand stopped, which may be short of the last
             // command. A held finger from its last command, however long the hand held (the
             // holds commanded it there; set off from where it stands, a finger pressing on
-            // the object would let go of what it presses).
+            // the object would let go of what it presses); so too a finger that presses after
+            // a gap in which nothing refused to track, only the inputs came late (under a loop
+            // stalled a few milliseconds at a time, every command came resumed, and the
+            // pressing fingers, set off from where they stood, short of their commands by the
+            // contact's give, let the object drift off until the grasp was lost). After a
+            // hold the gate or the forces decided, from where it stands (tried: from its last
+            // command then, the Allegro's ellipsoid at plan.alpha 0.12 spun out in lockstep
+            // where it had reached the goal).
+            let presses = self.pressing.contains(&target.finger) && !self.gated;
             let from = match self.last {
                 Some((prev, _)) if kept.is_some() => joints_of(&prev, target.finger),
+                Some((prev, _)) if presses && joints_of(&prev, target.finger).is_some() => {
+                    joints_of(&prev, target.finger)
+                }
                 Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
                 _ => gate.grasp().and_then(|g| {
                     let n = (g.finger_count as usize).min(MAX_FINGERS);
@@ -493,6 +510,7 @@ impl Tracker<'_> {
             c.forces[*slot] = [f.x, f.y, f.z];
         }
         self.last = Some((c, t));
+        self.gated = false;
         Ok(c)
     }
 
@@ -586,8 +604,10 @@ impl Tracker<'_> {
     /// The time this command's motion covers (s) and whether tracking resumes. The motion is
     /// that of the time since the last tracking command (a late input moves the command on as
     /// far as the hand has gone meanwhile). Resumed, after no tracking command for longer than
-    /// the watchdog's periods (a hold, a restart): the hand sets off from where it stands, one
-    /// period's (`dt`) motion, and does not jump to where the plan has gone meanwhile.
+    /// the watchdog's periods (a hold, a restart, a loop stalled by other work): the hand goes
+    /// one period's (`dt`) motion on, and does not jump to where the plan has gone meanwhile;
+    /// a free finger sets off from where it stands, a finger pressing on the object from its
+    /// last command unless a hold refused to track meanwhile ([`Tracker::track`]).
     fn elapsed(&self, t: u64, dt: f64) -> (f64, bool) {
         let since = self
             .last
@@ -668,7 +688,8 @@ impl Tracker<'_> {
 
     /// A hold of the last command that moved the hand (before any, no motion at all), saying
     /// `why`.
-    fn hold(&self, why: &str) -> HandCommand {
+    fn hold(&mut self, why: &str, gated: bool) -> HandCommand {
+        self.gated |= gated;
         let mut c = self.last.map_or_else(HandCommand::default, |(c, _)| c);
         c.header = Header::new(Kind::HandCommand, 0, 0, 0);
         c.mode = CommandMode::Hold as u32;
@@ -785,6 +806,62 @@ mod tests {
         c.on_grasp(&i.grasp);
         let out = c.on_wrench(&i.wrench, at);
         (out.command, out.hold.map(str::to_string))
+    }
+
+    /// After a gap in the inputs longer than the watchdog's periods (a loop stalled by other
+    /// work), the fingers pressing on the object set off from their last command, a free
+    /// finger from where the grasp state has it; both one period's motion on. After a hold
+    /// the gate decided, every finger from where it stands. The hand
+    /// stands short of its last command (the contact's give): set off from there, the pressing
+    /// fingers would let go of the object (a stalled loop lost the paper sphere's grasp so).
+    #[test]
+    fn after_a_gap_the_pressing_fingers_set_off_from_their_last_command() {
+        let (config, setup) = paper();
+        let mut c = Commander::new(&config, &setup, T0);
+        let dt = (1e9 / config.pipeline.rate_hz) as u64;
+        let step = config.pipeline.joint_speed / config.pipeline.rate_hz;
+        let first = inputs(&config, &setup, 1, T0, 0.2);
+        let (before, hold) = offer(&mut c, &first, T0);
+        assert_eq!(hold, None);
+        let later = T0 + 10 * dt;
+        let (after, hold) = offer(&mut c, &inputs(&config, &setup, 2, later, 0.2), later);
+        assert_eq!(hold, None);
+        let mut free = 0;
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            let stood = first.grasp.joints[slot];
+            let (was, now) = (before.joint_targets[slot], after.joint_targets[slot]);
+            for j in 0..f.dof() {
+                assert!(
+                    (was[j] - (stood[j] + step)).abs() < 1e-12,
+                    "finger {}",
+                    f.id
+                );
+                let from = if first.plan.targets[slot].in_contact == 1 {
+                    was[j]
+                } else {
+                    free += 1;
+                    stood[j]
+                };
+                assert!((now[j] - (from + step)).abs() < 1e-12, "finger {}", f.id);
+            }
+        }
+        assert!(free > 0, "the paper's start has a free finger");
+        // After a hold the gate decided (the grasp below the margin), every finger sets off
+        // from where it stands, as after a restart: the gate refused the grasp it pressed.
+        let held_at = later + dt;
+        let mut below = inputs(&config, &setup, 3, held_at, 0.2);
+        below.wrench.quality = 0.5 * config.grasp.alpha;
+        let (_, hold) = offer(&mut c, &below, held_at);
+        assert!(hold.is_some_and(|h| h.contains("below the margin")));
+        let again = held_at + 10 * dt;
+        let (resumed, hold) = offer(&mut c, &inputs(&config, &setup, 4, again, 0.2), again);
+        assert_eq!(hold, None);
+        for (slot, f) in setup.hand.fingers.iter().enumerate() {
+            for j in 0..f.dof() {
+                let from = first.grasp.joints[slot][j];
+                assert!((resumed.joint_targets[slot][j] - (from + step)).abs() < 1e-12);
+            }
+        }
     }
 
     /// A finger the plan step has attach presses only once the estimate has it touching:

@@ -75,6 +75,50 @@ pub struct Ended {
     pub replanned: Vec<(f64, String)>,
 }
 
+/// A loop stalled now and then, as on a machine busy with other work: for the first `length`
+/// ticks of every `period`, the nodes upstream of the hand command node (the estimator, the
+/// wrench-space node, the planner's follower) take no measurement (those of the stalled ticks
+/// are lost to them; the first one after is taken), so the command node has no wrench space
+/// to answer and its own timer holds the hand after [`crate::command::WATCHDOG_PERIODS`]
+/// periods, as it does on the bus. The plant goes on in time under the last command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Stall {
+    /// Ticks stalled at the start of every period (0: never).
+    pub length: u64,
+    /// The period (ticks).
+    pub period: u64,
+}
+
+impl Stall {
+    /// Never stalled.
+    pub const NONE: Stall = Stall {
+        length: 0,
+        period: 1,
+    };
+
+    /// `length_ms` stalled of every `period_ms` at `rate_hz` ticks a second (whole ticks; an
+    /// error for a period under a tick or a stall longer than its period).
+    pub fn of_ms(length_ms: f64, period_ms: f64, rate_hz: f64) -> Result<Stall> {
+        let ticks = |ms: f64| (ms * 1e-3 * rate_hz).round();
+        let (length, period) = (ticks(length_ms), ticks(period_ms));
+        anyhow::ensure!(
+            length_ms >= 0.0 && period >= 1.0 && length < period,
+            "a stall of {length_ms} ms every {period_ms} ms: expected at least 0 ms, less than \
+             its period, and a period of at least one tick ({} ms)",
+            1e3 / rate_hz
+        );
+        Ok(Stall {
+            length: length as u64,
+            period: period as u64,
+        })
+    }
+
+    /// Whether tick `k` (from 0) is stalled.
+    pub fn covers(&self, k: u64) -> bool {
+        k % self.period.max(1) < self.length
+    }
+}
+
 /// Runs `config`'s scenario (`plant.kind` must be `"mujoco"`) in lockstep for at most
 /// `seconds` of simulated time, or until the planner is done and `settle` s more have passed;
 /// `observe` sees every tick. A plan made again from the estimate takes `replan_s` s of
@@ -90,6 +134,27 @@ pub fn run(
     replan_s: f64,
     observe: &mut dyn FnMut(&Tick<'_>),
 ) -> Result<Ended> {
+    run_stalled(
+        config,
+        setup,
+        seconds,
+        settle,
+        replan_s,
+        Stall::NONE,
+        observe,
+    )
+}
+
+/// [`run`] with the loop upstream of the command node stalled as `stall` says.
+pub fn run_stalled(
+    config: &Config,
+    setup: &Setup,
+    seconds: f64,
+    settle: f64,
+    replan_s: f64,
+    stall: Stall,
+    observe: &mut dyn FnMut(&Tick<'_>),
+) -> Result<Ended> {
     anyhow::ensure!(
         config.plant.kind == PlantKind::Mujoco,
         "a lockstep run needs plant.kind = \"mujoco\""
@@ -100,10 +165,16 @@ pub fn run(
     let mut lp = Loop::new(config, setup, t0, replan_s)?;
     let end = t0 + (seconds * 1e9) as u64;
     let mut t = t0;
+    let mut k = 0;
     while t < end {
         t += dt;
         let (out, joints) = lp.measure(t);
-        let grasp = lp.estimate(&joints, t);
+        let grasp = if stall.covers(k) {
+            None
+        } else {
+            lp.estimate(&joints, t)
+        };
+        k += 1;
         lp.follow(grasp.as_ref(), t);
         let made = lp.command(grasp.as_ref(), t);
         observe(&Tick {
