@@ -22,7 +22,9 @@
 //! hand's in space), clamped into the joint limits, and
 //! approached along a straight line in each finger's joint space at most
 //! `pipeline.joint_speed_deg_s` per elapsed time (so the stream interpolates between plan
-//! steps, and the fingertips follow the planned rolling), and its forces, on the contacts of
+//! steps, and the fingertips follow the planned rolling; a command late by up to
+//! [`LATE_PERIODS`] periods, nothing having refused to track meanwhile, moves on by the time
+//! gone; after a longer gap or a hold the gate decided, one period's motion), and its forces, on the contacts of
 //! the plan step that the estimate has made (an attaching finger presses only once it
 //! touches: pressing on its way, it would hit the object, and the others, their forces
 //! already those of the grasp with it, would let the object slip meanwhile), balance the
@@ -63,6 +65,10 @@ pub const CENTRING_LIMIT: f64 = 3e-3;
 /// balancing forces, whose load (the weight) turns with it in the object's frame, are solved
 /// again (rad).
 pub const RESOLVE_TURN: f64 = 0.5 * std::f64::consts::PI / 180.0;
+/// Periods after the last tracking command within which a command that comes, nothing having
+/// refused to track meanwhile, is late rather than resumed: it moves the hand on by the motion
+/// of the time gone (the plant's MuJoCo catches up at most as many periods when it is late).
+pub const LATE_PERIODS: f64 = 10.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
 
@@ -482,13 +488,13 @@ impl Tracker<'_> {
             // command. A held finger from its last command, however long the hand held (the
             // holds commanded it there; set off from where it stands, a finger pressing on
             // the object would let go of what it presses); so too a finger that presses after
-            // a gap in which nothing refused to track, only the inputs came late (under a loop
-            // stalled a few milliseconds at a time, every command came resumed, and the
-            // pressing fingers, set off from where they stood, short of their commands by the
-            // contact's give, let the object drift off until the grasp was lost). After a
-            // hold the gate or the forces decided, from where it stands (tried: from its last
-            // command then, the Allegro's ellipsoid at plan.alpha 0.12 spun out in lockstep
-            // where it had reached the goal).
+            // a gap in which nothing refused to track, only the inputs came late (when every
+            // command more than three periods late resumed, under a loop stalled a few
+            // milliseconds at a time, the pressing fingers, set off from where they stood,
+            // short of their commands by the contact's give, let the object drift off until
+            // the grasp was lost). After a hold the gate or the forces decided, from where it
+            // stands (tried: from its last command then, the Allegro's ellipsoid at
+            // plan.alpha 0.12 spun out in lockstep where it had reached the goal).
             let presses = self.pressing.contains(&target.finger) && !self.gated;
             let from = match self.last {
                 Some((prev, _)) if kept.is_some() => joints_of(&prev, target.finger),
@@ -602,17 +608,20 @@ impl Tracker<'_> {
     }
 
     /// The time this command's motion covers (s) and whether tracking resumes. The motion is
-    /// that of the time since the last tracking command (a late input moves the command on as
-    /// far as the hand has gone meanwhile). Resumed, after no tracking command for longer than
-    /// the watchdog's periods (a hold, a restart, a loop stalled by other work): the hand goes
-    /// one period's (`dt`) motion on, and does not jump to where the plan has gone meanwhile;
-    /// a free finger sets off from where it stands, a finger pressing on the object from its
-    /// last command unless a hold refused to track meanwhile ([`Tracker::track`]).
+    /// that of the time since the last tracking command (a late input, as from a loop stalled
+    /// by other work while the watchdog held, moves the command on as far as the hand would
+    /// have gone meanwhile). Resumed, after no tracking command for more than [`LATE_PERIODS`]
+    /// periods (a restart, a long stall), or after a hold the gate or the forces decided: the
+    /// hand goes one period's (`dt`) motion on, and does not jump to where the plan has gone
+    /// meanwhile; a free finger sets off from where it stands, a finger pressing on the object
+    /// from its last command unless a hold refused to track meanwhile ([`Tracker::track`]).
+    /// (Resumed after three periods, as before 2026-12-06, a stalled loop went one period per
+    /// command: the ellipsoid under gravity, turned a third as fast, crept out of the hand.)
     fn elapsed(&self, t: u64, dt: f64) -> (f64, bool) {
         let since = self
             .last
             .map(|(_, when)| t.saturating_sub(when) as f64 * 1e-9);
-        let resumed = since.is_none_or(|s| s > WATCHDOG_PERIODS * dt);
+        let resumed = self.gated || since.is_none_or(|s| s > LATE_PERIODS * dt);
         let elapsed = match since {
             Some(s) if !resumed => s.max(dt),
             _ => dt,
@@ -808,12 +817,14 @@ mod tests {
         (out.command, out.hold.map(str::to_string))
     }
 
-    /// After a gap in the inputs longer than the watchdog's periods (a loop stalled by other
-    /// work), the fingers pressing on the object set off from their last command, a free
-    /// finger from where the grasp state has it; both one period's motion on. After a hold
-    /// the gate decided, every finger from where it stands. The hand
-    /// stands short of its last command (the contact's give): set off from there, the pressing
-    /// fingers would let go of the object (a stalled loop lost the paper sphere's grasp so).
+    /// A command that comes late, nothing having refused to track meanwhile (a loop stalled by
+    /// other work: the watchdog's holds only), moves every finger on from its last command by
+    /// the motion of the time gone, up to [`LATE_PERIODS`]. After a longer gap the fingers
+    /// pressing on the object set off from their last command, a free finger from where the
+    /// grasp state has it, both one period's motion on; after a hold the gate decided, every
+    /// finger from where it stands. The hand stands short of its last command (the contact's
+    /// give): set off from there without cause, the pressing fingers let go of the object (a
+    /// stalled loop lost the paper sphere's grasp so).
     #[test]
     fn after_a_gap_the_pressing_fingers_set_off_from_their_last_command() {
         let (config, setup) = paper();
@@ -821,45 +832,53 @@ mod tests {
         let dt = (1e9 / config.pipeline.rate_hz) as u64;
         let step = config.pipeline.joint_speed / config.pipeline.rate_hz;
         let first = inputs(&config, &setup, 1, T0, 0.2);
-        let (before, hold) = offer(&mut c, &first, T0);
+        let stood = |slot: usize, j: usize| first.grasp.joints[slot][j];
+        let (mut last, hold) = offer(&mut c, &first, T0);
         assert_eq!(hold, None);
-        let later = T0 + 10 * dt;
-        let (after, hold) = offer(&mut c, &inputs(&config, &setup, 2, later, 0.2), later);
-        assert_eq!(hold, None);
-        let mut free = 0;
-        for (slot, f) in setup.hand.fingers.iter().enumerate() {
-            let stood = first.grasp.joints[slot];
-            let (was, now) = (before.joint_targets[slot], after.joint_targets[slot]);
-            for j in 0..f.dof() {
-                assert!(
-                    (was[j] - (stood[j] + step)).abs() < 1e-12,
-                    "finger {}",
-                    f.id
-                );
-                let from = if first.plan.targets[slot].in_contact == 1 {
-                    was[j]
-                } else {
-                    free += 1;
-                    stood[j]
-                };
-                assert!((now[j] - (from + step)).abs() < 1e-12, "finger {}", f.id);
+        let mut at = T0;
+        // Late by 5 periods, and by more than LATE_PERIODS (the watchdog holding meanwhile).
+        for (seq, gap) in [(2, 5), (3, LATE_PERIODS as u64 + 5)] {
+            let mut t = at;
+            while t + 4 * dt < at + gap * dt {
+                t += 4 * dt;
+                let held = c.on_tick(t).unwrap();
+                assert!(held.hold.is_some_and(|h| h.contains("no wrench space")));
             }
+            at += gap * dt;
+            let (now, hold) = offer(&mut c, &inputs(&config, &setup, seq, at, 0.2), at);
+            assert_eq!(hold, None);
+            let late = gap as f64 <= LATE_PERIODS;
+            let mut free = 0;
+            for (slot, f) in setup.hand.fingers.iter().enumerate() {
+                let presses = first.plan.targets[slot].in_contact == 1;
+                free += usize::from(!presses);
+                for j in 0..f.dof() {
+                    let want = match (late, presses) {
+                        (true, _) => last.joint_targets[slot][j] + gap as f64 * step,
+                        (false, true) => last.joint_targets[slot][j] + step,
+                        (false, false) => stood(slot, j) + step,
+                    };
+                    let got = now.joint_targets[slot][j];
+                    assert!((got - want).abs() < 1e-12, "gap {gap}, finger {}", f.id);
+                }
+            }
+            assert!(free > 0, "the paper's start has a free finger");
+            last = now;
         }
-        assert!(free > 0, "the paper's start has a free finger");
         // After a hold the gate decided (the grasp below the margin), every finger sets off
         // from where it stands, as after a restart: the gate refused the grasp it pressed.
-        let held_at = later + dt;
-        let mut below = inputs(&config, &setup, 3, held_at, 0.2);
+        let held_at = at + dt;
+        let mut below = inputs(&config, &setup, 4, held_at, 0.2);
         below.wrench.quality = 0.5 * config.grasp.alpha;
         let (_, hold) = offer(&mut c, &below, held_at);
         assert!(hold.is_some_and(|h| h.contains("below the margin")));
-        let again = held_at + 10 * dt;
-        let (resumed, hold) = offer(&mut c, &inputs(&config, &setup, 4, again, 0.2), again);
+        let again = held_at + dt;
+        let (resumed, hold) = offer(&mut c, &inputs(&config, &setup, 5, again, 0.2), again);
         assert_eq!(hold, None);
         for (slot, f) in setup.hand.fingers.iter().enumerate() {
             for j in 0..f.dof() {
-                let from = first.grasp.joints[slot][j];
-                assert!((resumed.joint_targets[slot][j] - (from + step)).abs() < 1e-12);
+                let want = stood(slot, j) + step;
+                assert!((resumed.joint_targets[slot][j] - want).abs() < 1e-12);
             }
         }
     }
