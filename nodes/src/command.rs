@@ -66,8 +66,11 @@ pub const CENTRING_LIMIT: f64 = 3e-3;
 /// again (rad).
 pub const RESOLVE_TURN: f64 = 0.5 * std::f64::consts::PI / 180.0;
 /// Periods after the last tracking command within which a command that comes, nothing having
-/// refused to track meanwhile, is late rather than resumed: it moves the hand on by the motion
-/// of the time gone (the plant's MuJoCo catches up at most as many periods when it is late).
+/// refused to track meanwhile, is late rather than resumed: it moves the hand's targets on by
+/// the motion of the time gone, in one command (at most 3.6 degrees per joint at the default
+/// 360 deg/s and 1 kHz; the hand held at the last command meanwhile, so it is that far behind
+/// the plan's pace). After a hold the gate or the forces decided, a command more than
+/// [`WATCHDOG_PERIODS`] late resumes, as every one did before 2026-12-06.
 pub const LATE_PERIODS: f64 = 10.0;
 /// Grasp states kept to find the one behind a wrench space.
 const RECENT: usize = 16;
@@ -253,7 +256,16 @@ impl<'a> Commander<'a> {
             ms: quiet_ns as f64 * 1e-6,
         };
         let refused = self.gate.decide(now).err();
-        let gated = refused.is_some();
+        // Gated where the gate refuses to track; not where the wrench space that did not come
+        // would have been answered by an attach below the margin (as `on_wrench` does).
+        let gated = refused.as_ref().is_some_and(|h| {
+            let attach = self
+                .gate
+                .plan()
+                .zip(self.gate.attach_below_margin(h))
+                .is_some_and(|(plan, a)| self.tracker.can_hold(plan, a.finger));
+            !attach
+        });
         self.reason.clear();
         let _ = write!(self.reason, "{}", refused.unwrap_or(quiet));
         Some(self.hold(now, gated))
@@ -350,7 +362,8 @@ struct Tracker<'a> {
     /// the plan has it (m; a planar hand's in the hand's plane).
     centring: [f64; 3],
     /// Whether a hold refused to track since the last tracking command (the gate's or the
-    /// forces'; not the watchdog's, whose inputs were only late).
+    /// forces'; not the watchdog's where only the inputs came late, or where the gate would
+    /// have let an attach below the margin go on).
     gated: bool,
 }
 
@@ -611,7 +624,8 @@ impl Tracker<'_> {
     /// that of the time since the last tracking command (a late input, as from a loop stalled
     /// by other work while the watchdog held, moves the command on as far as the hand would
     /// have gone meanwhile). Resumed, after no tracking command for more than [`LATE_PERIODS`]
-    /// periods (a restart, a long stall), or after a hold the gate or the forces decided: the
+    /// periods (a restart, a long stall), or for more than [`WATCHDOG_PERIODS`] with a hold the
+    /// gate or the forces decided since: the
     /// hand goes one period's (`dt`) motion on, and does not jump to where the plan has gone
     /// meanwhile; a free finger sets off from where it stands, a finger pressing on the object
     /// from its last command unless a hold refused to track meanwhile ([`Tracker::track`]).
@@ -621,7 +635,8 @@ impl Tracker<'_> {
         let since = self
             .last
             .map(|(_, when)| t.saturating_sub(when) as f64 * 1e-9);
-        let resumed = self.gated || since.is_none_or(|s| s > LATE_PERIODS * dt);
+        let resumed = since
+            .is_none_or(|s| s > LATE_PERIODS * dt || (self.gated && s > WATCHDOG_PERIODS * dt));
         let elapsed = match since {
             Some(s) if !resumed => s.max(dt),
             _ => dt,
@@ -865,21 +880,34 @@ mod tests {
             assert!(free > 0, "the paper's start has a free finger");
             last = now;
         }
-        // After a hold the gate decided (the grasp below the margin), every finger sets off
-        // from where it stands, as after a restart: the gate refused the grasp it pressed.
-        let held_at = at + dt;
-        let mut below = inputs(&config, &setup, 4, held_at, 0.2);
-        below.wrench.quality = 0.5 * config.grasp.alpha;
-        let (_, hold) = offer(&mut c, &below, held_at);
-        assert!(hold.is_some_and(|h| h.contains("below the margin")));
-        let again = held_at + dt;
-        let (resumed, hold) = offer(&mut c, &inputs(&config, &setup, 5, again, 0.2), again);
-        assert_eq!(hold, None);
-        for (slot, f) in setup.hand.fingers.iter().enumerate() {
-            for j in 0..f.dof() {
-                let want = stood(slot, j) + step;
-                assert!((resumed.joint_targets[slot][j] - want).abs() < 1e-12);
+        // After a hold the gate decided (the grasp below the margin): a command within
+        // WATCHDOG_PERIODS of the last tracking one is late as ever (every finger from its last
+        // command, by the time gone); more than that, and every finger sets off from where it
+        // stands, as after a restart: the gate refused the grasp it pressed.
+        let mut seq = 4;
+        for gap in [2, WATCHDOG_PERIODS as u64 + 2] {
+            let held_at = at + dt;
+            let mut below = inputs(&config, &setup, seq, held_at, 0.2);
+            below.wrench.quality = 0.5 * config.grasp.alpha;
+            let (_, hold) = offer(&mut c, &below, held_at);
+            assert!(hold.is_some_and(|h| h.contains("below the margin")));
+            at += gap * dt;
+            let (now, hold) = offer(&mut c, &inputs(&config, &setup, seq + 1, at, 0.2), at);
+            assert_eq!(hold, None);
+            let late = gap as f64 <= WATCHDOG_PERIODS;
+            for (slot, f) in setup.hand.fingers.iter().enumerate() {
+                for j in 0..f.dof() {
+                    let want = if late {
+                        last.joint_targets[slot][j] + gap as f64 * step
+                    } else {
+                        stood(slot, j) + step
+                    };
+                    let got = now.joint_targets[slot][j];
+                    assert!((got - want).abs() < 1e-12, "gap {gap} after a gated hold");
+                }
             }
+            last = now;
+            seq += 2;
         }
     }
 

@@ -76,11 +76,13 @@ pub struct Ended {
 }
 
 /// A loop stalled now and then, as on a machine busy with other work: for the first `length`
-/// ticks of every `period`, the nodes upstream of the hand command node (the estimator, the
-/// wrench-space node, the planner's follower) take no measurement (those of the stalled ticks
-/// are lost to them; the first one after is taken), so the command node has no wrench space
-/// to answer and its own timer holds the hand after [`crate::command::WATCHDOG_PERIODS`]
-/// periods, as it does on the bus. The plant goes on in time under the last command.
+/// ticks of every `period`, the joint states do not reach the estimator (those of the stalled
+/// ticks are lost; the first one after is taken), so no grasp state, wrench space or follower
+/// step comes of them and the command node has nothing to answer: its own timer holds the hand
+/// after [`crate::command::WATCHDOG_PERIODS`] periods, as it does on the bus. The plant goes on
+/// in time under the last command; what is not stalled: the object-pose measurements (taken by
+/// the estimator when due), the planner's republishing of its step on its timer, and the
+/// command node's timer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Stall {
     /// Ticks stalled at the start of every period (0: never).
