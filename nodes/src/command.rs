@@ -186,14 +186,10 @@ impl<'a> Commander<'a> {
             // Below the margin, an attach that adds a finger to the grasp the gate judged goes
             // on, the grasp's fingers held (the gate's `attach_below_margin`); only where each
             // has a command to be held at (`Tracker::can_hold`).
-            let attach = match (&decided, self.gate.plan()) {
-                (Err(hold), Some(plan)) => self
-                    .gate
-                    .attach_below_margin(hold)
-                    .filter(|a| self.tracker.can_hold(plan, a.finger))
-                    .map(|a| (*plan, a)),
-                _ => None,
-            };
+            let attach = decided
+                .as_ref()
+                .err()
+                .and_then(|h| self.attach_below_margin(h));
             match (decided, attach) {
                 (Ok(plan), _) => return self.track(&plan, header, now, None),
                 (Err(_), Some((plan, a))) => return self.track(&plan, header, now, Some(a)),
@@ -258,17 +254,23 @@ impl<'a> Commander<'a> {
         let refused = self.gate.decide(now).err();
         // Gated where the gate refuses to track; not where the wrench space that did not come
         // would have been answered by an attach below the margin (as `on_wrench` does).
-        let gated = refused.as_ref().is_some_and(|h| {
-            let attach = self
-                .gate
-                .plan()
-                .zip(self.gate.attach_below_margin(h))
-                .is_some_and(|(plan, a)| self.tracker.can_hold(plan, a.finger));
-            !attach
-        });
+        let gated = refused
+            .as_ref()
+            .is_some_and(|h| self.attach_below_margin(h).is_none());
         self.reason.clear();
         let _ = write!(self.reason, "{}", refused.unwrap_or(quiet));
         Some(self.hold(now, gated))
+    }
+
+    /// The attach below the margin that goes on despite the gate's `hold` (the gate's
+    /// `attach_below_margin`), with the plan step it attaches in: only where each other finger
+    /// has a command to be held at (`Tracker::can_hold`).
+    fn attach_below_margin(&self, hold: &Hold) -> Option<(PlanStepHeader, Attach)> {
+        let plan = self.gate.plan()?;
+        self.gate
+            .attach_below_margin(hold)
+            .filter(|a| self.tracker.can_hold(plan, a.finger))
+            .map(|a| (*plan, a))
     }
 
     /// A hold at `now` for the reason in `reason`: `gated` when something refused to track
@@ -509,18 +511,19 @@ impl Tracker<'_> {
             // stands (tried: from its last command then, the Allegro's ellipsoid at
             // plan.alpha 0.12 spun out in lockstep where it had reached the goal).
             let presses = self.pressing.contains(&target.finger) && !self.gated;
-            let from = match self.last {
-                Some((prev, _)) if kept.is_some() => joints_of(&prev, target.finger),
-                Some((prev, _)) if presses && joints_of(&prev, target.finger).is_some() => {
-                    joints_of(&prev, target.finger)
-                }
-                Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
-                _ => gate.grasp().and_then(|g| {
+            let stands = || {
+                gate.grasp().and_then(|g| {
                     let n = (g.finger_count as usize).min(MAX_FINGERS);
                     (0..n)
                         .find(|&s| g.fingers[s].finger == target.finger)
                         .map(|s| g.joints[s])
-                }),
+                })
+            };
+            let from = match self.last {
+                Some((prev, _)) if kept.is_some() => joints_of(&prev, target.finger),
+                Some((prev, _)) if presses => joints_of(&prev, target.finger).or_else(stands),
+                Some((prev, _)) if !resumed => Some(prev.joint_targets[k]),
+                _ => stands(),
             };
             step_toward(from, &goal, joints, max_step, &mut c.joint_targets[k]);
         }

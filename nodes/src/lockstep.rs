@@ -83,7 +83,7 @@ pub struct Ended {
 /// in time under the last command; what is not stalled: the object-pose measurements (taken by
 /// the estimator when due), the planner's republishing of its step on its timer, and the
 /// command node's timer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stall {
     /// Ticks stalled at the start of every period (0: never).
     pub length: u64,
